@@ -1,0 +1,1 @@
+"""Benchmarks: commands that print figures (real-time factor, errors, success rates)."""

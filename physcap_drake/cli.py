@@ -1,0 +1,24 @@
+"""The `physcap` command line."""
+
+from __future__ import annotations
+
+import typer
+
+from physcap_drake.commands import bench, sim
+
+app = typer.Typer(
+    name="physcap",
+    help="PhysCaP on a simulated or real AgileX PiPER, as a Drake systems diagram.",
+    no_args_is_help=True,
+    pretty_exceptions_enable=False,
+)
+app.command("sim")(sim.sim)
+app.add_typer(bench.app, name="bench")
+
+
+def main() -> None:
+    app()
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,1 @@
+"""Sub-commands of the `physcap` command line, one module each."""

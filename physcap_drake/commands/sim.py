@@ -1,0 +1,47 @@
+"""`physcap sim`: build a station, hold home (or sweep the joints), report the speed."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from physcap_drake.commands.common import (
+    console,
+    load_scenario_or_exit,
+    make_meshcat,
+    sim_progress,
+)
+from physcap_drake.sim_runner import advance, make_simulator, save_meshcat_html
+from physcap_drake.station_commands import build_commanded_station
+
+
+def sim(
+    scenario: Annotated[Path, typer.Option("--scenario", "-s", help="Scenario YAML file.")],
+    duration: Annotated[float | None, typer.Option(
+        "--duration", "-d", min=0.0,
+        help="Simulated seconds to run [default: the scenario's simulation_duration].")] = None,
+    meshcat: Annotated[bool, typer.Option("--meshcat", help="Show the run in Meshcat.")] = False,
+    html: Annotated[Path | None, typer.Option(
+        "--html", help="Save the run as a standalone HTML replay (implies Meshcat).")] = None,
+    wiggle: Annotated[bool, typer.Option(
+        "--wiggle", help="Sweep all six joints and the gripper instead of holding.")] = False,
+) -> None:
+    """Build the scenario's station and run it, printing sim time, wall time and the
+    real-time factor."""
+    loaded = load_scenario_or_exit(scenario)
+    seconds = loaded.simulation_duration if duration is None else duration
+    viewer = make_meshcat(loaded) if (meshcat or html) else None
+    diagram, _ = build_commanded_station(loaded, meshcat=viewer, sweep=wiggle, duration=seconds)
+    simulator = make_simulator(diagram, loaded)
+    if viewer is not None and html is not None:
+        viewer.StartRecording(frames_per_second=32.0, set_visualizations_while_recording=True)
+    with sim_progress("Simulating" + (" (joint sweep)" if wiggle else " (holding)"),
+                      seconds) as progress:
+        timing = advance(simulator, seconds, on_progress=progress)
+    if viewer is not None and html is not None:
+        save_meshcat_html(viewer, html)
+        console.print(f"Saved the Meshcat replay to {html}")
+    console.print(f"sim time {timing.sim_time:.3f} s, wall time {timing.wall_time:.3f} s, "
+                  f"real-time factor {timing.realtime_factor:.2f}")

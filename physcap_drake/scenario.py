@@ -1,0 +1,181 @@
+"""The scenario: everything needed to build and run a station, in one typed YAML file.
+
+A scenario file (see `stations/*.yaml`) is loaded with Drake's `yaml_load_typed` into the
+`Scenario` dataclass tree below; every field has a default, so a file only says what differs.
+Loading also checks values that parse but cannot work (out-of-range numbers, missing model
+files, a missing camera) and reports them as a `ScenarioError` naming the file, the key path
+and what was expected.
+"""
+
+# No `from __future__ import annotations`: yaml_load_typed reads the field types at run time.
+import dataclasses as dc
+from pathlib import Path
+
+import numpy as np
+from pydrake.common.schema import Transform
+from pydrake.common.yaml import yaml_load_typed
+from pydrake.geometry import MeshcatParams, RenderEngineVtkParams
+from pydrake.math import RigidTransform, RollPitchYaw
+from pydrake.multibody.parsing import FlattenModelDirectives, ModelDirective, ModelDirectives
+from pydrake.multibody.plant import MultibodyPlantConfig
+from pydrake.systems.analysis import SimulatorConfig
+from pydrake.systems.sensors import CameraConfig
+from pydrake.visualization import VisualizationConfig
+
+from physcap_drake.config_checks import ConfigChecker
+from physcap_drake.resources import make_package_map
+from physcap_drake.scenario_errors import ScenarioError, file_label, locate_yaml_error
+from physcap_drake.station.can_config import PiperCan
+from physcap_drake.station.sim_config import SimPiper
+
+#: Every station exports the ports of the camera with this name as `camera.rgb` etc.
+MAIN_CAMERA = "camera"
+
+
+def _default_plant_config() -> MultibodyPlantConfig:
+    # SAP is required: the gripper's fingers are coupled by a constraint only SAP supports.
+    # Hydroelastic with fallback: soft objects that declare hydroelastic properties get
+    # compliant hydroelastic contact, everything else rigid point contact (cheap).
+    return MultibodyPlantConfig(
+        time_step=0.004,
+        discrete_contact_approximation="sap",
+        contact_model="hydroelastic_with_fallback",
+    )
+
+
+def _default_camera() -> CameraConfig:
+    # Like the paper's ZED 2i: above and behind the arm, looking down at the workspace.
+    # 640 × 360 is the ZED's 1280 × 720 at half resolution (same field of view, cheaper to
+    # render); 70° vertical field of view as the ZED 2i's wide lens.
+    camera = CameraConfig(
+        name=MAIN_CAMERA,
+        width=640,
+        height=360,
+        focal=CameraConfig.FovDegrees(y=70.0),
+        z_near=0.1,
+        z_far=5.0,
+        fps=15.0,
+        rgb=True,
+        depth=True,
+        label=True,
+        renderer_name="vtk",
+        renderer_class=RenderEngineVtkParams(backend="EGL"),
+    )
+    camera.X_PB = Transform(RigidTransform(
+        RollPitchYaw(np.radians([-145.2109, 0.0, -90.0])), [-0.30, 0.0, 0.95]))
+    return camera
+
+
+@dc.dataclass
+class Scenario:
+    """A station and its scene. See `stations/piper_table.yaml` for a commented example."""
+
+    # Seed of every random choice in a run (sensor noise, later task layouts).
+    random_seed: int = 0
+    # Default length of `physcap sim`, s of simulated time.
+    simulation_duration: float = 5.0
+    # The MultibodyPlant: time step, contact model and solver (Drake's MultibodyPlantConfig).
+    plant_config: MultibodyPlantConfig = dc.field(default_factory=_default_plant_config)
+    # The models and how they are attached (Drake model directives): the arm, its gripper,
+    # the table and the objects.
+    directives: list[ModelDirective] = dc.field(default_factory=list)
+    # Which station: the simulated arm (!SimPiper) or the real arm over CAN (!PiperCan).
+    station: SimPiper | PiperCan = dc.field(default_factory=SimPiper)
+    # RGB-D cameras (Drake's CameraConfig); the one named "camera" is the station's camera.
+    cameras: list[CameraConfig] = dc.field(default_factory=lambda: [_default_camera()])
+    # What Meshcat shows (Drake's VisualizationConfig).
+    visualization: VisualizationConfig = dc.field(default_factory=VisualizationConfig)
+    # Meshcat's web server; bound to this machine only unless host is changed.
+    meshcat: MeshcatParams = dc.field(default_factory=lambda: MeshcatParams(host="localhost"))
+    # Integrator and pacing (Drake's SimulatorConfig); target_realtime_rate 0 runs flat out.
+    simulator_config: SimulatorConfig = dc.field(
+        default_factory=lambda: SimulatorConfig(target_realtime_rate=0.0))
+
+
+def load_scenario(filename: str | Path) -> Scenario:
+    """Loads and checks a scenario file. Raises ScenarioError naming the file and key path."""
+    label = file_label(filename)
+    if not Path(filename).is_file():
+        raise ScenarioError(filename=label, key_path="", expected="an existing scenario file",
+                            problem="no such file")
+    return _load(label, filename=str(filename))
+
+
+def load_scenario_text(text: str, *, label: str = "<string>") -> Scenario:
+    """Loads and checks a scenario given as YAML text (for tests and generated scenarios)."""
+    return _load(label, data=text)
+
+
+def _load(label: str, **source) -> Scenario:
+    try:
+        scenario = yaml_load_typed(schema=Scenario, **source)
+    except (RuntimeError, ValueError, TypeError, KeyError, AssertionError) as error:
+        raise locate_yaml_error(error, label) from error
+    except Exception as error:  # yaml syntax errors carry their own line and column
+        raise ScenarioError(filename=label, key_path="", expected="valid YAML",
+                            problem=str(error)) from error
+    check_scenario(scenario, label)
+    return scenario
+
+
+def check_scenario(scenario: Scenario, filename: str = "<scenario>") -> None:
+    """Checks the values of a loaded scenario; raises ScenarioError on the first bad one."""
+    at = ConfigChecker(filename)
+    at.number("random_seed", scenario.random_seed, minimum=0)
+    at.number("simulation_duration", scenario.simulation_duration, minimum=0.0)
+    _check_plant_config(scenario.plant_config, at.child("plant_config"))
+    scenario.station.check(at.child("station"))
+    _check_directives(scenario, at)
+    _check_cameras(scenario.cameras, at)
+
+
+def _check_plant_config(config: MultibodyPlantConfig, at: ConfigChecker) -> None:
+    at.number("time_step", config.time_step, minimum=0.0, maximum=0.02, open_minimum=True,
+              why="the station is a discrete-time plant")
+    at.choice("discrete_contact_approximation", config.discrete_contact_approximation,
+              ["sap"])
+    at.choice("contact_model", config.contact_model,
+              ["point", "hydroelastic", "hydroelastic_with_fallback"])
+
+
+def _check_directives(scenario: Scenario, at: ConfigChecker) -> None:
+    package_map = make_package_map()
+    for index, directive in enumerate(scenario.directives):
+        for kind in ("add_model", "add_directives"):
+            item = getattr(directive, kind)
+            if item is None:
+                continue
+            here = at.child("directives").child(index).child(kind)
+            try:
+                path = Path(package_map.ResolveUrl(item.file))
+            except RuntimeError as error:  # unknown package, or no file at that URL
+                here.fail("file", "an existing model file", f"{item.file!r}: {error}")
+            if not path.is_file():
+                here.fail("file", "an existing model file",
+                          f"{item.file!r} resolves to {path}, which is not a file")
+    if isinstance(scenario.station, SimPiper):
+        flat = FlattenModelDirectives(ModelDirectives(directives=scenario.directives),
+                                      package_map)
+        names = [d.add_model.name for d in flat.directives if d.add_model is not None]
+        for key in ("arm_model", "gripper_model"):
+            wanted = getattr(scenario.station, key)
+            if wanted not in names:
+                at.child("station").fail(key, f"the name of a model the directives add "
+                                         f"(they add {names})", f"got {wanted!r}")
+
+
+def _check_cameras(cameras: list[CameraConfig], at: ConfigChecker) -> None:
+    names = [camera.name for camera in cameras]
+    if MAIN_CAMERA not in names:
+        at.fail("cameras", f"a camera named {MAIN_CAMERA!r} (the station's camera)",
+                f"found the names {names}")
+    for index, camera in enumerate(cameras):
+        here = at.child("cameras").child(index)
+        if names.count(camera.name) > 1:
+            here.fail("name", "a camera name used once", f"{camera.name!r} is repeated")
+        here.number("width", camera.width, minimum=0, open_minimum=True)
+        here.number("height", camera.height, minimum=0, open_minimum=True)
+        here.number("fps", camera.fps, minimum=0.0, open_minimum=True)
+        if not (camera.rgb and camera.depth and camera.label):
+            here.fail("rgb", "rgb, depth and label all true (the station exports all three)",
+                      f"got rgb={camera.rgb}, depth={camera.depth}, label={camera.label}")

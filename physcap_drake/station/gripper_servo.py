@@ -1,0 +1,73 @@
+"""GripperServo: the PiPER gripper's firmware loop for two coupled fingers and one motor."""
+
+from __future__ import annotations
+
+import numpy as np
+from pydrake.systems.framework import BasicVector, Context, DiscreteValues, LeafSystem
+
+from physcap_drake.station.sim_config import GripperServo as GripperServoConfig
+
+
+class GripperServo(LeafSystem):
+    """Drives the gripper's one actuated finger joint towards a commanded opening with a
+    squeeze force that never exceeds the commanded limit.
+
+    Finger position s is half the opening (each finger's distance from the centre line, m);
+    the other finger follows through the model's coupler constraint. A reference s_ref moves
+    towards the command at `max_opening_speed / 2` m/s; the finger force is
+    f = clamp(k·(s_ref − s) − c·ṡ, ±F) with F = clamp(force_limit, 0, max_force). Positive f
+    opens. Against an object the position error grows until the force reaches F, so the
+    grip force is the commanded limit, as with the real gripper's effort setting.
+
+    Input ports:
+        opening_commanded (1): total opening, m; clamped to [0, 2·s_max].
+        force_limit (1): largest squeeze force, N.
+        finger_state (4): the gripper model instance's state [s_left, s_right, ṡ_left, ṡ_right].
+    Output ports:
+        finger_force (1): actuation of the actuated finger joint, N.
+        opening_measured (1): s_left + s_right, m.
+        effort (1): |f| / max_force, in [0, 1] (the normalized effort f̂, noise-free).
+    Discrete state: s_ref (m), updated every `period` s.
+    """
+
+    def __init__(self, config: GripperServoConfig, *, finger_travel: float, period: float):
+        super().__init__()
+        self._config = config
+        self._s_max = float(finger_travel)
+        self._dt = float(period)
+        self._command = self.DeclareVectorInputPort("opening_commanded", 1)
+        self._force_limit = self.DeclareVectorInputPort("force_limit", 1)
+        self._finger_state = self.DeclareVectorInputPort("finger_state", 4)
+        self.DeclareDiscreteState(1)
+        self.DeclarePeriodicDiscreteUpdateEvent(self._dt, 0.0, self._step)
+        self.DeclareInitializationDiscreteUpdateEvent(self._start_at_measured)
+        self.DeclareVectorOutputPort("finger_force", 1, self._output_force)
+        self.DeclareVectorOutputPort("opening_measured", 1, self._output_opening,
+                                     {self._finger_state.ticket()})
+        self.DeclareVectorOutputPort("effort", 1, self._output_effort)
+
+    def _start_at_measured(self, context: Context, state: DiscreteValues) -> None:
+        state.set_value([self._finger_state.Eval(context)[0]])
+
+    def _step(self, context: Context, state: DiscreteValues) -> None:
+        s_ref = context.get_discrete_state_vector().GetAtIndex(0)
+        s_target = float(np.clip(0.5 * self._command.Eval(context)[0], 0.0, self._s_max))
+        max_step = 0.5 * self._config.max_opening_speed * self._dt
+        state.set_value([s_ref + float(np.clip(s_target - s_ref, -max_step, max_step))])
+
+    def _force(self, context: Context) -> float:
+        s_ref = context.get_discrete_state_vector().GetAtIndex(0)
+        s, _, s_dot, _ = self._finger_state.Eval(context)
+        limit = float(np.clip(self._force_limit.Eval(context)[0], 0.0, self._config.max_force))
+        force = self._config.stiffness * (s_ref - s) - self._config.damping * s_dot
+        return float(np.clip(force, -limit, limit))
+
+    def _output_force(self, context: Context, output: BasicVector) -> None:
+        output.SetAtIndex(0, self._force(context))
+
+    def _output_opening(self, context: Context, output: BasicVector) -> None:
+        s_left, s_right = self._finger_state.Eval(context)[:2]
+        output.SetAtIndex(0, s_left + s_right)
+
+    def _output_effort(self, context: Context, output: BasicVector) -> None:
+        output.SetAtIndex(0, abs(self._force(context)) / self._config.max_force)

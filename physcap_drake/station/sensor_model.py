@@ -1,0 +1,53 @@
+"""ReportedSignal: noise, quantization and sampling of a signal the real arm reports."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from pydrake.systems.framework import BasicVector, Context, LeafSystem
+
+from physcap_drake.station.sim_config import SensorNoise
+
+
+class ReportedSignal(LeafSystem):
+    """Turns a true signal into what the arm would report on the bus.
+
+    The value reported at time t belongs to sample k = floor(t · sample_rate): the true input
+    plus zero-mean Gaussian noise drawn for (seed, stream, k), rounded to the nearest multiple
+    of `resolution`, then limited to [lower, upper] when given. The noise depends only on the
+    seed and the sample index, so it is identical from run to run and needs no state.
+
+    Input port:  true (n), in the signal's units.
+    Output port: reported (n), same units.
+    """
+
+    def __init__(self, noise: SensorNoise, *, seed: int, stream: int,
+                 lower: float | None = None, upper: float | None = None):
+        super().__init__()
+        size = len(noise.std)
+        self._std = np.asarray(noise.std, dtype=float)
+        self._resolution = np.asarray(noise.resolution, dtype=float)
+        self._rate = float(noise.sample_rate)
+        self._seed = int(seed)
+        self._stream = int(stream)
+        self._lower = -math.inf if lower is None else lower
+        self._upper = math.inf if upper is None else upper
+        self._true = self.DeclareVectorInputPort("true", size)
+        self.DeclareVectorOutputPort("reported", size, self._report,
+                                     {self.time_ticket(), self._true.ticket()})
+
+    def sample_noise(self, sample_index: int) -> np.ndarray:
+        """The noise added to sample `sample_index`, in the signal's units."""
+        if not self._std.any():
+            return np.zeros_like(self._std)
+        generator = np.random.default_rng((self._seed, self._stream, sample_index))
+        return self._std * generator.standard_normal(self._std.size)
+
+    def _report(self, context: Context, output: BasicVector) -> None:
+        sample_index = math.floor(context.get_time() * self._rate + 1e-9)
+        value = self._true.Eval(context) + self.sample_noise(sample_index)
+        quantized = self._resolution > 0
+        step = np.where(quantized, self._resolution, 1.0)
+        value = np.where(quantized, np.round(value / step) * step, value)
+        output.SetFromVector(np.clip(value, self._lower, self._upper))

@@ -1,0 +1,141 @@
+"""Configuration of the simulated PiPER station (`station: !SimPiper` in a scenario file).
+
+Every field has a default that models the real arm as closely as the public facts allow
+(`shared/reference/piper.md`); the comments say where each number comes from.
+"""
+
+# No `from __future__ import annotations`: yaml_load_typed reads the field types at run time.
+import dataclasses as dc
+
+from physcap_drake.config_checks import ConfigChecker
+
+NUM_ARM_JOINTS = 6
+
+
+@dc.dataclass
+class JointServo:
+    """The PiPER firmware's joint mode (MOVE J, position-velocity), as the arm runs it when a
+    host streams joint targets over CAN.
+
+    The firmware moves each joint towards its latest target with bounded speed and acceleration
+    and holds it with a stiff motor-side position loop plus compensation of the arm's own
+    weight. The simulated loop is Drake's implicit PD actuator (stable at any stiffness in SAP)
+    plus a gravity feed-forward computed from the arm model with an empty gripper; a payload
+    makes the arm sag by about tau_payload / stiffness (below 2 mrad for 0.35 kg).
+    """
+
+    # Position-loop stiffness per joint J1..J6, N·m/rad.
+    stiffness: list[float] = dc.field(
+        default_factory=lambda: [1500.0, 1500.0, 1500.0, 300.0, 300.0, 150.0])
+    # Velocity-loop damping per joint J1..J6, N·m·s/rad.
+    damping: list[float] = dc.field(
+        default_factory=lambda: [60.0, 60.0, 60.0, 6.0, 6.0, 3.0])
+    # Largest joint speed the firmware interpolates with, rad/s (0x474 allows 0..3).
+    max_velocity: float = 3.0
+    # Largest joint acceleration the firmware interpolates with, rad/s² (0x475 allows 0..5).
+    max_acceleration: float = 5.0
+    # Compensate the arm's own weight (the firmware's "empty load" setting, 0x477).
+    gravity_compensation: bool = True
+
+    def check(self, at: ConfigChecker) -> None:
+        at.vector("stiffness", self.stiffness, NUM_ARM_JOINTS, minimum=0.0, open_minimum=True)
+        at.vector("damping", self.damping, NUM_ARM_JOINTS, minimum=0.0)
+        at.number("max_velocity", self.max_velocity, minimum=0.0, maximum=3.0,
+                  open_minimum=True, why="the firmware accepts 0..3 rad/s")
+        at.number("max_acceleration", self.max_acceleration, minimum=0.0, maximum=5.0,
+                  open_minimum=True, why="the firmware accepts 0..5 rad/s²")
+
+
+@dc.dataclass
+class GripperServo:
+    """The gripper's firmware loop: the two coupled fingers move towards the commanded opening
+    at a bounded speed and squeeze with at most the commanded force.
+
+    The force on the actuated finger is clamp(k·(s_ref − s) − c·ṡ, ±F), F being the
+    `gripper.force_limit` input clamped to [0, max_force]. `gripper.effort_measured` is
+    |force| / max_force, the paper's normalized effort f̂.
+    """
+
+    # Finger position stiffness, N/m (per finger, s = half the opening).
+    stiffness: float = 2000.0
+    # Finger damping, N·s/m.
+    damping: float = 40.0
+    # Opening speed of the fingers' reference, m/s of total opening.
+    max_opening_speed: float = 0.10
+    # Force that reads as effort 1.0 and caps `gripper.force_limit`, N.
+    max_force: float = 40.0
+
+    def check(self, at: ConfigChecker) -> None:
+        at.number("stiffness", self.stiffness, minimum=0.0, open_minimum=True)
+        at.number("damping", self.damping, minimum=0.0)
+        at.number("max_opening_speed", self.max_opening_speed, minimum=0.0, open_minimum=True)
+        at.number("max_force", self.max_force, minimum=0.0, open_minimum=True)
+
+
+@dc.dataclass
+class SensorNoise:
+    """How a reported signal departs from the truth: it is sampled at `sample_rate`, gets
+    zero-mean Gaussian noise of standard deviation `std`, then is rounded to multiples of
+    `resolution` (the size of one count on the bus). Zero std and zero resolution give the
+    exact signal. The noise is a deterministic function of the scenario's random seed and the
+    sample index, so a run is reproducible.
+    """
+
+    # Standard deviation per element, in the signal's units.
+    std: list[float] = dc.field(default_factory=list)
+    # One count of the reported value per element, in the signal's units (0: not quantized).
+    resolution: list[float] = dc.field(default_factory=list)
+    # Rate at which the arm reports a new value, Hz (the PiPER's high-speed feedback: 200 Hz).
+    sample_rate: float = 200.0
+
+    def check(self, at: ConfigChecker, size: int) -> None:
+        at.vector("std", self.std, size, minimum=0.0)
+        at.vector("resolution", self.resolution, size, minimum=0.0)
+        at.number("sample_rate", self.sample_rate, minimum=0.0, open_minimum=True)
+
+
+def _default_torque_noise() -> SensorNoise:
+    # Joint torque is motor current (0x251-0x256, counts of 1 mA) times a torque constant:
+    # 1 mA reads as 0.004725 N·m on J1-J3 (1.18125 × 4) and 0.00095844 N·m on J4-J6.
+    # Current noise of about 10 mA rms on J1-J3 and 10 mA on J4-J6 gives the std below; a
+    # one-second average at 200 Hz then carries about 3 mN·m of error on J1-J3.
+    return SensorNoise(
+        std=[0.05, 0.05, 0.05, 0.01, 0.01, 0.01],
+        resolution=[0.004725, 0.004725, 0.004725, 0.00095844, 0.00095844, 0.00095844],
+    )
+
+
+def _default_effort_noise() -> SensorNoise:
+    # Gripper effort is reported in counts of 0.001 N·m (0x2A8); normalized by the
+    # configured maximum, one count is about 0.001, and current noise about 0.5 %.
+    return SensorNoise(std=[0.005], resolution=[0.001])
+
+
+@dc.dataclass
+class SimPiper:
+    """The simulated PiPER: the arm and gripper of the scenario's model directives, simulated
+    in a MultibodyPlant and driven the way the real firmware drives them."""
+
+    # Name of the arm's model instance in the directives (links base_link..link6).
+    arm_model: str = "piper"
+    # Name of the gripper's model instance in the directives (welded to the arm's link6).
+    gripper_model: str = "piper_gripper"
+    # Joint positions J1..J6 at the start, rad (the arm's home is all zeros).
+    initial_arm_position: list[float] = dc.field(
+        default_factory=lambda: [0.0] * NUM_ARM_JOINTS)
+    # Gripper opening at the start, m (total gap between the fingers).
+    initial_gripper_opening: float = 0.0
+    joint_servo: JointServo = dc.field(default_factory=JointServo)
+    gripper_servo: GripperServo = dc.field(default_factory=GripperServo)
+    # Noise and quantization of `piper.torque_measured`, N·m.
+    torque_noise: SensorNoise = dc.field(default_factory=_default_torque_noise)
+    # Noise and quantization of `gripper.effort_measured` (normalized, 0..1).
+    effort_noise: SensorNoise = dc.field(default_factory=_default_effort_noise)
+
+    def check(self, at: ConfigChecker) -> None:
+        at.vector("initial_arm_position", self.initial_arm_position, NUM_ARM_JOINTS)
+        at.number("initial_gripper_opening", self.initial_gripper_opening, minimum=0.0)
+        self.joint_servo.check(at.child("joint_servo"))
+        self.gripper_servo.check(at.child("gripper_servo"))
+        self.torque_noise.check(at.child("torque_noise"), NUM_ARM_JOINTS)
+        self.effort_noise.check(at.child("effort_noise"), 1)

@@ -1,0 +1,149 @@
+"""The simulated PiPER station: a MultibodyPlant world driven like the real arm's firmware."""
+
+from __future__ import annotations
+
+import numpy as np
+from pydrake.geometry import Meshcat
+from pydrake.multibody.plant import AddMultibodyPlant, MultibodyPlant
+from pydrake.multibody.tree import ModelInstanceIndex, PdControllerGains, PrismaticJoint
+from pydrake.systems.framework import Diagram, DiagramBuilder
+from pydrake.systems.primitives import ConstantVectorSource, Demultiplexer
+from pydrake.visualization import ApplyVisualizationConfig
+
+from physcap_drake.station import ports
+from physcap_drake.station.cameras import add_camera
+from physcap_drake.station.gravity_compensation import GravityCompensation
+from physcap_drake.station.gripper_servo import GripperServo
+from physcap_drake.station.joint_target_interpolator import JointTargetInterpolator
+from physcap_drake.station.robot_model import (
+    add_directives,
+    arm_joint_limits,
+    make_controller_plant,
+)
+from physcap_drake.station.sensor_model import ReportedSignal
+from physcap_drake.station.sim_config import SimPiper
+
+# Streams of the sensor-noise generator, so each reported signal gets its own noise.
+_TORQUE_NOISE_STREAM = 1
+_EFFORT_NOISE_STREAM = 2
+
+
+def _actuators_of(plant: MultibodyPlant, model: ModelInstanceIndex) -> list:
+    # GetJointActuatorIndices(model) is empty before Finalize(); filter all of them instead.
+    actuators = [plant.get_joint_actuator(i) for i in plant.GetJointActuatorIndices()]
+    return [a for a in actuators if a.model_instance() == model]
+
+
+def _arm_actuators(plant: MultibodyPlant, arm: ModelInstanceIndex) -> list:
+    actuators = _actuators_of(plant, arm)
+    if len(actuators) != ports.NUM_ARM_JOINTS:
+        raise ValueError(f"the arm model '{plant.GetModelInstanceName(arm)}' has "
+                         f"{len(actuators)} actuators; the station needs "
+                         f"{ports.NUM_ARM_JOINTS} (joints J1..J6)")
+    return sorted(actuators, key=lambda a: a.joint().index())
+
+
+def _actuated_finger(plant: MultibodyPlant, gripper: ModelInstanceIndex) -> PrismaticJoint:
+    actuators = _actuators_of(plant, gripper)
+    joints = [plant.get_joint(j) for j in plant.GetJointIndices(gripper)
+              if plant.get_joint(j).num_positions() == 1]
+    if len(actuators) != 1 or len(joints) != 2:
+        raise ValueError(f"the gripper model '{plant.GetModelInstanceName(gripper)}' needs two "
+                         f"finger joints and one actuator; it has {len(joints)} and "
+                         f"{len(actuators)}")
+    finger = actuators[0].joint()
+    if finger.position_start() != min(j.position_start() for j in joints):
+        raise ValueError("the gripper's actuated finger joint must be its first joint")
+    return finger
+
+
+def MakeSimStation(scenario, meshcat: Meshcat | None = None) -> Diagram:
+    """Builds the simulated station for `scenario` (whose `station` is a `SimPiper`).
+
+    See `physcap_drake.station.ports` for the port contract. The diagram's subsystems named
+    "plant" and "scene_graph" are the simulated world (for sim-only tools and tests).
+    """
+    config: SimPiper = scenario.station
+    builder = DiagramBuilder()
+    plant, scene_graph = AddMultibodyPlant(scenario.plant_config, builder)
+    add_directives(plant, scenario.directives)
+    arm = plant.GetModelInstanceByName(config.arm_model)
+    gripper = plant.GetModelInstanceByName(config.gripper_model)
+    servo = config.joint_servo
+    for i, actuator in enumerate(_arm_actuators(plant, arm)):
+        actuator.set_controller_gains(PdControllerGains(p=servo.stiffness[i],
+                                                        d=servo.damping[i]))
+    plant.Finalize()
+    time_step = plant.time_step()
+
+    lower, upper = arm_joint_limits(plant, arm)
+    q0 = np.asarray(config.initial_arm_position, dtype=float)
+    if np.any(q0 < lower) or np.any(q0 > upper):
+        raise ValueError(f"station.initial_arm_position {q0.tolist()} is outside the joint "
+                         f"limits [{lower.tolist()}, {upper.tolist()}] rad")
+    plant.SetDefaultPositions(arm, q0)
+    finger = _actuated_finger(plant, gripper)
+    finger_travel = finger.position_upper_limits()[0]
+    opening0 = config.initial_gripper_opening
+    if opening0 > 2 * finger_travel + 1e-9:
+        raise ValueError(f"station.initial_gripper_opening {opening0} m exceeds the gripper's "
+                         f"stroke of {2 * finger_travel} m")
+    plant.SetDefaultPositions(gripper, [0.5 * opening0, 0.5 * opening0])
+
+    # The arm: firmware joint mode = interpolated reference + stiff PD + gravity feed-forward.
+    arm_state = builder.AddNamedSystem("arm_state", Demultiplexer([ports.NUM_ARM_JOINTS] * 2))
+    builder.Connect(plant.get_state_output_port(arm), arm_state.get_input_port())
+    interpolator = builder.AddNamedSystem("joint_target_interpolator", JointTargetInterpolator(
+        lower=lower, upper=upper, max_velocity=servo.max_velocity,
+        max_acceleration=servo.max_acceleration, period=time_step))
+    builder.Connect(arm_state.get_output_port(0),
+                    interpolator.GetInputPort("position_measured"))
+    builder.Connect(interpolator.GetOutputPort("desired_state"),
+                    plant.get_desired_state_input_port(arm))
+    if servo.gravity_compensation:
+        controller_plant = make_controller_plant(scenario.directives, config.arm_model,
+                                                 config.gripper_model)
+        controller_arm = controller_plant.GetModelInstanceByName(config.arm_model)
+        gravity = builder.AddNamedSystem("gravity_compensation", GravityCompensation(
+            controller_plant, [a.joint() for a in _arm_actuators(controller_plant,
+                                                                 controller_arm)]))
+        builder.Connect(arm_state.get_output_port(0), gravity.get_input_port())
+        builder.Connect(gravity.get_output_port(), plant.get_actuation_input_port(arm))
+    else:
+        zero = builder.AddNamedSystem("no_feedforward",
+                                      ConstantVectorSource(np.zeros(ports.NUM_ARM_JOINTS)))
+        builder.Connect(zero.get_output_port(), plant.get_actuation_input_port(arm))
+    builder.ExportInput(interpolator.GetInputPort("position_commanded"), ports.ARM_POSITION)
+    builder.ExportOutput(arm_state.get_output_port(0), ports.ARM_POSITION_MEASURED)
+    builder.ExportOutput(arm_state.get_output_port(1), ports.ARM_VELOCITY_ESTIMATED)
+    torque = builder.AddNamedSystem("torque_sensor", ReportedSignal(
+        config.torque_noise, seed=scenario.random_seed, stream=_TORQUE_NOISE_STREAM))
+    builder.Connect(plant.get_net_actuation_output_port(arm), torque.get_input_port())
+    builder.ExportOutput(torque.get_output_port(), ports.ARM_TORQUE_MEASURED)
+
+    # The gripper: one motor, two coupled fingers.
+    gripper_servo = builder.AddNamedSystem("gripper_servo", GripperServo(
+        config.gripper_servo, finger_travel=finger_travel, period=time_step))
+    builder.Connect(plant.get_state_output_port(gripper),
+                    gripper_servo.GetInputPort("finger_state"))
+    builder.Connect(gripper_servo.GetOutputPort("finger_force"),
+                    plant.get_actuation_input_port(gripper))
+    builder.ExportInput(gripper_servo.GetInputPort("opening_commanded"), ports.GRIPPER_POSITION)
+    builder.ExportInput(gripper_servo.GetInputPort("force_limit"), ports.GRIPPER_FORCE_LIMIT)
+    builder.ExportOutput(gripper_servo.GetOutputPort("opening_measured"),
+                         ports.GRIPPER_POSITION_MEASURED)
+    effort = builder.AddNamedSystem("effort_sensor", ReportedSignal(
+        config.effort_noise, seed=scenario.random_seed, stream=_EFFORT_NOISE_STREAM,
+        lower=0.0, upper=1.0))
+    builder.Connect(gripper_servo.GetOutputPort("effort"), effort.get_input_port())
+    builder.ExportOutput(effort.get_output_port(), ports.GRIPPER_EFFORT_MEASURED)
+
+    for camera in scenario.cameras:
+        add_camera(builder, plant, scene_graph, camera)
+    builder.ExportOutput(plant.get_body_poses_output_port(), ports.BODY_POSES)
+    if meshcat is not None:
+        ApplyVisualizationConfig(scenario.visualization, builder, meshcat=meshcat)
+
+    diagram = builder.Build()
+    diagram.set_name("station")
+    return diagram

@@ -1,0 +1,52 @@
+"""The `physcap` command line: sim runs and reports; bad scenarios give a clear error."""
+
+from __future__ import annotations
+
+import base64
+import re
+
+from typer.testing import CliRunner
+
+from physcap_drake.cli import app
+from physcap_drake.resources import stations_dir
+
+runner = CliRunner()
+TABLE = str(stations_dir() / "piper_table.yaml")
+
+
+def test_sim_prints_sim_time_wall_time_and_realtime_factor():
+    result = runner.invoke(app, ["sim", "--scenario", TABLE, "--duration", "0.5"])
+    assert result.exit_code == 0, result.output
+    match = re.search(r"sim time ([\d.]+) s, wall time ([\d.]+) s, real-time factor ([\d.]+)",
+                      result.output)
+    assert match, result.output
+    assert float(match.group(1)) == 0.5
+    assert float(match.group(3)) > 0
+
+
+def test_sim_wiggle_saves_a_meshcat_replay(tmp_path):
+    html = tmp_path / "replay.html"
+    result = runner.invoke(app, ["sim", "--scenario", TABLE, "--duration", "0.3", "--wiggle",
+                                 "--html", str(html)])
+    assert result.exit_code == 0, result.output
+    text = html.read_text()
+    assert "<html" in text.lower() and "meshcat" in text.lower()
+    commands = b"".join(base64.b64decode(blob) for blob in re.findall(
+        r"data:application/octet-binary;base64,([A-Za-z0-9+/=]+)", text))
+    assert b"/drake/illustration/piper/" in commands  # the arm is in the recorded scene
+    assert b"set_animation" in commands  # and its motion was recorded
+    assert "127.0.0.1" in result.output or "localhost" in result.output
+
+
+def test_bad_scenario_exits_2_naming_file_and_key(tmp_path):
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("station: !SimPiper {joint_servo: {max_velocity: 9}}\n")
+    result = runner.invoke(app, ["sim", "--scenario", str(bad)])
+    assert result.exit_code == 2
+    assert "bad.yaml" in result.output and "station.joint_servo.max_velocity" in result.output
+
+
+def test_missing_scenario_file_exits_2(tmp_path):
+    result = runner.invoke(app, ["sim", "--scenario", str(tmp_path / "none.yaml")])
+    assert result.exit_code == 2
+    assert "no such file" in result.output

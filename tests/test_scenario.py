@@ -1,0 +1,147 @@
+"""Scenario files: every shipped one loads; each kind of bad input names file, key and need."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from physcap_drake.resources import stations_dir
+from physcap_drake.scenario import load_scenario, load_scenario_text
+from physcap_drake.scenario_errors import ScenarioError
+from physcap_drake.station import MakeStation
+from physcap_drake.station.can_config import PiperCan
+from physcap_drake.station.sim_config import SimPiper
+
+ROBOT = """
+directives:
+- add_directives:
+    file: package://physcap_models/piper/piper_100mm.dmd.yaml
+"""
+
+
+def load_error(text: str) -> ScenarioError:
+    with pytest.raises(ScenarioError) as caught:
+        load_scenario_text(text, label="bad.yaml")
+    return caught.value
+
+
+@pytest.mark.parametrize("path", sorted(stations_dir().glob("*.yaml")), ids=lambda p: p.name)
+def test_every_shipped_scenario_loads(path: Path):
+    scenario = load_scenario(path)
+    assert isinstance(scenario.station, SimPiper)
+
+
+def test_defaults_fill_what_a_file_leaves_out():
+    scenario = load_scenario_text(ROBOT)
+    assert scenario.plant_config.discrete_contact_approximation == "sap"
+    assert scenario.station.joint_servo.max_velocity == 3.0
+    assert [c.name for c in scenario.cameras] == ["camera"]
+    assert scenario.meshcat.host == "localhost"
+
+
+def test_unknown_top_level_key():
+    error = load_error(ROBOT + "random_seeds: 3\n")
+    assert error.filename == "bad.yaml"
+    assert "random_seeds" in error.problem
+    assert "bad.yaml" in str(error)
+
+
+def test_unknown_nested_key_names_its_path():
+    error = load_error(ROBOT + "station: !SimPiper\n  joint_servo: {max_velocty: 2.0}\n")
+    assert error.key_path == "station.joint_servo"
+    assert "max_velocty" in str(error)
+
+
+def test_unknown_key_inside_a_list_item_names_the_index():
+    error = load_error(ROBOT + "- add_weld: {parent: world, chid: table::table_top}\n")
+    assert error.key_path == "directives[1].add_weld"
+    assert "chid" in str(error)
+
+
+def test_wrong_type_names_key_and_expected_type():
+    error = load_error(ROBOT + "random_seed: seven\n")
+    assert error.key_path == "random_seed"
+    assert error.expected == "an integer"
+    assert "seven" in str(error)
+
+
+def test_wrong_type_in_nested_list():
+    error = load_error(ROBOT + "station: !SimPiper\n  joint_servo:\n"
+                       "    stiffness: [1, 2, three, 4, 5, 6]\n")
+    assert error.key_path == "station.joint_servo.stiffness[2]"
+    assert error.expected == "a number"
+
+
+def test_unknown_station_tag_lists_the_choices():
+    error = load_error(ROBOT + "station: !SimPyper {}\n")
+    assert error.key_path == "station"
+    assert "SimPyper" in str(error) and "SimPiper" in str(error) and "PiperCan" in str(error)
+
+
+def test_missing_model_file():
+    error = load_error(ROBOT + "- add_model: {name: x, file: package://physcap_models/nope.sdf}\n")
+    assert error.key_path == "directives[1].add_model.file"
+    assert error.expected == "an existing model file"
+    assert "nope.sdf" in error.problem
+
+
+def test_unknown_package_in_model_url():
+    error = load_error(ROBOT + "- add_model: {name: x, file: package://nowhere/x.sdf}\n")
+    assert error.key_path == "directives[1].add_model.file"
+
+
+@pytest.mark.parametrize(("snippet", "key_path", "needs"), [
+    ("station: !SimPiper {joint_servo: {max_velocity: 4.0}}",
+     "station.joint_servo.max_velocity", "<= 3"),
+    ("station: !SimPiper {joint_servo: {max_acceleration: -1}}",
+     "station.joint_servo.max_acceleration", "> 0"),
+    ("station: !SimPiper {torque_noise: {std: [0.1, 0.1, 0.1, 0.1, 0.1, -0.1]}}",
+     "station.torque_noise.std[5]", ">= 0"),
+    ("plant_config: {time_step: 0.0}", "plant_config.time_step", "> 0"),
+    ("plant_config: {discrete_contact_approximation: lagged}",
+     "plant_config.discrete_contact_approximation", "'sap'"),
+    ("random_seed: -4", "random_seed", ">= 0"),
+    ("station: !PiperCan {gripper_stroke_mm: 80}", "station.gripper_stroke_mm", "70, 100"),
+])
+def test_out_of_range_values(snippet, key_path, needs):
+    error = load_error(ROBOT + snippet + "\n")
+    assert error.key_path == key_path
+    assert needs in error.expected
+
+
+def test_wrong_vector_length():
+    error = load_error(ROBOT + "station: !SimPiper {initial_arm_position: [0, 0, 0]}\n")
+    assert error.key_path == "station.initial_arm_position"
+    assert "6" in error.expected and "3" in error.problem
+
+
+def test_station_model_names_must_exist():
+    error = load_error(ROBOT + "station: !SimPiper {arm_model: piperr}\n")
+    assert error.key_path == "station.arm_model"
+    assert "piper" in error.expected and "piperr" in error.problem
+
+
+def test_the_station_camera_is_required():
+    error = load_error(ROBOT + "cameras: [{name: side, rgb: true, depth: true, label: true}]\n")
+    assert error.key_path == "cameras"
+    assert "'camera'" in error.expected
+
+
+def test_missing_scenario_file(tmp_path):
+    with pytest.raises(ScenarioError, match="no such file"):
+        load_scenario(tmp_path / "missing.yaml")
+
+
+def test_yaml_syntax_error_names_the_file(tmp_path):
+    path = tmp_path / "broken.yaml"
+    path.write_text("station: [unclosed\n")
+    with pytest.raises(ScenarioError, match="broken.yaml"):
+        load_scenario(path)
+
+
+def test_real_arm_station_parses_but_is_not_built_yet():
+    scenario = load_scenario_text(ROBOT + "station: !PiperCan {channel: can1}\n")
+    assert isinstance(scenario.station, PiperCan) and scenario.station.channel == "can1"
+    with pytest.raises(NotImplementedError, match="PiperCan"):
+        MakeStation(scenario)
