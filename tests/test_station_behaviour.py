@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from physcap_drake.sim_runner import make_simulator
-from physcap_drake.station import ports
+from physcap_drake.station import MakeStation, ports
 from physcap_drake.station.sim_config import SensorNoise
 from physcap_drake.station_commands import build_commanded_station
 
@@ -121,3 +121,9 @@ def test_joint_targets_beyond_the_limits_are_clamped(table_scenario):
     run.advance_to(3.0)
     q = run.read(ports.ARM_POSITION_MEASURED)
     np.testing.assert_allclose(q, [0.0, 0.5, -0.5, 0.0, 0.0, 2.0943951], atol=2e-3)
+
+
+def test_a_gripper_force_the_actuator_cannot_deliver_is_refused(table_scenario):
+    table_scenario.station.gripper_servo.max_force = 40.0  # needs 80 N; the actuator has 60
+    with pytest.raises(ValueError, match="station.gripper_servo.max_force"):
+        MakeStation(table_scenario)

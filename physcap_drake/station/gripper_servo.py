@@ -14,24 +14,33 @@ class GripperServo(LeafSystem):
 
     Finger position s is half the opening (each finger's distance from the centre line, m);
     the other finger follows through the model's coupler constraint. A reference s_ref moves
-    towards the command at `max_opening_speed / 2` m/s; the finger force is
-    f = clamp(k·(s_ref − s) − c·ṡ, ±F) with F = clamp(force_limit, 0, max_force). Positive f
-    opens. Against an object the position error grows until the force reaches F, so the
-    grip force is the commanded limit, as with the real gripper's effort setting.
+    towards the command at `max_opening_speed / 2` m/s; each finger pushes with
+    f = clamp(k·(s_ref − s) − c·ṡ, ±F), F = clamp(force_limit, 0, max_force), positive
+    opening. The coupler shares the actuated joint's force between the two fingers, so the
+    actuator applies 2·f. Against an object the position error grows until f reaches F: the
+    object is squeezed with the commanded limit, as with the real gripper's effort setting.
 
     Input ports:
         opening_commanded (1): total opening, m; clamped to [0, 2·s_max].
         force_limit (1): largest squeeze force, N.
         finger_state (4): the gripper model instance's state [s_left, s_right, ṡ_left, ṡ_right].
     Output ports:
-        finger_force (1): actuation of the actuated finger joint, N.
+        finger_force (1): actuation of the actuated finger joint (2·f), N.
         opening_measured (1): s_left + s_right, m.
         effort (1): |f| / max_force, in [0, 1] (the normalized effort f̂, noise-free).
+
+    Raises ValueError if the model's actuator cannot deliver 2·max_force.
     Discrete state: s_ref (m), updated every `period` s.
     """
 
-    def __init__(self, config: GripperServoConfig, *, finger_travel: float, period: float):
+    def __init__(self, config: GripperServoConfig, *, finger_travel: float,
+                 actuator_effort_limit: float, period: float):
         super().__init__()
+        if 2.0 * config.max_force > actuator_effort_limit + 1e-9:
+            raise ValueError(
+                f"station.gripper_servo.max_force = {config.max_force} N per finger needs "
+                f"{2.0 * config.max_force} N of actuator force, but the gripper model's "
+                f"actuator is limited to {actuator_effort_limit} N")
         self._config = config
         self._s_max = float(finger_travel)
         self._dt = float(period)
@@ -55,7 +64,8 @@ class GripperServo(LeafSystem):
         max_step = 0.5 * self._config.max_opening_speed * self._dt
         state.set_value([s_ref + float(np.clip(s_target - s_ref, -max_step, max_step))])
 
-    def _force(self, context: Context) -> float:
+    def _finger_force(self, context: Context) -> float:
+        """f, the force each finger pushes with (positive opening), N."""
         s_ref = context.get_discrete_state_vector().GetAtIndex(0)
         s, _, s_dot, _ = self._finger_state.Eval(context)
         limit = float(np.clip(self._force_limit.Eval(context)[0], 0.0, self._config.max_force))
@@ -63,11 +73,11 @@ class GripperServo(LeafSystem):
         return float(np.clip(force, -limit, limit))
 
     def _output_force(self, context: Context, output: BasicVector) -> None:
-        output.SetAtIndex(0, self._force(context))
+        output.SetAtIndex(0, 2.0 * self._finger_force(context))
 
     def _output_opening(self, context: Context, output: BasicVector) -> None:
         s_left, s_right = self._finger_state.Eval(context)[:2]
         output.SetAtIndex(0, s_left + s_right)
 
     def _output_effort(self, context: Context, output: BasicVector) -> None:
-        output.SetAtIndex(0, abs(self._force(context)) / self._config.max_force)
+        output.SetAtIndex(0, abs(self._finger_force(context)) / self._config.max_force)

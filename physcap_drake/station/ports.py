@@ -1,8 +1,8 @@
 """The station's port contract: the same names and sizes for the simulated and the real arm.
 
 Units: joint positions rad, velocities rad/s, torques N·m (joint order J1..J6); gripper
-opening m (total gap between the fingers); gripper force limit N (squeeze force);
-gripper effort normalized to [0, 1] of the station's maximum force (the paper's f̂).
+opening m (total gap between the fingers); gripper force limit N (squeeze force of
+each finger); gripper effort normalized to [0, 1] of the station's maximum force (the paper's f̂).
 """
 
 NUM_ARM_JOINTS = 6
@@ -10,7 +10,7 @@ NUM_ARM_JOINTS = 6
 # Inputs: what a controller commands.
 ARM_POSITION = "piper.position"  # 6: joint targets, rad (the firmware's joint mode)
 GRIPPER_POSITION = "gripper.position"  # 1: commanded opening, m
-GRIPPER_FORCE_LIMIT = "gripper.force_limit"  # 1: largest squeeze force, N
+GRIPPER_FORCE_LIMIT = "gripper.force_limit"  # 1: largest squeeze force of each finger, N
 
 # Outputs: what the arm reports.
 ARM_POSITION_MEASURED = "piper.position_measured"  # 6: rad

@@ -51,9 +51,9 @@ class GripperServo:
     """The gripper's firmware loop: the two coupled fingers move towards the commanded opening
     at a bounded speed and squeeze with at most the commanded force.
 
-    The force on the actuated finger is clamp(k·(s_ref − s) − c·ṡ, ±F), F being the
-    `gripper.force_limit` input clamped to [0, max_force]. `gripper.effort_measured` is
-    |force| / max_force, the paper's normalized effort f̂.
+    Each finger pushes with f = clamp(k·(s_ref − s) − c·ṡ, ±F), F being the
+    `gripper.force_limit` input (squeeze force per finger, N) clamped to [0, max_force].
+    `gripper.effort_measured` is |f| / max_force, the paper's normalized effort f̂.
     """
 
     # Finger position stiffness, N/m (per finger, s = half the opening).
@@ -62,8 +62,9 @@ class GripperServo:
     damping: float = 40.0
     # Opening speed of the fingers' reference, m/s of total opening.
     max_opening_speed: float = 0.10
-    # Force that reads as effort 1.0 and caps `gripper.force_limit`, N.
-    max_force: float = 40.0
+    # Squeeze force per finger that reads as effort 1.0 and caps `gripper.force_limit`, N.
+    # The gripper model's actuator (60 N, shared by the two coupled fingers) allows up to 30.
+    max_force: float = 25.0
 
     def check(self, at: ConfigChecker) -> None:
         at.number("stiffness", self.stiffness, minimum=0.0, open_minimum=True)

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 from pydrake.geometry import Meshcat
 from pydrake.multibody.plant import AddMultibodyPlant, MultibodyPlant
-from pydrake.multibody.tree import ModelInstanceIndex, PdControllerGains, PrismaticJoint
+from pydrake.multibody.tree import JointActuator, ModelInstanceIndex, PdControllerGains
 from pydrake.systems.framework import Diagram, DiagramBuilder
 from pydrake.systems.primitives import ConstantVectorSource, Demultiplexer
 from pydrake.visualization import ApplyVisualizationConfig
@@ -43,7 +43,7 @@ def _arm_actuators(plant: MultibodyPlant, arm: ModelInstanceIndex) -> list:
     return sorted(actuators, key=lambda a: a.joint().index())
 
 
-def _actuated_finger(plant: MultibodyPlant, gripper: ModelInstanceIndex) -> PrismaticJoint:
+def _finger_actuator(plant: MultibodyPlant, gripper: ModelInstanceIndex) -> JointActuator:
     actuators = _actuators_of(plant, gripper)
     joints = [plant.get_joint(j) for j in plant.GetJointIndices(gripper)
               if plant.get_joint(j).num_positions() == 1]
@@ -51,10 +51,9 @@ def _actuated_finger(plant: MultibodyPlant, gripper: ModelInstanceIndex) -> Pris
         raise ValueError(f"the gripper model '{plant.GetModelInstanceName(gripper)}' needs two "
                          f"finger joints and one actuator; it has {len(joints)} and "
                          f"{len(actuators)}")
-    finger = actuators[0].joint()
-    if finger.position_start() != min(j.position_start() for j in joints):
+    if actuators[0].joint().index() != min(j.index() for j in joints):
         raise ValueError("the gripper's actuated finger joint must be its first joint")
-    return finger
+    return actuators[0]
 
 
 def MakeSimStation(scenario, meshcat: Meshcat | None = None) -> Diagram:
@@ -82,8 +81,8 @@ def MakeSimStation(scenario, meshcat: Meshcat | None = None) -> Diagram:
         raise ValueError(f"station.initial_arm_position {q0.tolist()} is outside the joint "
                          f"limits [{lower.tolist()}, {upper.tolist()}] rad")
     plant.SetDefaultPositions(arm, q0)
-    finger = _actuated_finger(plant, gripper)
-    finger_travel = finger.position_upper_limits()[0]
+    finger_actuator = _finger_actuator(plant, gripper)
+    finger_travel = finger_actuator.joint().position_upper_limits()[0]
     opening0 = config.initial_gripper_opening
     if opening0 > 2 * finger_travel + 1e-9:
         raise ValueError(f"station.initial_gripper_opening {opening0} m exceeds the gripper's "
@@ -123,7 +122,8 @@ def MakeSimStation(scenario, meshcat: Meshcat | None = None) -> Diagram:
 
     # The gripper: one motor, two coupled fingers.
     gripper_servo = builder.AddNamedSystem("gripper_servo", GripperServo(
-        config.gripper_servo, finger_travel=finger_travel, period=time_step))
+        config.gripper_servo, finger_travel=finger_travel,
+        actuator_effort_limit=finger_actuator.effort_limit(), period=time_step))
     builder.Connect(plant.get_state_output_port(gripper),
                     gripper_servo.GetInputPort("finger_state"))
     builder.Connect(gripper_servo.GetOutputPort("finger_force"),
