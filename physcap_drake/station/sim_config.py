@@ -8,8 +8,7 @@ Every field has a default that models the real arm as closely as the public fact
 import dataclasses as dc
 
 from physcap_drake.config_checks import ConfigChecker
-
-NUM_ARM_JOINTS = 6
+from physcap_drake.station.ports import NUM_ARM_JOINTS
 
 
 @dc.dataclass
