@@ -23,6 +23,7 @@ from pydrake.systems.sensors import CameraConfig
 from pydrake.visualization import VisualizationConfig
 
 from physcap_drake.config_checks import ConfigChecker
+from physcap_drake.control.skills_config import SkillsConfig
 from physcap_drake.resources import make_package_map
 from physcap_drake.scenario_errors import ScenarioError, file_label, locate_yaml_error
 from physcap_drake.station.can_config import PiperCan
@@ -81,6 +82,8 @@ class Scenario:
     directives: list[ModelDirective] = dc.field(default_factory=list)
     # Which station: the simulated arm (!SimPiper) or the real arm over CAN (!PiperCan).
     station: SimPiper | PiperCan = dc.field(default_factory=SimPiper)
+    # Limits and tolerances of the robot skills (goto_pose, gripper, home).
+    skills: SkillsConfig = dc.field(default_factory=SkillsConfig)
     # RGB-D cameras (Drake's CameraConfig); the one named "camera" is the station's camera.
     cameras: list[CameraConfig] = dc.field(default_factory=lambda: [_default_camera()])
     # What Meshcat shows (Drake's VisualizationConfig).
@@ -125,6 +128,7 @@ def check_scenario(scenario: Scenario, filename: str = "<scenario>") -> None:
     at.number("simulation_duration", scenario.simulation_duration, minimum=0.0)
     _check_plant_config(scenario.plant_config, at.child("plant_config"))
     scenario.station.check(at.child("station"))
+    scenario.skills.check(at.child("skills"))
     _check_directives(scenario, at)
     _check_cameras(scenario.cameras, at)
 

@@ -62,13 +62,21 @@ class GripperServo(LeafSystem):
         s_ref = context.get_discrete_state_vector().GetAtIndex(0)
         s_target = float(np.clip(0.5 * self._command.Eval(context)[0], 0.0, self._s_max))
         max_step = 0.5 * self._config.max_opening_speed * self._dt
-        state.set_value([s_ref + float(np.clip(s_target - s_ref, -max_step, max_step))])
+        s_ref += float(np.clip(s_target - s_ref, -max_step, max_step))
+        # Anti-windup: against an object the reference stops where the force limit is
+        # reached, so reopening moves the fingers at once instead of unwinding first.
+        s = self._finger_state.Eval(context)[0]
+        band = self._force_limit_now(context) / self._config.stiffness
+        state.set_value([float(np.clip(s_ref, s - band, s + band))])
+
+    def _force_limit_now(self, context: Context) -> float:
+        return float(np.clip(self._force_limit.Eval(context)[0], 0.0, self._config.max_force))
 
     def _finger_force(self, context: Context) -> float:
         """f, the force each finger pushes with (positive opening), N."""
         s_ref = context.get_discrete_state_vector().GetAtIndex(0)
         s, _, s_dot, _ = self._finger_state.Eval(context)
-        limit = float(np.clip(self._force_limit.Eval(context)[0], 0.0, self._config.max_force))
+        limit = self._force_limit_now(context)
         force = self._config.stiffness * (s_ref - s) - self._config.damping * s_dot
         return float(np.clip(force, -limit, limit))
 

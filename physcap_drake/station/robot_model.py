@@ -31,7 +31,8 @@ def _scoped_model(name: str) -> str:
 
 
 def robot_directives(directives: list, model_names: tuple[str, ...]) -> list:
-    """The directives that add and attach the named models only: the robot without its world."""
+    """The directives that add and attach the named models only (e.g. the robot without
+    the objects around it)."""
     flat = FlattenModelDirectives(ModelDirectives(directives=directives), make_package_map())
     kept = []
     for directive in flat.directives:
@@ -42,16 +43,34 @@ def robot_directives(directives: list, model_names: tuple[str, ...]) -> list:
             child = _scoped_model(directive.add_weld.child)
             if child in model_names and (parent in model_names or parent == "world"):
                 kept.append(directive)
+        elif directive.add_collision_filter_group is not None:
+            members = directive.add_collision_filter_group.members
+            if all(_scoped_model(member) in model_names for member in members):
+                kept.append(directive)
     return kept
+
+
+def make_model_plant(directives: list, model_names: tuple[str, ...]) -> MultibodyPlant:
+    """A finalized continuous-time plant of the named models alone, attached as in the
+    directives (models welded to the world stay welded)."""
+    plant = MultibodyPlant(time_step=0.0)
+    add_directives(plant, robot_directives(directives, model_names))
+    plant.Finalize()
+    return plant
 
 
 def make_controller_plant(directives: list, arm_model: str,
                           gripper_model: str) -> MultibodyPlant:
-    """A finalized continuous-time plant of the arm and gripper alone (see module docstring)."""
-    plant = MultibodyPlant(time_step=0.0)
-    add_directives(plant, robot_directives(directives, (arm_model, gripper_model)))
-    plant.Finalize()
-    return plant
+    """The controller's model: the arm and gripper alone (see module docstring)."""
+    return make_model_plant(directives, (arm_model, gripper_model))
+
+
+def world_welded_models(directives: list) -> list[str]:
+    """Names of the models welded to the world by the directives (the fixed environment,
+    such as the table, and the arm's base)."""
+    flat = FlattenModelDirectives(ModelDirectives(directives=directives), make_package_map())
+    return [_scoped_model(d.add_weld.child) for d in flat.directives
+            if d.add_weld is not None and d.add_weld.parent == "world"]
 
 
 def arm_joint_limits(plant: MultibodyPlant, arm: ModelInstanceIndex):

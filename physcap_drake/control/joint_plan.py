@@ -1,0 +1,67 @@
+"""JointPlan: a timed sequence of joint-space segments, evaluated by absolute sim time."""
+
+from __future__ import annotations
+
+import dataclasses as dc
+
+import numpy as np
+from pydrake.trajectories import Trajectory
+
+
+@dc.dataclass(frozen=True)
+class JointPlan:
+    """Arm joint positions over time: `segments` run back to back from `start_time` (s).
+
+    Each segment is a Drake Trajectory over a finite time span (rad, rad/s, rad/s²). Before
+    the start the plan holds its first position; after the end it holds its last one, so a
+    finished plan is also the command that keeps the arm still. A plan without segments
+    holds `initial_position`.
+    """
+
+    start_time: float
+    initial_position: np.ndarray
+    segments: tuple[Trajectory, ...] = ()
+
+    @staticmethod
+    def hold(q: np.ndarray, start_time: float = 0.0) -> JointPlan:
+        return JointPlan(start_time, np.asarray(q, dtype=float).copy())
+
+    @property
+    def duration(self) -> float:
+        return float(sum(s.end_time() - s.start_time() for s in self.segments))
+
+    @property
+    def end_time(self) -> float:
+        return self.start_time + self.duration
+
+    @property
+    def final_position(self) -> np.ndarray:
+        if not self.segments:
+            return self.initial_position
+        last = self.segments[-1]
+        return last.value(last.end_time()).ravel()
+
+    def _locate(self, t: float) -> tuple[Trajectory, float]:
+        local = t - self.start_time
+        for segment in self.segments:
+            length = segment.end_time() - segment.start_time()
+            if local <= length:
+                return segment, segment.start_time() + max(local, 0.0)
+            local -= length
+        last = self.segments[-1]
+        return last, last.end_time()
+
+    def position(self, t: float) -> np.ndarray:
+        """Joint positions at sim time t, rad."""
+        if not self.segments:
+            return self.initial_position
+        segment, local = self._locate(t)
+        return segment.value(local).ravel()
+
+    def derivative(self, t: float, order: int) -> np.ndarray:
+        """Joint velocity (order 1, rad/s) or acceleration (order 2, rad/s²) at sim time t;
+        zero while holding before the start or after the end."""
+        if not self.segments or t < self.start_time or t > self.end_time:
+            return np.zeros(self.final_position.size)
+        segment, local = self._locate(t)
+        return segment.EvalDerivative(local, order).ravel()

@@ -1,0 +1,92 @@
+"""PlanningModel: what the skills know of the world, for IK, collision checks and timing.
+
+It holds the arm, its gripper and the fixed environment (models the scenario welds to the
+world, such as the table), never the movable objects: like a controller on the real robot,
+it knows its own body and its workcell, not where the cans are or what they weigh.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from pydrake.geometry import SceneGraph
+from pydrake.math import RigidTransform
+from pydrake.multibody.plant import AddMultibodyPlantSceneGraph, MultibodyPlant
+from pydrake.systems.framework import DiagramBuilder
+
+from physcap_drake.station.robot_model import (
+    add_directives,
+    make_model_plant,
+    robot_directives,
+    world_welded_models,
+)
+
+#: Name of the fingertip frame in the gripper model (0.1358 m beyond the flange).
+TCP_FRAME = "tcp"
+
+
+class PlanningModel:
+    """The robot and its fixed environment, with a scene graph for distance queries.
+
+    Attributes:
+        plant: continuous-time plant of arm, gripper and fixed environment.
+        arm_plant: the arm alone (6 positions), for time-parameterizing joint paths.
+        tcp_frame: the fingertip frame of `plant`.
+        arm_position_indices: where the six arm joints sit in `plant`'s positions.
+        finger_position_indices: the two finger joints (each at half the opening).
+    """
+
+    def __init__(self, directives: list, arm_model: str, gripper_model: str):
+        environment = [m for m in world_welded_models(directives)
+                       if m not in (arm_model, gripper_model)]
+        builder = DiagramBuilder()
+        plant, scene_graph = AddMultibodyPlantSceneGraph(builder, time_step=0.0)
+        add_directives(plant, robot_directives(
+            directives, (arm_model, gripper_model, *environment)))
+        plant.Finalize()
+        self.diagram = builder.Build()
+        self.plant: MultibodyPlant = plant
+        self.scene_graph: SceneGraph = scene_graph
+        self.arm_plant = make_model_plant(directives, (arm_model,))
+        arm = plant.GetModelInstanceByName(arm_model)
+        gripper = plant.GetModelInstanceByName(gripper_model)
+        self.arm_position_indices = _single_dof_positions(plant, arm)
+        self.finger_position_indices = _single_dof_positions(plant, gripper)
+        self.tcp_frame = plant.GetFrameByName(TCP_FRAME, gripper)
+        self.lower = plant.GetPositionLowerLimits()[self.arm_position_indices]
+        self.upper = plant.GetPositionUpperLimits()[self.arm_position_indices]
+        # A scratch context for queries; every query sets all positions it depends on.
+        self._context = self.diagram.CreateDefaultContext()
+        self._plant_context = plant.GetMyMutableContextFromRoot(self._context)
+
+    def full_positions(self, q_arm: np.ndarray, opening: float) -> np.ndarray:
+        """Positions of `plant` for arm joints `q_arm` (rad) and a gripper `opening` (m)."""
+        q = np.zeros(self.plant.num_positions())
+        q[self.arm_position_indices] = q_arm
+        q[self.finger_position_indices] = 0.5 * opening
+        return q
+
+    def tcp_pose(self, q_arm: np.ndarray) -> RigidTransform:
+        """World pose of the fingertip frame at arm joints `q_arm` (rad)."""
+        self.plant.SetPositions(self._plant_context, self.full_positions(q_arm, 0.0))
+        return self.tcp_frame.CalcPoseInWorld(self._plant_context)
+
+    def min_distance(self, q_arm: np.ndarray, opening: float) -> tuple[float, str]:
+        """Smallest signed distance (m) between any robot geometry and the environment or
+        another robot link, and the names of that pair."""
+        self.plant.SetPositions(self._plant_context, self.full_positions(q_arm, opening))
+        query = self.scene_graph.get_query_output_port().Eval(
+            self.scene_graph.GetMyContextFromRoot(self._context))
+        pairs = query.ComputeSignedDistancePairwiseClosestPoints(max_distance=0.1)
+        if not pairs:
+            return np.inf, ""
+        closest = min(pairs, key=lambda p: p.distance)
+        inspector = query.inspector()
+        names = " and ".join(inspector.GetName(inspector.GetFrameId(g))
+                             for g in (closest.id_A, closest.id_B))
+        return closest.distance, names
+
+
+def _single_dof_positions(plant: MultibodyPlant, model) -> list[int]:
+    joints = [plant.get_joint(j) for j in plant.GetJointIndices(model)]
+    return [j.position_start() for j in sorted(joints, key=lambda j: j.index())
+            if j.num_positions() == 1]

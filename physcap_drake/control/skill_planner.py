@@ -1,0 +1,202 @@
+"""SkillPlanner: turns a checked request into a motion the station can follow, or refuses it.
+
+Everything here happens before any motion: a request that is malformed, leaves the
+workspace box, passes a joint limit, has no IK solution, or would bring the robot into
+contact with the table or itself is refused with a SkillRefused that says why.
+"""
+
+from __future__ import annotations
+
+import dataclasses as dc
+
+import numpy as np
+from pydrake.common.eigen_geometry import Quaternion
+from pydrake.math import RotationMatrix
+
+from physcap_drake.control.errors import SkillRefused
+from physcap_drake.control.ik import FingertipGoal, solve_fingertip_ik, tilt_from_vertical
+from physcap_drake.control.joint_plan import JointPlan
+from physcap_drake.control.planning_model import PlanningModel
+from physcap_drake.control.requests import (
+    MoveGripper,
+    MoveToJoints,
+    MoveToPose,
+    SkillRequest,
+    Wait,
+    as_number,
+    as_vector,
+)
+from physcap_drake.control.skills_config import SkillsConfig
+from physcap_drake.control.trajectories import time_parameterize
+
+#: Spacing of IK waypoints along a vertical approach, m.
+APPROACH_STEP = 0.01
+#: Largest allowed sideways deviation of the fingertip from a vertical approach, m.
+APPROACH_STRAIGHTNESS = 0.002
+#: Sampling step of the collision check along a planned motion, s.
+PATH_CHECK_STEP = 0.02
+
+
+@dc.dataclass(frozen=True)
+class PlannedSkill:
+    """A skill ready to run: what the arm and gripper are commanded from `start_time` on.
+
+    kind: "arm", "gripper" or "wait". arm_plan: the joint plan (arm skills) or the hold.
+    tcp_target: where the fingertip should end (world, m), for MoveToPose.
+    """
+
+    label: str
+    kind: str
+    start_time: float
+    arm_plan: JointPlan
+    gripper_opening: float
+    gripper_force: float
+    deadline: float
+    tcp_target: np.ndarray | None = None
+    note: str = ""
+
+
+class SkillPlanner:
+    """Plans requests against the robot's own model of itself and its fixed environment."""
+
+    def __init__(self, model: PlanningModel, config: SkillsConfig, gripper_stroke: float):
+        self.model = model
+        self.config = config
+        self.gripper_stroke = gripper_stroke
+
+    def plan(self, request: SkillRequest, *, now: float, q_now: np.ndarray,
+             opening_measured: float, gripper_command: tuple[float, float]) -> PlannedSkill:
+        """Plans `request` starting at sim time `now` from arm joints `q_now` (rad, the arm at
+        rest), with the fingers `opening_measured` (m) apart and the gripper commanded to
+        (opening m, force N) = `gripper_command` (kept during arm motions). Raises
+        SkillRefused if the request cannot run."""
+        if isinstance(request, MoveToJoints):
+            return self._plan_joints(request, now, q_now, opening_measured, gripper_command)
+        if isinstance(request, MoveToPose):
+            return self._plan_pose(request, now, q_now, opening_measured, gripper_command)
+        if isinstance(request, MoveGripper):
+            return self._plan_gripper(request, now, q_now)
+        if isinstance(request, Wait):
+            duration = as_number(request.duration, "wait duration (s)", minimum=0.0)
+            return PlannedSkill(f"wait {duration:g} s", "wait", now, JointPlan.hold(q_now, now),
+                                *gripper_command, now + duration)
+        raise SkillRefused(f"unknown skill request {request!r}")
+
+    # Arm motions (`opening` is the measured finger gap, m, for the collision checks) -------
+
+    def _check_joint_limits(self, q: np.ndarray, what: str) -> None:
+        lower, upper = self.model.lower, self.model.upper
+        bad = [f"J{i + 1} = {q[i]:.4f} rad is outside [{lower[i]:.4f}, {upper[i]:.4f}]"
+               for i in range(len(q)) if not lower[i] - 1e-9 <= q[i] <= upper[i] + 1e-9]
+        if bad:
+            raise SkillRefused(f"{what}: " + "; ".join(bad))
+
+    def _timed(self, waypoints: np.ndarray):
+        return time_parameterize(self.model.arm_plant, waypoints,
+                                 max_velocity=self.config.max_joint_velocity,
+                                 max_acceleration=self.config.max_joint_acceleration)
+
+    def _check_clear(self, segments: tuple, opening: float, what: str) -> None:
+        for segment in segments:
+            times = np.arange(segment.start_time(), segment.end_time(), PATH_CHECK_STEP)
+            for t in np.append(times, segment.end_time()):
+                distance, pair = self.model.min_distance(segment.value(t).ravel(), opening)
+                if distance <= 0.0:
+                    raise SkillRefused(f"{what}: the motion would bring {pair} into contact; "
+                                       "move the arm up or choose another target first")
+
+    def _arm_skill(self, label: str, segments: tuple, now: float, q_now: np.ndarray,
+                   gripper_command: tuple[float, float], tcp_target=None,
+                   note="") -> PlannedSkill:
+        plan = JointPlan(now, q_now.copy(), segments)
+        return PlannedSkill(label, "arm", now, plan, *gripper_command,
+                            plan.end_time + self.config.motion_timeout, tcp_target, note)
+
+    def _plan_joints(self, request: MoveToJoints, now, q_now, opening,
+                     gripper_command) -> PlannedSkill:
+        goal = as_vector(request.positions, len(q_now), "joint positions (rad)")
+        self._check_joint_limits(goal, f"{request.label} refused")
+        distance, pair = self.model.min_distance(goal, opening)
+        if distance <= 0.0:
+            raise SkillRefused(f"{request.label} refused: at the goal, {pair} would be in "
+                               "contact")
+        segments = (self._timed(np.column_stack([q_now, goal])),)
+        self._check_clear(segments, opening, f"{request.label} refused")
+        return self._arm_skill(request.label, segments, now, q_now, gripper_command)
+
+    def _check_workspace(self, position: np.ndarray, what: str) -> None:
+        box = self.config.workspace
+        for axis, name in enumerate("xyz"):
+            if not box.lower[axis] <= position[axis] <= box.upper[axis]:
+                extra = " (the table surface is z = 0)" if name == "z" else ""
+                raise SkillRefused(
+                    f"{what} refused: the fingertip target {name} = {position[axis]:.3f} m is "
+                    f"outside the workspace [{box.lower[axis]:.3f}, {box.upper[axis]:.3f}] m"
+                    f"{extra}")
+
+    def _rotation(self, quaternion_wxyz) -> RotationMatrix | None:
+        if quaternion_wxyz is None:
+            return None
+        wxyz = as_vector(quaternion_wxyz, 4, "quaternion_wxyz")
+        norm = np.linalg.norm(wxyz)
+        if not 0.9 < norm < 1.1:
+            raise SkillRefused(f"quaternion_wxyz must have unit length; got length {norm:.3f}")
+        return RotationMatrix(Quaternion(wxyz / norm))
+
+    def _solve(self, position, rotation, seed, opening) -> np.ndarray:
+        return solve_fingertip_ik(self.model, FingertipGoal(position, rotation), seed,
+                                  opening=opening, collision_margin=self.config.collision_margin)
+
+    def _plan_pose(self, request: MoveToPose, now, q_now, opening,
+                   gripper_command) -> PlannedSkill:
+        target = as_vector(request.position, 3, "position (m)")
+        rotation = self._rotation(request.quaternion_wxyz)
+        z_approach = as_number(request.z_approach, "z_approach (m)", minimum=0.0)
+        where = "(" + ", ".join(f"{v:.3f}" for v in target) + ") m"
+        label = f"goto_pose {where}" + (f" from {z_approach:.3f} m above" if z_approach else "")
+        self._check_workspace(target, label)
+        q_target = self._solve(target, rotation, q_now, opening)
+        if z_approach > 0:
+            above = target + [0.0, 0.0, z_approach]
+            self._check_workspace(above, label + " (approach point)")
+            descent = self._vertical_waypoints(target, above, q_target, rotation, opening)
+            segments = (self._timed(np.column_stack([q_now, descent[:, 0]])),
+                        self._timed(descent))
+            self._check_straight(segments[1], target, label)
+        else:
+            segments = (self._timed(np.column_stack([q_now, q_target])),)
+        self._check_clear(segments, opening, f"{label} refused")
+        tilt = np.degrees(tilt_from_vertical(self.model.tcp_pose(q_target).rotation()))
+        note = "" if rotation is not None else f"gripper {tilt:.1f}° from straight down"
+        return self._arm_skill(label, segments, now, q_now, gripper_command, target, note)
+
+    def _vertical_waypoints(self, target, above, q_target, rotation, opening) -> np.ndarray:
+        """Joint waypoints (6 × N, top first) whose fingertips lie on the vertical segment from
+        `above` down to `target`, each solved from its lower neighbour."""
+        count = max(2, int(np.ceil((above[2] - target[2]) / APPROACH_STEP)) + 1)
+        heights = np.linspace(target[2], above[2], count)
+        solutions = [q_target]
+        for z in heights[1:]:
+            point = np.array([target[0], target[1], z])
+            solutions.append(self._solve(point, rotation, solutions[-1], opening))
+        return np.column_stack(solutions[::-1])
+
+    def _check_straight(self, descent, target, label) -> None:
+        times = np.linspace(descent.start_time(), descent.end_time(), 50)
+        offsets = [np.linalg.norm(self.model.tcp_pose(descent.value(t).ravel()).translation()[:2]
+                                  - target[:2]) for t in times]
+        if max(offsets) > APPROACH_STRAIGHTNESS:
+            raise SkillRefused(f"{label} refused: the vertical approach strays "
+                               f"{1000 * max(offsets):.1f} mm sideways")
+
+    # Gripper ------------------------------------------------------------------------------
+
+    def _plan_gripper(self, request: MoveGripper, now, q_now) -> PlannedSkill:
+        opening = as_number(request.opening, "gripper opening (m)", minimum=0.0)
+        if opening > self.gripper_stroke + 1e-9:
+            raise SkillRefused(f"gripper opening {opening:.4f} m exceeds the stroke "
+                               f"{self.gripper_stroke:.3f} m")
+        force = as_number(request.force, "gripper force (N)", minimum=0.0)
+        return PlannedSkill(f"{request.label} to {1000 * opening:.0f} mm", "gripper", now,
+                            JointPlan.hold(q_now, now), opening, force,
+                            now + self.config.gripper_timeout)

@@ -1,0 +1,72 @@
+"""Configuration of the robot skills (`skills:` in a scenario file)."""
+
+# No `from __future__ import annotations`: yaml_load_typed reads the field types at run time.
+import dataclasses as dc
+
+from physcap_drake.config_checks import ConfigChecker
+from physcap_drake.station.ports import NUM_ARM_JOINTS
+
+
+@dc.dataclass
+class WorkspaceBox:
+    """Where the fingertip may be sent: an axis-aligned box in the world frame, m.
+
+    The world frame is the arm's base frame (z up, the table surface at z = 0), so the
+    lower z bound keeps the fingertip above the table.
+    """
+
+    # Smallest x, y, z of a fingertip target, m.
+    lower: list[float] = dc.field(default_factory=lambda: [0.08, -0.50, 0.005])
+    # Largest x, y, z of a fingertip target, m.
+    upper: list[float] = dc.field(default_factory=lambda: [0.70, 0.50, 0.60])
+
+    def check(self, at: ConfigChecker) -> None:
+        at.vector("lower", self.lower, 3)
+        at.vector("upper", self.upper, 3)
+        for axis in range(3):
+            if self.lower[axis] >= self.upper[axis]:
+                at.fail("upper", "each upper bound above its lower bound",
+                        f"axis {'xyz'[axis]}: lower {self.lower[axis]} >= upper "
+                        f"{self.upper[axis]}")
+
+
+@dc.dataclass
+class SkillsConfig:
+    """Limits and tolerances of the robot skills (goto_pose, gripper, home)."""
+
+    # Joint speed limit of every planned motion, rad/s (the PiPER allows up to 3).
+    max_joint_velocity: float = 3.0
+    # Joint acceleration limit of every planned motion, rad/s² (the PiPER allows up to 5).
+    max_joint_acceleration: float = 5.0
+    # Joint positions of home_pose(), rad (all zeros: the folded rest pose).
+    home_position: list[float] = dc.field(default_factory=lambda: [0.0] * NUM_ARM_JOINTS)
+    # Fingertip targets must lie in this box.
+    workspace: WorkspaceBox = dc.field(default_factory=WorkspaceBox)
+    # Smallest distance kept between the robot and the table (and between its own links), m.
+    collision_margin: float = 0.005
+    # How far from straight down a "top-down" grasp may point, degrees.
+    top_down_tolerance_deg: float = 0.5
+    # A motion is done when every joint is this close to its goal, rad.
+    joint_tolerance: float = 0.003
+    # Time allowed beyond a motion's planned duration before it counts as failed, s.
+    motion_timeout: float = 2.0
+    # Squeeze force of each finger for close_gripper(), N.
+    grasp_force: float = 15.0
+    # Time allowed for a gripper motion, s.
+    gripper_timeout: float = 3.0
+
+    def check(self, at: ConfigChecker) -> None:
+        at.number("max_joint_velocity", self.max_joint_velocity, minimum=0.0, maximum=3.0,
+                  open_minimum=True, why="the PiPER's joints allow up to 3 rad/s")
+        at.number("max_joint_acceleration", self.max_joint_acceleration, minimum=0.0,
+                  maximum=5.0, open_minimum=True, why="the PiPER's joints allow up to 5 rad/s²")
+        at.vector("home_position", self.home_position, NUM_ARM_JOINTS)
+        self.workspace.check(at.child("workspace"))
+        at.number("collision_margin", self.collision_margin, minimum=0.0, maximum=0.05)
+        at.number("top_down_tolerance_deg", self.top_down_tolerance_deg, minimum=0.0,
+                  maximum=45.0, open_minimum=True)
+        at.number("joint_tolerance", self.joint_tolerance, minimum=0.0, maximum=0.1,
+                  open_minimum=True)
+        at.number("motion_timeout", self.motion_timeout, minimum=0.0, open_minimum=True)
+        at.number("grasp_force", self.grasp_force, minimum=0.0, open_minimum=True)
+        at.number("gripper_timeout", self.gripper_timeout, minimum=0.0, open_minimum=True)

@@ -1,0 +1,67 @@
+"""Time-optimal joint trajectories within speed and acceleration limits (Drake's Toppra)."""
+
+from __future__ import annotations
+
+import numpy as np
+from pydrake.multibody.optimization import CalcGridPointsOptions, Toppra
+from pydrake.multibody.plant import MultibodyPlant
+from pydrake.trajectories import PathParameterizedTrajectory, PiecewisePolynomial, Trajectory
+
+from physcap_drake.control.errors import SkillRefused
+
+#: Toppra enforces the limits at grid points; planning against slightly lower limits keeps
+#: the motion between grid points inside the configured ones (checked after solving).
+LIMIT_MARGINS = (0.97, 0.9, 0.8)
+#: Step of the dense check of a solved trajectory, s.
+CHECK_STEP = 0.002
+
+
+def joint_path(waypoints: np.ndarray) -> PiecewisePolynomial:
+    """A geometric path through joint waypoints (columns, rad), parameterized by s ∈ [0, 1]
+    in proportion to joint-space distance: straight for two waypoints, a smooth cubic
+    through more."""
+    waypoints = np.asarray(waypoints, dtype=float)
+    steps = np.linalg.norm(np.diff(waypoints, axis=1), axis=0)
+    s = np.concatenate([[0.0], np.cumsum(steps)]) / max(steps.sum(), 1e-12)
+    if waypoints.shape[1] == 2:
+        return PiecewisePolynomial.FirstOrderHold(s, waypoints)
+    return PiecewisePolynomial.CubicWithContinuousSecondDerivatives(
+        s, waypoints, (waypoints[:, 1] - waypoints[:, 0]) / s[1],
+        (waypoints[:, -1] - waypoints[:, -2]) / (1.0 - s[-2]))
+
+
+def peak_rates(trajectory: Trajectory) -> tuple[float, float]:
+    """Largest |joint velocity| (rad/s) and |joint acceleration| (rad/s²) of a trajectory,
+    sampled every CHECK_STEP s."""
+    times = np.arange(trajectory.start_time(), trajectory.end_time(), CHECK_STEP)
+    times = np.append(times, trajectory.end_time())
+    velocity = max(np.abs(trajectory.EvalDerivative(t, 1)).max() for t in times)
+    acceleration = max(np.abs(trajectory.EvalDerivative(t, 2)).max() for t in times)
+    return float(velocity), float(acceleration)
+
+
+def time_parameterize(arm_plant: MultibodyPlant, waypoints: np.ndarray, *, max_velocity: float,
+                      max_acceleration: float) -> Trajectory:
+    """The fastest trajectory along the path through `waypoints` (6 × N, rad) that starts and
+    ends at rest and keeps every joint within ±max_velocity (rad/s) and ±max_acceleration
+    (rad/s²). Raises SkillRefused if no parameterization meets the limits."""
+    path = joint_path(waypoints)
+    if np.allclose(waypoints[:, 0], waypoints[:, -1]) and waypoints.shape[1] == 2:
+        return PiecewisePolynomial.FirstOrderHold([0.0, 1e-3], waypoints[:, [0, -1]])
+    n = waypoints.shape[0]
+    for margin in LIMIT_MARGINS:
+        toppra = Toppra(path, arm_plant, Toppra.CalcGridPoints(path, CalcGridPointsOptions()))
+        toppra.AddJointVelocityLimit(np.full(n, -margin * max_velocity),
+                                     np.full(n, margin * max_velocity))
+        toppra.AddJointAccelerationLimit(np.full(n, -margin * max_acceleration),
+                                         np.full(n, margin * max_acceleration))
+        time_scaling = toppra.SolvePathParameterization()
+        if time_scaling is None:
+            continue
+        trajectory = PathParameterizedTrajectory(path, time_scaling)
+        velocity, acceleration = peak_rates(trajectory)
+        if velocity <= max_velocity and acceleration <= max_acceleration:
+            return trajectory
+    raise SkillRefused(
+        f"no timing of this motion keeps the joints within {max_velocity} rad/s and "
+        f"{max_acceleration} rad/s²")
