@@ -50,9 +50,9 @@ def test_noise_free_torque_is_the_gravity_torque_of_our_model(table_scenario):
     run = Run(noise_free(table_scenario))
     run.advance_to(1.0)
     tau = run.read(ports.ARM_TORQUE_MEASURED)
-    gravity = run.station.GetSubsystemByName("gravity_compensation")
-    expected = gravity.get_output_port().Eval(gravity.GetMyContextFromRoot(
-        run.simulator.get_context()))
+    feedforward = run.station.GetSubsystemByName("arm_feedforward")
+    expected = feedforward.get_output_port().Eval(feedforward.GetMyContextFromRoot(
+        run.simulator.get_context()))  # at rest: the gravity torque alone
     np.testing.assert_allclose(tau, expected, atol=2e-3)
     # Folded at home, the shoulder and elbow carry the arm's weight (reference/piper.md §1.5
     # gives 2.73 and 4.65 N·m for the bare arm; the gripper adds to both).

@@ -17,10 +17,12 @@ class JointServo:
     host streams joint targets over CAN.
 
     The firmware moves each joint towards its latest target with bounded speed and acceleration
-    and holds it with a stiff motor-side position loop plus compensation of the arm's own
-    weight. The simulated loop is Drake's implicit PD actuator (stable at any stiffness in SAP)
-    plus a gravity feed-forward computed from the arm model with an empty gripper; a payload
-    makes the arm sag by about tau_payload / stiffness (below 2 mrad for 0.35 kg).
+    and holds it with a stiff motor-side position loop plus a model-based feed-forward. The
+    simulated loop is Drake's implicit PD actuator (stable at any stiffness in SAP) plus a
+    feed-forward computed from the arm model with an empty gripper: its weight, and with
+    "inverse_dynamics" also its inertia along the reference, so the joints follow the
+    reference's acceleration without the overshoot a bare PD shows. A payload makes the arm
+    sag by about tau_payload / stiffness (below 2 mrad for 0.35 kg).
     """
 
     # Position-loop stiffness per joint J1..J6, N·m/rad.
@@ -33,12 +35,15 @@ class JointServo:
     max_velocity: float = 3.0
     # Largest joint acceleration the firmware interpolates with, rad/s² (0x475 allows 0..5).
     max_acceleration: float = 5.0
-    # Compensate the arm's own weight (the firmware's "empty load" setting, 0x477).
-    gravity_compensation: bool = True
+    # Model-based torque added to the position loop: "inverse_dynamics" (weight and inertia
+    # along the reference), "gravity" (weight only: the firmware's "empty load" setting,
+    # 0x477) or "none".
+    feedforward: str = "inverse_dynamics"
 
     def check(self, at: ConfigChecker) -> None:
         at.vector("stiffness", self.stiffness, NUM_ARM_JOINTS, minimum=0.0, open_minimum=True)
         at.vector("damping", self.damping, NUM_ARM_JOINTS, minimum=0.0)
+        at.choice("feedforward", self.feedforward, ["inverse_dynamics", "gravity", "none"])
         at.number("max_velocity", self.max_velocity, minimum=0.0, maximum=3.0,
                   open_minimum=True, why="the firmware accepts 0..3 rad/s")
         at.number("max_acceleration", self.max_acceleration, minimum=0.0, maximum=5.0,

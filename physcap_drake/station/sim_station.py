@@ -12,7 +12,7 @@ from pydrake.visualization import ApplyVisualizationConfig
 
 from physcap_drake.station import ports
 from physcap_drake.station.cameras import add_camera
-from physcap_drake.station.gravity_compensation import GravityCompensation
+from physcap_drake.station.arm_feedforward import ArmFeedforward
 from physcap_drake.station.gripper_servo import GripperServo
 from physcap_drake.station.joint_target_interpolator import JointTargetInterpolator
 from physcap_drake.station.robot_model import (
@@ -89,7 +89,7 @@ def MakeSimStation(scenario, meshcat: Meshcat | None = None) -> Diagram:
                          f"stroke of {2 * finger_travel} m")
     plant.SetDefaultPositions(gripper, [0.5 * opening0, 0.5 * opening0])
 
-    # The arm: firmware joint mode = interpolated reference + stiff PD + gravity feed-forward.
+    # The arm: firmware joint mode = interpolated reference + stiff PD + model feed-forward.
     arm_state = builder.AddNamedSystem("arm_state", Demultiplexer([ports.NUM_ARM_JOINTS] * 2))
     builder.Connect(plant.get_state_output_port(arm), arm_state.get_input_port())
     interpolator = builder.AddNamedSystem("joint_target_interpolator", JointTargetInterpolator(
@@ -99,19 +99,23 @@ def MakeSimStation(scenario, meshcat: Meshcat | None = None) -> Diagram:
                     interpolator.GetInputPort("position_measured"))
     builder.Connect(interpolator.GetOutputPort("desired_state"),
                     plant.get_desired_state_input_port(arm))
-    if servo.gravity_compensation:
-        controller_plant = make_controller_plant(scenario.directives, config.arm_model,
-                                                 config.gripper_model)
-        controller_arm = controller_plant.GetModelInstanceByName(config.arm_model)
-        gravity = builder.AddNamedSystem("gravity_compensation", GravityCompensation(
-            controller_plant, [a.joint() for a in _arm_actuators(controller_plant,
-                                                                 controller_arm)]))
-        builder.Connect(arm_state.get_output_port(0), gravity.get_input_port())
-        builder.Connect(gravity.get_output_port(), plant.get_actuation_input_port(arm))
-    else:
+    if servo.feedforward == "none":
         zero = builder.AddNamedSystem("no_feedforward",
                                       ConstantVectorSource(np.zeros(ports.NUM_ARM_JOINTS)))
         builder.Connect(zero.get_output_port(), plant.get_actuation_input_port(arm))
+    else:
+        controller_plant = make_controller_plant(scenario.directives, config.arm_model,
+                                                 config.gripper_model)
+        controller_arm = controller_plant.GetModelInstanceByName(config.arm_model)
+        arm_joints = [a.joint() for a in _arm_actuators(controller_plant, controller_arm)]
+        feedforward = builder.AddNamedSystem("arm_feedforward", ArmFeedforward(
+            controller_plant, arm_joints,
+            inverse_dynamics=servo.feedforward == "inverse_dynamics"))
+        builder.Connect(arm_state.get_output_port(0), feedforward.GetInputPort("arm_position"))
+        builder.Connect(arm_state.get_output_port(1), feedforward.GetInputPort("arm_velocity"))
+        builder.Connect(interpolator.GetOutputPort("acceleration"),
+                        feedforward.GetInputPort("reference_acceleration"))
+        builder.Connect(feedforward.get_output_port(), plant.get_actuation_input_port(arm))
     builder.ExportInput(interpolator.GetInputPort("position_commanded"), ports.ARM_POSITION)
     builder.ExportOutput(arm_state.get_output_port(0), ports.ARM_POSITION_MEASURED)
     builder.ExportOutput(arm_state.get_output_port(1), ports.ARM_VELOCITY_ESTIMATED)
