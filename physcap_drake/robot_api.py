@@ -8,6 +8,8 @@ frames exactly.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 from pydrake.systems.analysis import Simulator
 
 from physcap_drake.control.errors import SkillFailed
@@ -25,9 +27,13 @@ class RobotAPI:
     point midway between the two finger tips.
     """
 
-    def __init__(self, robot: RobotDiagram, simulator: Simulator):
+    def __init__(self, robot: RobotDiagram, simulator: Simulator,
+                 on_skill_done: Callable[[SkillStatus], None] | None = None):
+        """`on_skill_done(status)` is called after every skill that ran (not after refusals),
+        before a failure is raised."""
         self._robot = robot
         self._simulator = simulator
+        self._on_skill_done = on_skill_done
         self._executor_context = robot.executor.GetMyContextFromRoot(simulator.get_context())
 
     def goto_pose(self, position, quaternion_wxyz=None, z_approach=0.0) -> None:
@@ -83,6 +89,8 @@ class RobotAPI:
         while executor.status(context).state == "running":
             self._simulator.AdvanceTo(context.get_time() + MONITOR_PERIOD)
         status = executor.status(context)
+        if self._on_skill_done is not None:
+            self._on_skill_done(status)
         if status.state == "failed":
             raise SkillFailed(status.message)
         return status

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import base64
+import json
 import re
 
 from typer.testing import CliRunner
@@ -50,3 +51,20 @@ def test_missing_scenario_file_exits_2(tmp_path):
     result = runner.invoke(app, ["sim", "--scenario", str(tmp_path / "none.yaml")])
     assert result.exit_code == 2
     assert "no such file" in result.output
+
+
+def test_demo_pick_place_puts_the_can_on_the_tray():
+    result = runner.invoke(app, ["demo", "pick-place", "--scenario", TABLE])
+    assert result.exit_code == 0, result.output
+    assert "close_gripper" in result.output and "home_pose" in result.output
+    assert "success: the can stands upright in the tray" in result.output
+
+
+def test_bench_pick_place_writes_its_figures(tmp_path):
+    out = tmp_path / "pick.json"
+    result = runner.invoke(app, ["bench", "pick-place", "--trials", "1", "--json", str(out)])
+    assert result.exit_code == 0, result.output
+    figures = json.loads(out.read_text())
+    assert figures["trials"] == 1 and figures["successes"] == 1
+    assert 3.0 < figures["mean_robot_time_s"] < 20.0
+    assert 0.0 < figures["max_tcp_error_mm"] < 5.0

@@ -10,8 +10,9 @@ from typing import Annotated
 import typer
 from rich.table import Table
 
+from physcap_drake.bench.pick_place_bench import run_trial, summarize
 from physcap_drake.bench.station_bench import CASES, DURATION, run_station_case
-from physcap_drake.commands.common import console, sim_progress
+from physcap_drake.commands.common import console, sim_progress, trial_progress
 
 app = typer.Typer(help="Benchmarks that print figures.", no_args_is_help=True)
 
@@ -36,4 +37,30 @@ def station(json_path: Annotated[Path | None, typer.Option(
     console.print(table)
     if json_path is not None:
         json_path.write_text(json.dumps([dataclasses.asdict(r) for r in results], indent=2))
+        console.print(f"wrote {json_path}")
+
+
+@app.command("pick-place")
+def pick_place(
+    trials: Annotated[int, typer.Option("--trials", min=1, help="Number of trials.")] = 20,
+    seed: Annotated[int, typer.Option("--seed", min=0, help="Seed of the can positions.")] = 0,
+    json_path: Annotated[Path | None, typer.Option(
+        "--json", help="Also write the results to this JSON file.")] = None,
+) -> None:
+    """Pick a can from random places on the table and put it on the tray: success count,
+    mean robot execution time and the worst fingertip error at the end of a goto_pose."""
+    results = []
+    with trial_progress("pick and place", trials) as advance:
+        for trial in range(trials):
+            results.append(run_trial(seed, trial))
+            advance(results[-1].success)
+    for index, r in enumerate(results):
+        if not r.success:
+            console.print(f"trial {index} (can at {r.can_xy}): {r.reason}")
+    summary = summarize(results)
+    console.print(f"successes {summary['successes']}/{summary['trials']}, mean robot time "
+                  f"{summary['mean_robot_time_s']:.2f} s, worst fingertip error "
+                  f"{summary['max_tcp_error_mm']:.2f} mm")
+    if json_path is not None:
+        json_path.write_text(json.dumps(summary, indent=2))
         console.print(f"wrote {json_path}")

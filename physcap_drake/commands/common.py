@@ -43,3 +43,21 @@ def sim_progress(description: str, total: float):
     with Progress(*columns, console=console, transient=True) as progress:
         task = progress.add_task(description, total=total)
         yield lambda done: progress.update(task, completed=done)
+
+
+@contextmanager
+def trial_progress(description: str, total: int):
+    """A progress bar over trials; yields a callback taking whether a trial succeeded."""
+    columns = (TextColumn("[progress.description]{task.description}"), BarColumn(),
+               TextColumn("{task.completed}/{task.total} trials, {task.fields[ok]} ok"),
+               TimeRemainingColumn())
+    with Progress(*columns, console=console, transient=True) as progress:
+        task = progress.add_task(description, total=total, ok=0)
+        successes = 0
+
+        def advance(success: bool) -> None:
+            nonlocal successes
+            successes += bool(success)
+            progress.update(task, advance=1, ok=successes)
+
+        yield advance

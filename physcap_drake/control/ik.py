@@ -68,10 +68,13 @@ def _add_goal(ik: InverseKinematics, model: PlanningModel, goal: FingertipGoal) 
 
 
 def solve_fingertip_ik(model: PlanningModel, goal: FingertipGoal, q_seed: np.ndarray, *,
-                       opening: float, collision_margin: float) -> np.ndarray:
+                       opening: float, collision_margin: float,
+                       max_step: float | None = None) -> np.ndarray:
     """Arm joints (rad) that put the fingertip at `goal`, within the joint limits and at least
     `collision_margin` m from the table and from the arm itself, as close to `q_seed` as the
-    solver finds. The gripper is held at `opening` (m) while checking collisions.
+    solver finds. The gripper is held at `opening` (m) while checking collisions. With
+    `max_step` (rad), every joint stays within that distance of `q_seed` (for chaining
+    nearby targets without jumping to another arm configuration).
 
     Raises SkillRefused naming the target when no such configuration is found.
     """
@@ -86,15 +89,20 @@ def solve_fingertip_ik(model: PlanningModel, goal: FingertipGoal, q_seed: np.nda
     _add_goal(ik, model, goal)
     if collision_margin > 0:
         ik.AddMinimumDistanceLowerBoundConstraint(collision_margin, COLLISION_INFLUENCE)
+    arm = model.arm_position_indices
+    if max_step is not None:
+        prog.AddBoundingBoxConstraint(q_seed - max_step, q_seed + max_step, q[arm])
     seed_full = model.full_positions(q_seed, opening)
     prog.AddQuadraticErrorCost(SEED_WEIGHT * np.eye(len(q)), seed_full, q)
     yaw = float(np.arctan2(goal.position[1], goal.position[0]))
-    seeds = [q_seed] + [np.array([yaw, j2, j3, 0.0, j5, 0.0]) for j2, j3, j5 in FALLBACK_SEEDS]
+    seeds = [q_seed]
+    if max_step is None:
+        seeds += [np.array([yaw, j2, j3, 0.0, j5, 0.0]) for j2, j3, j5 in FALLBACK_SEEDS]
     for seed in seeds:
         seed = np.clip(seed, model.lower, model.upper)
         result = Solve(prog, model.full_positions(seed, opening))
         if result.is_success():
-            return result.GetSolution(q)[model.arm_position_indices]
+            return result.GetSolution(q)[arm]
     where = ", ".join(f"{x:.3f}" for x in goal.position)
     pose = (f"with the gripper within {np.degrees(goal.max_tilt):.0f}° of straight down"
             if goal.rotation is None else "with the requested orientation")

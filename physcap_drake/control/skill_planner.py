@@ -29,8 +29,10 @@ from physcap_drake.control.requests import (
 from physcap_drake.control.skills_config import SkillsConfig
 from physcap_drake.control.trajectories import time_parameterize
 
-#: Spacing of IK waypoints along a vertical approach, m.
+#: Spacing of IK waypoints along a vertical approach, m, and the largest joint change
+#: between neighbouring waypoints, rad (keeps them on one arm configuration).
 APPROACH_STEP = 0.01
+APPROACH_JOINT_STEP = 0.25
 #: Largest allowed sideways deviation of the fingertip from a vertical approach, m.
 APPROACH_STRAIGHTNESS = 0.002
 #: Sampling step of the collision check along a planned motion, s.
@@ -143,9 +145,10 @@ class SkillPlanner:
             raise SkillRefused(f"quaternion_wxyz must have unit length; got length {norm:.3f}")
         return RotationMatrix(Quaternion(wxyz / norm))
 
-    def _solve(self, position, rotation, seed, opening) -> np.ndarray:
+    def _solve(self, position, rotation, seed, opening, max_step=None) -> np.ndarray:
         return solve_fingertip_ik(self.model, FingertipGoal(position, rotation), seed,
-                                  opening=opening, collision_margin=self.config.collision_margin)
+                                  opening=opening, collision_margin=self.config.collision_margin,
+                                  max_step=max_step)
 
     def _plan_pose(self, request: MoveToPose, now, q_now, opening,
                    gripper_command) -> PlannedSkill:
@@ -155,31 +158,42 @@ class SkillPlanner:
         where = "(" + ", ".join(f"{v:.3f}" for v in target) + ") m"
         label = f"goto_pose {where}" + (f" from {z_approach:.3f} m above" if z_approach else "")
         self._check_workspace(target, label)
-        q_target = self._solve(target, rotation, q_now, opening)
         if z_approach > 0:
             above = target + [0.0, 0.0, z_approach]
             self._check_workspace(above, label + " (approach point)")
-            descent = self._vertical_waypoints(target, above, q_target, rotation, opening)
+            descent = self._vertical_waypoints(target, above, q_now, rotation, opening)
+            q_target = descent[:, -1]
             segments = (self._timed(np.column_stack([q_now, descent[:, 0]])),
                         self._timed(descent))
             self._check_straight(segments[1], target, label)
         else:
+            q_target = self._solve(target, rotation, q_now, opening)
             segments = (self._timed(np.column_stack([q_now, q_target])),)
         self._check_clear(segments, opening, f"{label} refused")
         tilt = np.degrees(tilt_from_vertical(self.model.tcp_pose(q_target).rotation()))
         note = "" if rotation is not None else f"gripper {tilt:.1f}° from straight down"
         return self._arm_skill(label, segments, now, q_now, gripper_command, target, note)
 
-    def _vertical_waypoints(self, target, above, q_target, rotation, opening) -> np.ndarray:
+    def _vertical_waypoints(self, target, above, q_now, rotation, opening) -> np.ndarray:
         """Joint waypoints (6 × N, top first) whose fingertips lie on the vertical segment from
-        `above` down to `target`, each solved from its lower neighbour."""
+        `above` down to `target`, each solved close to its neighbour. The chain starts at the
+        top (seeded from `q_now`, where the arm comes from) or, failing that, at the bottom."""
         count = max(2, int(np.ceil((above[2] - target[2]) / APPROACH_STEP)) + 1)
-        heights = np.linspace(target[2], above[2], count)
-        solutions = [q_target]
-        for z in heights[1:]:
-            point = np.array([target[0], target[1], z])
-            solutions.append(self._solve(point, rotation, solutions[-1], opening))
-        return np.column_stack(solutions[::-1])
+        heights = np.linspace(above[2], target[2], count)
+        failure = None
+        for order in (heights, heights[::-1]):
+            try:
+                solutions = [self._solve(np.array([*target[:2], order[0]]), rotation, q_now,
+                                         opening)]
+                for z in order[1:]:
+                    solutions.append(self._solve(np.array([*target[:2], z]), rotation,
+                                                 solutions[-1], opening,
+                                                 max_step=APPROACH_JOINT_STEP))
+            except SkillRefused as error:
+                failure = error
+                continue
+            return np.column_stack(solutions if order is heights else solutions[::-1])
+        raise failure
 
     def _check_straight(self, descent, target, label) -> None:
         times = np.linspace(descent.start_time(), descent.end_time(), 50)

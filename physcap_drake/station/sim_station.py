@@ -11,8 +11,8 @@ from pydrake.systems.primitives import ConstantVectorSource, Demultiplexer
 from pydrake.visualization import ApplyVisualizationConfig
 
 from physcap_drake.station import ports
-from physcap_drake.station.cameras import add_camera
 from physcap_drake.station.arm_feedforward import ArmFeedforward
+from physcap_drake.station.cameras import add_camera
 from physcap_drake.station.gripper_servo import GripperServo
 from physcap_drake.station.joint_target_interpolator import JointTargetInterpolator
 from physcap_drake.station.robot_model import (

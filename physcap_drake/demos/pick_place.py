@@ -1,0 +1,79 @@
+"""Pick a soda can and put it on the tray, with the blocking robot API."""
+
+from __future__ import annotations
+
+import dataclasses as dc
+from collections.abc import Callable
+
+import numpy as np
+from pydrake.systems.framework import Context
+
+from physcap_drake.robot_api import RobotAPI
+
+#: Fingertip height above the can's bottom when grasping, m: the pads (4 cm long) then
+#: hold the can around its middle and the gripper housing stays clear of its top (122 mm).
+GRASP_HEIGHT = 0.065
+#: Height of the vertical approach above the grasp and place points, m.
+APPROACH = 0.12
+#: How high the can is lifted before it is carried, m.
+LIFT = 0.15
+#: Thickness of the tray's floor, m, and the gap left below the can when placing it.
+TRAY_FLOOR = 0.008
+PLACE_CLEARANCE = 0.005
+#: Inner half-size of the tray (x, y), m: 0.30 × 0.22 m outside, walls 6 mm thick.
+TRAY_INNER_HALF = np.array([0.144, 0.104])
+#: Radius of the can, m, and the largest tilt that still counts as upright, rad.
+CAN_RADIUS = 0.033
+UPRIGHT_TILT = np.radians(10.0)
+
+
+def pick_and_place(api: RobotAPI, can_bottom: np.ndarray, tray_bottom: np.ndarray,
+                   on_goto: Callable[[np.ndarray], None] | None = None) -> None:
+    """Grasps the can standing at `can_bottom` (centre of its base, world frame, m) from
+    above and sets it down in the tray whose floor centre is `tray_bottom`, then goes home.
+    `on_goto(target)` is called after each goto_pose with its fingertip target (m)."""
+
+    def goto(target, **options):
+        api.goto_pose(target, **options)
+        if on_goto is not None:
+            on_goto(np.asarray(target, dtype=float))
+
+    grasp = np.asarray(can_bottom, dtype=float) + [0.0, 0.0, GRASP_HEIGHT]
+    place = np.asarray(tray_bottom, dtype=float) + [
+        0.0, 0.0, TRAY_FLOOR + PLACE_CLEARANCE + GRASP_HEIGHT]
+    api.open_gripper()
+    goto(grasp, z_approach=APPROACH)
+    api.close_gripper()
+    goto(grasp + [0.0, 0.0, LIFT])
+    goto(place, z_approach=APPROACH)
+    api.open_gripper()
+    goto(place + [0.0, 0.0, APPROACH])
+    api.home_pose()
+
+
+@dc.dataclass(frozen=True)
+class PlaceCheck:
+    """Whether the can ended upright inside the tray, and why not if it did not."""
+
+    success: bool
+    reason: str
+
+
+def check_can_in_tray(plant, plant_context: Context, can_body: str = "soda_can",
+                      tray_body: str = "tray") -> PlaceCheck:
+    """Success check from the simulator's ground truth (for benchmarks, never for agents):
+    the can stands upright (tilt ≤ 10°), wholly inside the tray's inner walls, on its floor."""
+    X_can = plant.EvalBodyPoseInWorld(plant_context, plant.GetBodyByName(can_body))
+    X_tray = plant.EvalBodyPoseInWorld(plant_context, plant.GetBodyByName(tray_body))
+    axis = X_can.rotation().matrix()[:, 2]
+    tilt = float(np.arccos(np.clip(axis[2], -1.0, 1.0)))
+    if tilt > UPRIGHT_TILT:
+        return PlaceCheck(False, f"the can is tipped over ({np.degrees(tilt):.0f}°)")
+    offset = X_tray.inverse().multiply(X_can.translation())
+    if np.any(np.abs(offset[:2]) + CAN_RADIUS > TRAY_INNER_HALF):
+        return PlaceCheck(False, f"the can is not inside the tray (offset {offset[:2].round(3)} "
+                                 "m from its centre)")
+    if not -0.005 <= offset[2] - TRAY_FLOOR <= 0.01:
+        return PlaceCheck(False, f"the can is not resting on the tray floor (bottom "
+                                 f"{offset[2]:.3f} m above the tray frame)")
+    return PlaceCheck(True, "the can stands upright in the tray")

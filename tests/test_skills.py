@@ -1,0 +1,165 @@
+"""Robot skills through the blocking API: refusals without motion, accuracy, limits."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from physcap_drake.control.errors import SkillFailed, SkillRefused
+from physcap_drake.control.requests import MoveToPose
+from physcap_drake.robot_api import RobotAPI
+from physcap_drake.robot_diagram import build_robot_diagram
+from physcap_drake.station import ports
+
+
+class Robot:
+    """A freshly built robot diagram, its simulator and API, and ground-truth helpers."""
+
+    def __init__(self, scenario, **options):
+        self.diagram = build_robot_diagram(scenario, **options)
+        self.simulator = self.diagram.make_simulator()
+        self.api = RobotAPI(self.diagram, self.simulator)
+        self.plant = self.diagram.station.GetSubsystemByName("plant")
+        self.plant_context = self.plant.GetMyContextFromRoot(self.simulator.get_context())
+
+    @property
+    def time(self) -> float:
+        return self.simulator.get_context().get_time()
+
+    def command(self) -> np.ndarray:
+        executor = self.diagram.executor
+        return executor.GetOutputPort(ports.ARM_POSITION).Eval(
+            executor.GetMyContextFromRoot(self.simulator.get_context())).copy()
+
+    def tcp_truth(self):
+        return self.plant.GetFrameByName("tcp").CalcPoseInWorld(self.plant_context)
+
+
+@pytest.fixture
+def robot(table_scenario) -> Robot:
+    return Robot(table_scenario)
+
+
+def assert_refused_without_motion(robot: Robot, call, *needles: str) -> None:
+    time, command, status = robot.time, robot.command(), robot.api.status
+    with pytest.raises(SkillRefused) as refused:
+        call()
+    for needle in needles:
+        assert needle in str(refused.value), str(refused.value)
+    assert robot.time == time  # no simulated time passed
+    np.testing.assert_array_equal(robot.command(), command)  # the command did not change
+    assert robot.api.status == status
+
+
+def test_a_target_below_the_table_is_refused(robot):
+    assert_refused_without_motion(robot, lambda: robot.api.goto_pose([0.3, 0.1, -0.05]),
+                                  "z = -0.050 m", "outside the workspace", "table")
+
+
+def test_an_approach_point_outside_the_workspace_is_refused(robot):
+    assert_refused_without_motion(
+        robot, lambda: robot.api.goto_pose([0.3, 0.1, 0.1], z_approach=0.6),
+        "approach point", "z = 0.700 m")
+
+
+def test_a_target_out_of_reach_is_refused(robot):
+    assert_refused_without_motion(robot, lambda: robot.api.goto_pose([0.68, 0.45, 0.05]),
+                                  "(0.680, 0.450, 0.050)", "out of reach")
+
+
+def test_joint_targets_past_a_limit_are_refused(robot):
+    assert_refused_without_motion(
+        robot, lambda: robot.api.move_joints([0.0, 3.5, -1.0, 0.0, 0.0, 0.0]),
+        "J2 = 3.5000 rad is outside [0.0000, 3.1416]")
+
+
+@pytest.mark.parametrize(("call", "needle"), [
+    (lambda api: api.goto_pose([0.3, np.nan, 0.1]), "finite"),
+    (lambda api: api.goto_pose([0.3, 0.1]), "3 numbers"),
+    (lambda api: api.goto_pose("here"), "3 numbers"),
+    (lambda api: api.goto_pose([0.3, 0.1, 0.1], z_approach=float("inf")), "z_approach"),
+    (lambda api: api.goto_pose([0.3, 0.1, 0.1], quaternion_wxyz=[1, 0, 0]), "4 numbers"),
+    (lambda api: api.goto_pose([0.3, 0.1, 0.1], quaternion_wxyz=[2, 0, 0, 0]), "unit length"),
+    (lambda api: api.move_joints([0.0] * 5), "6 numbers"),
+    (lambda api: api.move_joints([0.0, 0.5, -0.5, np.inf, 0.0, 0.0]), "finite"),
+    (lambda api: api.wait(-1.0), "wait duration"),
+])
+def test_malformed_input_is_refused(robot, call, needle):
+    assert_refused_without_motion(robot, lambda: call(robot.api), needle)
+
+
+def test_goto_pose_reaches_the_target_top_down(robot):
+    target = np.array([0.33, -0.05, 0.06])
+    robot.api.goto_pose(target, z_approach=0.08)
+    X = robot.tcp_truth()
+    assert np.linalg.norm(X.translation() - target) < 0.002
+    gripper_axis = X.rotation().matrix()[:, 2]
+    assert gripper_axis @ [0.0, 0.0, -1.0] > np.cos(np.radians(1.0))  # straight down
+    assert robot.api.status.state == "succeeded"
+    assert robot.api.robot_time == pytest.approx(robot.time, abs=0.05)
+
+
+def test_an_explicit_orientation_is_honoured(robot):
+    # A pose the arm can reach (taken from a joint configuration), tilted 40° off vertical.
+    model = robot.diagram.executor.planner.model
+    goal = model.tcp_pose(np.array([0.4, 1.2, -1.0, 0.6, 0.5, 0.3]))
+    assert np.degrees(np.arccos(-goal.rotation().matrix()[2, 2])) > 30.0
+    robot.api.goto_pose(goal.translation(), quaternion_wxyz=goal.rotation().ToQuaternion().wxyz())
+    reached = robot.tcp_truth()
+    assert np.linalg.norm(reached.translation() - goal.translation()) < 0.002
+    angle = reached.rotation().InvertAndCompose(goal.rotation()).ToAngleAxis().angle()
+    assert np.degrees(angle) < 0.5
+
+
+def test_the_approach_descends_vertically(robot):
+    context = robot.diagram.executor.GetMyContextFromRoot(robot.simulator.get_context())
+    planned = robot.diagram.executor.start(context, MoveToPose([0.3, 0.15, 0.05], None, 0.1))
+    model = robot.diagram.executor.planner.model
+    descent = planned.arm_plan.segments[1]
+    for t in np.linspace(descent.start_time(), descent.end_time(), 40):
+        p = model.tcp_pose(descent.value(t).ravel()).translation()
+        assert np.linalg.norm(p[:2] - [0.3, 0.15]) < 0.002
+        assert 0.05 - 1e-3 < p[2] < 0.15 + 1e-3
+    with pytest.raises(SkillRefused, match="busy"):
+        robot.diagram.executor.start(context, MoveToPose([0.3, 0.15, 0.2]))
+
+
+def test_joint_speeds_and_accelerations_stay_within_the_limits(table_scenario):
+    robot = Robot(table_scenario, log_joints=True)
+    robot.api.goto_pose([0.45, 0.25, 0.06], z_approach=0.1)
+    robot.api.goto_pose([0.30, -0.30, 0.06], z_approach=0.1)
+    robot.api.home_pose()
+    v_max = table_scenario.skills.max_joint_velocity
+    a_max = table_scenario.skills.max_joint_acceleration
+    context = robot.simulator.get_context()
+    commands = robot.diagram.command_log.FindLog(context)
+    dt = np.diff(commands.sample_times())
+    v_command = np.diff(commands.data(), axis=1) / dt
+    a_command = np.diff(v_command, axis=1) / dt[1:]
+    assert np.abs(v_command).max() > 0.8 * v_max  # the motions really used the limits
+    assert np.abs(v_command).max() <= v_max * (1 + 1e-6)
+    assert np.abs(a_command).max() <= a_max * (1 + 1e-3)
+    measured = robot.diagram.velocity_log.FindLog(context)
+    assert np.abs(measured.data()).max() <= v_max * 1.01
+    # The arm's own servo adds short transients to the commanded acceleration (it reaches a
+    # stopped target slightly later and brakes harder); they stay within half the limit.
+    a_measured = np.diff(measured.data(), axis=1) / np.diff(measured.sample_times())
+    assert np.abs(a_measured).max() <= 1.5 * a_max
+
+
+def test_a_skill_that_cannot_finish_fails_and_the_arm_stops(table_scenario):
+    table_scenario.skills.gripper_timeout = 0.05  # the fingers need longer than this
+    robot = Robot(table_scenario)
+    with pytest.raises(SkillFailed, match="timed out"):
+        robot.api.open_gripper()
+    assert robot.api.status.state == "failed"
+    robot.api.wait(0.5)  # the robot still takes requests after a failure
+    assert robot.api.status.state == "succeeded"
+
+
+def test_the_api_text_states_units_and_frames():
+    for method in ("goto_pose", "move_joints", "open_gripper", "close_gripper"):
+        assert getattr(RobotAPI, method).__doc__
+    assert "metres" in RobotAPI.goto_pose.__doc__ and "world frame" in RobotAPI.goto_pose.__doc__
+    assert "radians" in RobotAPI.move_joints.__doc__
+    assert "z = 0" in RobotAPI.__doc__
