@@ -10,12 +10,24 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
+import numpy as np
 from pydrake.systems.analysis import Simulator
 
 from physcap_drake.control.errors import SkillFailed
-from physcap_drake.control.requests import MoveGripper, MoveToJoints, MoveToPose, SkillRequest, Wait
+from physcap_drake.control.requests import (
+    MoveGripper,
+    MoveToJoints,
+    MoveToPose,
+    SkillRequest,
+    Wait,
+    as_vector,
+)
 from physcap_drake.control.skill_executor import MONITOR_PERIOD, SkillStatus
+from physcap_drake.knowledge import KnowledgeEntry, SceneKnowledge
+from physcap_drake.physx.mass_probe import MassProbe
+from physcap_drake.physx.stiffness_probe import StiffnessProbe
 from physcap_drake.robot_diagram import RobotDiagram
+from physcap_drake.station import ports
 
 
 class RobotAPI:
@@ -34,7 +46,17 @@ class RobotAPI:
         self._robot = robot
         self._simulator = simulator
         self._on_skill_done = on_skill_done
-        self._executor_context = robot.executor.GetMyContextFromRoot(simulator.get_context())
+        root = simulator.get_context()
+        self._executor_context = robot.executor.GetMyContextFromRoot(root)
+        self._station_context = robot.station.GetMyContextFromRoot(root)
+        self._mass_probe = MassProbe(self, robot.mass_estimator,
+                                     robot.mass_estimator.GetMyContextFromRoot(root),
+                                     robot.scenario.physx.mass)
+        self._stiffness_probe = StiffnessProbe(
+            self, robot.stiffness_estimator,
+            robot.stiffness_estimator.GetMyContextFromRoot(root))
+        #: What has been measured in this episode (get_mass and get_stiffness add to it).
+        self.knowledge = SceneKnowledge()
 
     def goto_pose(self, position, quaternion_wxyz=None, z_approach=0.0) -> None:
         """Move the fingertip to `position` = [x, y, z] (metres, world frame).
@@ -73,6 +95,56 @@ class RobotAPI:
         """Hold still for `seconds` (simulated time)."""
         self._run(Wait(seconds))
 
+    def get_mass(self, position, name: str | None = None) -> float:
+        """Weigh an object: grasp it at `position` = [x, y, z] (metres, world frame: the
+        fingertip point for a top-down grasp, e.g. the object's centre), lift it 15 cm,
+        compare the joint torques with those of an empty grasp, and put it back.
+
+        name: how the object is called in the scene knowledge (default: its position).
+        Make sure the gripper holds nothing before calling. Takes about 10 s.
+
+        Returns the mass in kilograms, or 0.0 if the measurement failed (nothing grasped, or
+        the object slipped); the reason is recorded in the scene knowledge.
+        """
+        subject = _subject(position, name)
+        result = self._mass_probe.measure(position)
+        self.knowledge.add(KnowledgeEntry(subject, "mass", result.mass_kg, "kg", result.ok,
+                                          result.reason, self.robot_time))
+        return result.mass_kg
+
+    get_weight = get_mass
+
+    def get_stiffness(self, position, name: str | None = None) -> int:
+        """Measure how soft an object is: place the open fingers around it at `position` =
+        [x, y, z] (metres, world frame: the fingertip point, e.g. the object's centre), squeeze
+        it five times and read how far the fingers travel before the grip force builds up.
+        The object is left where it is.
+
+        name: how the object is called in the scene knowledge (default: its position).
+        Make sure the gripper holds nothing before calling. Takes about 15 to 25 s.
+
+        Returns the stiffness level: 1 ultra-soft (foam, an overripe fruit), 2 soft (a ripe
+        fruit, soft rubber), 3 semi-rigid, 4 stiff (an unripe fruit, hard rubber), 5 rigid
+        (metal, wood, a full can); 0 if the measurement failed (recorded in the knowledge).
+        """
+        subject = _subject(position, name)
+        measurement = self._stiffness_probe.measure(position)
+        self.knowledge.add(KnowledgeEntry(subject, "stiffness", measurement.level, "level",
+                                          measurement.level > 0, measurement.describe(),
+                                          self.robot_time))
+        return measurement.level
+
+    @property
+    def joint_target(self) -> np.ndarray:
+        """The arm's commanded joint positions J1..J6 (radians) once the last motion ended."""
+        return self._robot.executor.joint_target(self._executor_context)
+
+    @property
+    def gripper_opening(self) -> float:
+        """The measured gap between the fingers, metres."""
+        return float(self._robot.station.GetOutputPort(ports.GRIPPER_POSITION_MEASURED).Eval(
+            self._station_context)[0])
+
     @property
     def robot_time(self) -> float:
         """Robot execution time so far: the simulated seconds spent executing skills."""
@@ -94,3 +166,9 @@ class RobotAPI:
         if status.state == "failed":
             raise SkillFailed(status.message)
         return status
+
+
+def _subject(position, name: str | None) -> str:
+    """How a measured object is named in the knowledge: its name, or its position."""
+    point = as_vector(position, 3, "position (m)")
+    return name or "object at (" + ", ".join(f"{v:.3f}" for v in point) + ") m"

@@ -9,12 +9,17 @@ from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import Diagram, DiagramBuilder
 from pydrake.systems.primitives import LogVectorOutput, VectorLogSink
 
-from physcap_drake.control.planning_model import PlanningModel
+from physcap_drake.control.planning_model import TCP_FRAME, PlanningModel
 from physcap_drake.control.skill_executor import SkillExecutor
 from physcap_drake.control.skill_planner import SkillPlanner
+from physcap_drake.physx.gripper_command_selector import GripperCommandSelector
+from physcap_drake.physx.mass_estimator import MassEstimator
+from physcap_drake.physx.stiffness_estimator import StiffnessEstimator
+from physcap_drake.physx.stiffness_levels import load_thresholds
 from physcap_drake.scenario import Scenario
 from physcap_drake.sim_runner import make_simulator
 from physcap_drake.station import MakeStation, ports
+from physcap_drake.station.robot_model import make_controller_plant
 
 
 @dc.dataclass
@@ -25,6 +30,8 @@ class RobotDiagram:
     diagram: Diagram
     station: Diagram
     executor: SkillExecutor
+    mass_estimator: MassEstimator
+    stiffness_estimator: StiffnessEstimator
     # With build_robot_diagram(..., log_joints=True): logs of the commanded joint positions
     # and the measured joint velocities, one sample per plant step (VectorLogSink systems).
     command_log: VectorLogSink | None = None
@@ -37,8 +44,10 @@ class RobotDiagram:
 
 def build_robot_diagram(scenario: Scenario, meshcat: Meshcat | None = None, *,
                         log_joints: bool = False) -> RobotDiagram:
-    """Station + SkillExecutor, connected through the station's port contract. With
-    `log_joints`, the commanded positions and measured velocities are logged every step."""
+    """Station + SkillExecutor + the PhysX estimators, connected through the station's port
+    contract (the gripper commands pass a GripperCommandSelector, so the stiffness probe can
+    take the gripper over). With `log_joints`, the commanded positions and measured
+    velocities are logged every step."""
     builder = DiagramBuilder()
     station = builder.AddNamedSystem("station", MakeStation(scenario, meshcat))
     model = PlanningModel(scenario.directives, scenario.station.arm_model,
@@ -49,8 +58,23 @@ def build_robot_diagram(scenario: Scenario, meshcat: Meshcat | None = None, *,
         "skill_executor", SkillExecutor(planner, initial_force=scenario.skills.grasp_force))
     for name in (ports.ARM_POSITION_MEASURED, ports.GRIPPER_POSITION_MEASURED):
         builder.Connect(station.GetOutputPort(name), executor.GetInputPort(name))
-    for name in (ports.ARM_POSITION, ports.GRIPPER_POSITION, ports.GRIPPER_FORCE_LIMIT):
-        builder.Connect(executor.GetOutputPort(name), station.GetInputPort(name))
+    builder.Connect(executor.GetOutputPort(ports.ARM_POSITION),
+                    station.GetInputPort(ports.ARM_POSITION))
+    stiffness_estimator = builder.AddNamedSystem("stiffness_estimator", StiffnessEstimator(
+        scenario.physx.stiffness, load_thresholds(scenario.physx.stiffness.thresholds_file)))
+    for name in (ports.GRIPPER_POSITION_MEASURED, ports.GRIPPER_EFFORT_MEASURED):
+        builder.Connect(station.GetOutputPort(name), stiffness_estimator.GetInputPort(name))
+    selector = builder.AddNamedSystem("gripper_command_selector", GripperCommandSelector())
+    for name in (ports.GRIPPER_POSITION, ports.GRIPPER_FORCE_LIMIT):
+        builder.Connect(executor.GetOutputPort(name), selector.GetInputPort(f"executor.{name}"))
+        builder.Connect(stiffness_estimator.GetOutputPort(name),
+                        selector.GetInputPort(f"probe.{name}"))
+        builder.Connect(selector.GetOutputPort(name), station.GetInputPort(name))
+    builder.Connect(stiffness_estimator.GetOutputPort("active"),
+                    selector.GetInputPort("probe.active"))
+    mass_estimator = builder.AddNamedSystem("mass_estimator", _make_mass_estimator(scenario))
+    for name in (ports.ARM_POSITION_MEASURED, ports.ARM_TORQUE_MEASURED):
+        builder.Connect(station.GetOutputPort(name), mass_estimator.GetInputPort(name))
     logs = (None, None)
     if log_joints:
         period = scenario.plant_config.time_step
@@ -59,4 +83,16 @@ def build_robot_diagram(scenario: Scenario, meshcat: Meshcat | None = None, *,
                                 period))
     diagram = builder.Build()
     diagram.set_name("robot")
-    return RobotDiagram(scenario, diagram, station, executor, *logs)
+    return RobotDiagram(scenario, diagram, station, executor, mass_estimator,
+                        stiffness_estimator, *logs)
+
+
+def _make_mass_estimator(scenario: Scenario) -> MassEstimator:
+    """The mass estimator with its own copy of the controller's model of the robot."""
+    plant = make_controller_plant(scenario.directives, scenario.station.arm_model,
+                                  scenario.station.gripper_model)
+    arm = plant.GetModelInstanceByName(scenario.station.arm_model)
+    joints = [plant.get_joint(j) for j in plant.GetJointIndices(arm)]
+    arm_joints = sorted((j for j in joints if j.num_positions() == 1), key=lambda j: j.index())
+    return MassEstimator(plant, arm_joints, TCP_FRAME,
+                         sample_rate=scenario.physx.mass.sample_rate)

@@ -24,6 +24,7 @@ from pydrake.visualization import VisualizationConfig
 
 from physcap_drake.config_checks import ConfigChecker
 from physcap_drake.control.skills_config import SkillsConfig
+from physcap_drake.physx.physx_config import PhysxConfig
 from physcap_drake.resources import make_package_map
 from physcap_drake.scenario_errors import ScenarioError, file_label, locate_yaml_error
 from physcap_drake.station.can_config import PiperCan
@@ -84,6 +85,8 @@ class Scenario:
     station: SimPiper | PiperCan = dc.field(default_factory=SimPiper)
     # Limits and tolerances of the robot skills (goto_pose, gripper, home).
     skills: SkillsConfig = dc.field(default_factory=SkillsConfig)
+    # The physical probes get_mass and get_stiffness.
+    physx: PhysxConfig = dc.field(default_factory=PhysxConfig)
     # RGB-D cameras (Drake's CameraConfig); the one named "camera" is the station's camera.
     cameras: list[CameraConfig] = dc.field(default_factory=lambda: [_default_camera()])
     # What Meshcat shows (Drake's VisualizationConfig).
@@ -129,6 +132,7 @@ def check_scenario(scenario: Scenario, filename: str = "<scenario>") -> None:
     _check_plant_config(scenario.plant_config, at.child("plant_config"))
     scenario.station.check(at.child("station"))
     scenario.skills.check(at.child("skills"))
+    scenario.physx.check(at.child("physx"))
     _check_directives(scenario, at)
     _check_cameras(scenario.cameras, at)
 

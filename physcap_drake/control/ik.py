@@ -68,28 +68,29 @@ def _add_goal(ik: InverseKinematics, model: PlanningModel, goal: FingertipGoal) 
 
 
 def solve_fingertip_ik(model: PlanningModel, goal: FingertipGoal, q_seed: np.ndarray, *,
-                       opening: float, collision_margin: float,
+                       opening: float, collision_margin: float, limit_margin: float,
                        max_step: float | None = None) -> np.ndarray:
-    """Arm joints (rad) that put the fingertip at `goal`, within the joint limits and at least
-    `collision_margin` m from the table and from the arm itself, as close to `q_seed` as the
-    solver finds. The gripper is held at `opening` (m) while checking collisions. With
-    `max_step` (rad), every joint stays within that distance of `q_seed` (for chaining
-    nearby targets without jumping to another arm configuration).
+    """Arm joints (rad) that put the fingertip at `goal`, at least `limit_margin` rad inside
+    the joint limits and at least `collision_margin` m from the table and from the arm
+    itself, as close to `q_seed` as the solver finds. The gripper is held at `opening` (m)
+    while checking collisions. With `max_step` (rad), every joint stays within that distance
+    of `q_seed` (for chaining nearby targets without jumping to another arm configuration).
 
     Raises SkillRefused naming the target when no such configuration is found.
     """
     diagram_context = model.diagram.CreateDefaultContext()
     plant_context = model.plant.GetMyMutableContextFromRoot(diagram_context)
-    ik = InverseKinematics(model.plant, plant_context, with_joint_limits=True)
+    ik = InverseKinematics(model.plant, plant_context, with_joint_limits=False)
     q = ik.q()
     prog = ik.get_mutable_prog()
+    arm = model.arm_position_indices
+    prog.AddBoundingBoxConstraint(model.lower + limit_margin, model.upper - limit_margin, q[arm])
     fingers = model.finger_position_indices
     prog.AddBoundingBoxConstraint(np.full(len(fingers), 0.5 * opening),
                                   np.full(len(fingers), 0.5 * opening), q[fingers])
     _add_goal(ik, model, goal)
     if collision_margin > 0:
         ik.AddMinimumDistanceLowerBoundConstraint(collision_margin, COLLISION_INFLUENCE)
-    arm = model.arm_position_indices
     if max_step is not None:
         prog.AddBoundingBoxConstraint(q_seed - max_step, q_seed + max_step, q[arm])
     seed_full = model.full_positions(q_seed, opening)
@@ -99,7 +100,7 @@ def solve_fingertip_ik(model: PlanningModel, goal: FingertipGoal, q_seed: np.nda
     if max_step is None:
         seeds += [np.array([yaw, j2, j3, 0.0, j5, 0.0]) for j2, j3, j5 in FALLBACK_SEEDS]
     for seed in seeds:
-        seed = np.clip(seed, model.lower, model.upper)
+        seed = np.clip(seed, model.lower + limit_margin, model.upper - limit_margin)
         result = Solve(prog, model.full_positions(seed, opening))
         if result.is_success():
             return result.GetSolution(q)[arm]
@@ -107,6 +108,7 @@ def solve_fingertip_ik(model: PlanningModel, goal: FingertipGoal, q_seed: np.nda
     pose = (f"with the gripper within {np.degrees(goal.max_tilt):.0f}° of straight down"
             if goal.rotation is None else "with the requested orientation")
     raise SkillRefused(
-        f"no arm configuration puts the fingertip at ({where}) m {pose} within the joint "
-        f"limits and {collision_margin * 1000:.0f} mm clear of the table and the arm itself "
+        f"no arm configuration puts the fingertip at ({where}) m {pose} "
+        f"{np.degrees(limit_margin):.0f}° inside the joint limits and "
+        f"{collision_margin * 1000:.0f} mm clear of the table and the arm itself "
         f"(solver: {result.get_solution_result().name}); the point may be out of reach")

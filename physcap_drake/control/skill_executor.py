@@ -107,6 +107,10 @@ class SkillExecutor(LeafSystem):
         """The executor's status in `context` (this system's context)."""
         return self._get(context).status
 
+    def joint_target(self, context: Context) -> np.ndarray:
+        """Where the current (or last) motion ends, rad: the arm's commanded rest position."""
+        return self._get(context).arm_plan.final_position.copy()
+
     def _hold_where_measured(self, context: Context, state: State) -> None:
         q = self._q.Eval(context).copy()
         opening = float(self._opening.Eval(context)[0])

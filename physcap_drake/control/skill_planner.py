@@ -148,7 +148,7 @@ class SkillPlanner:
     def _solve(self, position, rotation, seed, opening, max_step=None) -> np.ndarray:
         return solve_fingertip_ik(self.model, FingertipGoal(position, rotation), seed,
                                   opening=opening, collision_margin=self.config.collision_margin,
-                                  max_step=max_step)
+                                  limit_margin=self.config.joint_limit_margin, max_step=max_step)
 
     def _plan_pose(self, request: MoveToPose, now, q_now, opening,
                    gripper_command) -> PlannedSkill:

@@ -44,8 +44,9 @@ class SkillsConfig:
     workspace: WorkspaceBox = dc.field(default_factory=WorkspaceBox)
     # Smallest distance kept between the robot and the table (and between its own links), m.
     collision_margin: float = 0.005
-    # How far from straight down a "top-down" grasp may point, degrees.
-    top_down_tolerance_deg: float = 0.5
+    # IK solutions keep every joint this far inside its limits, rad: a joint resting on its
+    # limit carries load that its motor torque no longer shows (and cannot move further).
+    joint_limit_margin: float = 0.035
     # A motion is done when every joint is this close to its goal, rad.
     joint_tolerance: float = 0.003
     # Time allowed beyond a motion's planned duration before it counts as failed, s.
@@ -63,8 +64,7 @@ class SkillsConfig:
         at.vector("home_position", self.home_position, NUM_ARM_JOINTS)
         self.workspace.check(at.child("workspace"))
         at.number("collision_margin", self.collision_margin, minimum=0.0, maximum=0.05)
-        at.number("top_down_tolerance_deg", self.top_down_tolerance_deg, minimum=0.0,
-                  maximum=45.0, open_minimum=True)
+        at.number("joint_limit_margin", self.joint_limit_margin, minimum=0.0, maximum=0.3)
         at.number("joint_tolerance", self.joint_tolerance, minimum=0.0, maximum=0.1,
                   open_minimum=True)
         at.number("motion_timeout", self.motion_timeout, minimum=0.0, open_minimum=True)

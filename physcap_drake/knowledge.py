@@ -1,0 +1,53 @@
+"""SceneKnowledge: what the robot has measured and done so far, in one episode.
+
+Every physical measurement and its outcome is appended here; agents receive it in every call,
+so they never measure the same thing twice without reason.
+"""
+
+from __future__ import annotations
+
+import dataclasses as dc
+
+
+@dc.dataclass(frozen=True)
+class KnowledgeEntry:
+    """One fact: `value` (in `unit`) of `prop` for `subject`, or a failed attempt (ok=False,
+    the reason in `note`). `robot_time_s`: robot execution time when it was recorded."""
+
+    subject: str
+    prop: str
+    value: float | int
+    unit: str
+    ok: bool
+    note: str = ""
+    robot_time_s: float = 0.0
+
+    def describe(self) -> str:
+        if not self.ok:
+            return f"{self.subject}: {self.prop} measurement failed ({self.note})"
+        value = f"{self.value:.3f}" if isinstance(self.value, float) else str(self.value)
+        note = f" ({self.note})" if self.note else ""
+        return f"{self.subject}: {self.prop} = {value} {self.unit}{note}"
+
+
+@dc.dataclass
+class SceneKnowledge:
+    """The episode's accumulated knowledge, oldest first."""
+
+    entries: list[KnowledgeEntry] = dc.field(default_factory=list)
+
+    def add(self, entry: KnowledgeEntry) -> None:
+        self.entries.append(entry)
+
+    def latest(self, subject: str, prop: str) -> KnowledgeEntry | None:
+        """The most recent successful entry for (subject, prop), if any."""
+        for entry in reversed(self.entries):
+            if entry.subject == subject and entry.prop == prop and entry.ok:
+                return entry
+        return None
+
+    def as_text(self) -> str:
+        """One line per entry, for prompts and transcripts."""
+        if not self.entries:
+            return "(nothing measured yet)"
+        return "\n".join(f"- {entry.describe()}" for entry in self.entries)

@@ -1,0 +1,84 @@
+"""Configuration of the physical probes (`physx:` in a scenario file)."""
+
+# No `from __future__ import annotations`: yaml_load_typed reads the field types at run time.
+import dataclasses as dc
+
+from physcap_drake.config_checks import ConfigChecker
+
+
+@dc.dataclass
+class MassProbeConfig:
+    """get_mass: weigh an object by the change of joint torques when it is lifted."""
+
+    # Height of the measurement pose above the grasp point, m (the paper lifts 15 cm).
+    lift_height: float = 0.15
+    # Time to let the arm settle at the measurement pose before averaging, s.
+    settle_time: float = 0.5
+    # Length of each torque-averaging window, s.
+    window: float = 1.0
+    # Rate at which torques are sampled into the average, Hz (the arm reports at 200 Hz).
+    sample_rate: float = 200.0
+    # A grasp that closes the fingers to less than this gap held nothing, m.
+    min_grasp_opening: float = 0.004
+
+    def check(self, at: ConfigChecker) -> None:
+        at.number("lift_height", self.lift_height, minimum=0.02, maximum=0.4)
+        at.number("settle_time", self.settle_time, minimum=0.0)
+        at.number("window", self.window, minimum=0.0, open_minimum=True)
+        at.number("sample_rate", self.sample_rate, minimum=0.0, maximum=1000.0,
+                  open_minimum=True)
+        at.number("min_grasp_opening", self.min_grasp_opening, minimum=0.0)
+
+
+@dc.dataclass
+class StiffnessProbeConfig:
+    """get_stiffness: squeeze an object and read how far the fingers travel between first
+    contact and a fixed normalized effort."""
+
+    # Closing step while looking for contact, m of opening.
+    contact_step: float = 0.001
+    # Closing step while recording (opening, effort) pairs, m of opening.
+    squeeze_step: float = 0.0005
+    # Time each step is held before opening and effort are read, s.
+    dwell: float = 0.06
+    # Normalized effort that signals a possible contact.
+    contact_effort: float = 0.03
+    # How far the fingers reopen for the back-off test, m of opening.
+    backoff: float = 0.001
+    # Fraction of the effort rise that must vanish on back-off for a real contact.
+    backoff_drop: float = 0.5
+    # Normalized effort at which the deformation is read (the paper's f* = 0.5).
+    target_effort: float = 0.5
+    # Squeeze force limit commanded during the probe, N per finger.
+    force_limit: float = 25.0
+    # How far the fingers open past the contact between squeezes, m of opening.
+    release: float = 0.01
+    # Squeezes per measurement; the level is their majority vote.
+    squeezes: int = 5
+    # Calibrated deformation thresholds (a YAML file in models/, see
+    # models/calibration/stiffness_levels.yaml).
+    thresholds_file: str = "package://physcap_models/calibration/stiffness_levels.yaml"
+
+    def check(self, at: ConfigChecker) -> None:
+        for key in ("contact_step", "squeeze_step", "backoff", "release"):
+            at.number(key, getattr(self, key), minimum=0.0, maximum=0.02, open_minimum=True)
+        at.number("dwell", self.dwell, minimum=0.0, open_minimum=True)
+        at.number("contact_effort", self.contact_effort, minimum=0.0, maximum=1.0,
+                  open_minimum=True)
+        at.number("backoff_drop", self.backoff_drop, minimum=0.0, maximum=1.0)
+        at.number("target_effort", self.target_effort, minimum=self.contact_effort,
+                  maximum=1.0, open_minimum=True)
+        at.number("force_limit", self.force_limit, minimum=0.0, open_minimum=True)
+        at.number("squeezes", self.squeezes, minimum=1, maximum=25)
+
+
+@dc.dataclass
+class PhysxConfig:
+    """The two physical probes."""
+
+    mass: MassProbeConfig = dc.field(default_factory=MassProbeConfig)
+    stiffness: StiffnessProbeConfig = dc.field(default_factory=StiffnessProbeConfig)
+
+    def check(self, at: ConfigChecker) -> None:
+        self.mass.check(at.child("mass"))
+        self.stiffness.check(at.child("stiffness"))

@@ -1,0 +1,205 @@
+"""StiffnessEstimator: squeezes an object in small steps and measures how far the fingers
+travel between first contact and a fixed normalized effort."""
+
+from __future__ import annotations
+
+import dataclasses as dc
+import enum
+import math
+
+from pydrake.common.value import AbstractValue
+from pydrake.systems.framework import BasicVector, Context, LeafSystem, State
+
+from physcap_drake.physx.physx_config import StiffnessProbeConfig
+from physcap_drake.physx.stiffness_levels import (
+    StiffnessThresholds,
+    deformation_at_effort,
+    level_from_deformation,
+    majority_level,
+)
+from physcap_drake.station import ports
+
+#: A release is complete when the fingers are this close to the release opening, m, and no
+#: effort is left; the next squeeze starts after at most MAX_RELEASE_TICKS dwells anyway.
+RELEASED_TOLERANCE = 0.0005
+MAX_RELEASE_TICKS = 20
+
+
+class Phase(enum.Enum):
+    IDLE = "idle"
+    SEEK_CONTACT = "seek contact"  # closing in contact steps until the effort rises
+    BACK_OFF = "back off"  # reopened slightly: does the effort drop (real contact)?
+    SQUEEZE = "squeeze"  # closing in squeeze steps, recording (opening, effort)
+    RELEASE = "release"  # reopened past the contact before the next squeeze
+    DONE = "done"
+
+
+@dc.dataclass(frozen=True)
+class ProbeState:
+    """Everything the probe remembers (kept in the Context as one abstract state).
+
+    command: the commanded opening, m. free_effort: the effort read before the last rise.
+    contact: (opening m, effort) where the effort rose. d0: the accepted contact opening, m.
+    samples: (opening m, effort) pairs of the running squeeze. deformations_mm: one per
+    finished squeeze (NaN for a failed one). notes: why squeezes failed or contacts were
+    rejected.
+    """
+
+    phase: Phase = Phase.IDLE
+    command: float = 0.0
+    free_effort: float = 0.0
+    contact: tuple[float, float] | None = None
+    d0: float = math.nan
+    samples: tuple[tuple[float, float], ...] = ()
+    deformations_mm: tuple[float, ...] = ()
+    notes: tuple[str, ...] = ()
+    release_ticks: int = 0
+
+
+@dc.dataclass(frozen=True)
+class StiffnessResult:
+    """The outcome of a probe: one deformation (mm) and level per squeeze, the vote."""
+
+    level: int
+    deformations_mm: tuple[float, ...]
+    levels: tuple[int, ...]
+    notes: tuple[str, ...]
+
+
+class StiffnessEstimator(LeafSystem):
+    """Drives the gripper through `squeezes` squeezes of an object between the fingers and
+    classifies its stiffness.
+
+    Each squeeze: (1) close in `contact_step` steps until the normalized effort reaches
+    `contact_effort`; (2) undo that step and reopen `backoff` more: a real contact loses at
+    least `backoff_drop` of its effort rise, friction in the drive does not (then closing
+    resumes); the opening where the effort rose is d0; (3) close in `squeeze_step` steps
+    recording (d_i, f̂_i) until f̂ reaches `target_effort`, and take Δd = |d0 − d(f̂*)|
+    (mm, interpolated);
+    (4) reopen to d0 + `release`. Closing fully without reaching the effort fails the
+    squeeze. Every step is held `dwell` s before the gripper is read.
+
+    It reads only gripper.position_measured and gripper.effort_measured, and while probing
+    commands the gripper through its own outputs (see GripperCommandSelector).
+
+    Input ports: gripper.position_measured (1, m), gripper.effort_measured (1, 0..1).
+    Output ports: gripper.position (1, m), gripper.force_limit (1, N), active (1: 1 while
+    probing, else 0).
+    """
+
+    def __init__(self, config: StiffnessProbeConfig, thresholds: StiffnessThresholds):
+        super().__init__()
+        self._config = config
+        self._thresholds = thresholds
+        self._opening = self.DeclareVectorInputPort(ports.GRIPPER_POSITION_MEASURED, 1)
+        self._effort = self.DeclareVectorInputPort(ports.GRIPPER_EFFORT_MEASURED, 1)
+        self._state = self.DeclareAbstractState(AbstractValue.Make(ProbeState()))
+        self.DeclarePeriodicUnrestrictedUpdateEvent(config.dwell, 0.0, self._step)
+        ticket = {self.abstract_state_ticket(self._state)}
+        self.DeclareVectorOutputPort(ports.GRIPPER_POSITION, 1, self._output_command, ticket)
+        self.DeclareVectorOutputPort(ports.GRIPPER_FORCE_LIMIT, 1, self._output_force, ticket)
+        self.DeclareVectorOutputPort("active", 1, self._output_active, ticket)
+
+    @property
+    def thresholds(self) -> StiffnessThresholds:
+        return self._thresholds
+
+    def _get(self, context: Context) -> ProbeState:
+        return context.get_abstract_state(self._state).get_value()
+
+    def begin(self, context: Context) -> None:
+        """Starts probing from the current finger opening (the object between the fingers)."""
+        opening = float(self._opening.Eval(context)[0])
+        context.get_mutable_abstract_state(self._state).set_value(
+            ProbeState(Phase.SEEK_CONTACT, command=opening))
+
+    def done(self, context: Context) -> bool:
+        return self._get(context).phase in (Phase.DONE, Phase.IDLE)
+
+    def result(self, context: Context) -> StiffnessResult:
+        """The levels of the finished probe and their majority vote (0: failed)."""
+        state = self._get(context)
+        levels = tuple(level_from_deformation(d, self._thresholds) for d in state.deformations_mm)
+        return StiffnessResult(majority_level(list(levels)), state.deformations_mm, levels,
+                               state.notes)
+
+    def reset(self, context: Context) -> None:
+        """Back to idle: the gripper is handed back to the skill executor."""
+        context.get_mutable_abstract_state(self._state).set_value(ProbeState())
+
+    # The probe's steps ------------------------------------------------------------------------
+
+    def _step(self, context: Context, state: State) -> None:
+        current = self._get(context)
+        if current.phase in (Phase.IDLE, Phase.DONE):
+            return
+        d = float(self._opening.Eval(context)[0])
+        f = float(self._effort.Eval(context)[0])
+        handler = {
+            Phase.SEEK_CONTACT: self._seek_contact,
+            Phase.BACK_OFF: self._back_off,
+            Phase.SQUEEZE: self._squeeze,
+            Phase.RELEASE: self._release,
+        }[current.phase]
+        state.get_mutable_abstract_state(self._state).set_value(handler(current, d, f))
+
+    def _close_by(self, s: ProbeState, step: float, **changes) -> ProbeState:
+        command = s.command - step
+        if command < 0.0:
+            return self._finish_squeeze(s, math.nan, "the fingers closed without reaching "
+                                        "the target effort")
+        return dc.replace(s, command=command, **changes)
+
+    def _seek_contact(self, s: ProbeState, d: float, f: float) -> ProbeState:
+        c = self._config
+        if f >= c.contact_effort:  # undo the last step and open `backoff` further
+            return dc.replace(s, phase=Phase.BACK_OFF, contact=(d, f),
+                              command=s.command + c.contact_step + c.backoff)
+        return self._close_by(s, c.contact_step, free_effort=f)
+
+    def _back_off(self, s: ProbeState, d: float, f: float) -> ProbeState:
+        c = self._config
+        d_contact, f_contact = s.contact
+        contact_command = s.command - c.contact_step - c.backoff
+        if f_contact - f >= c.backoff_drop * (f_contact - s.free_effort):
+            return dc.replace(s, phase=Phase.SQUEEZE, d0=d_contact, command=contact_command,
+                              samples=((d_contact, f_contact),))
+        note = f"effort {f_contact:.2f} at {1000 * d_contact:.1f} mm did not drop on back-off"
+        return self._close_by(dc.replace(s, phase=Phase.SEEK_CONTACT, command=contact_command,
+                                         notes=s.notes + (f"rejected as friction: {note}",)),
+                              c.contact_step)
+
+    def _squeeze(self, s: ProbeState, d: float, f: float) -> ProbeState:
+        c = self._config
+        samples = s.samples + ((d, f),)
+        if f >= c.target_effort:
+            return self._finish_squeeze(s, deformation_at_effort(s.d0, list(samples),
+                                                                 c.target_effort))
+        return self._close_by(dc.replace(s, samples=samples), c.squeeze_step)
+
+    def _finish_squeeze(self, s: ProbeState, deformation_mm: float, note: str = "") -> ProbeState:
+        reopen = (s.d0 if math.isfinite(s.d0) else s.command) + self._config.release
+        notes = s.notes + ((f"squeeze {len(s.deformations_mm) + 1}: {note}",) if note else ())
+        return dc.replace(s, phase=Phase.RELEASE, command=reopen, samples=(),
+                          deformations_mm=s.deformations_mm + (deformation_mm,), notes=notes)
+
+    def _release(self, s: ProbeState, d: float, f: float) -> ProbeState:
+        still_opening = abs(d - s.command) > RELEASED_TOLERANCE or f >= self._config.contact_effort
+        if still_opening and s.release_ticks < MAX_RELEASE_TICKS:
+            return dc.replace(s, release_ticks=s.release_ticks + 1)
+        if len(s.deformations_mm) >= self._config.squeezes:
+            return dc.replace(s, phase=Phase.DONE)
+        return dc.replace(s, phase=Phase.SEEK_CONTACT, contact=None, d0=math.nan,
+                          release_ticks=0)
+
+    # Outputs ------------------------------------------------------------------------------------
+
+    def _output_command(self, context: Context, output: BasicVector) -> None:
+        output.SetAtIndex(0, max(self._get(context).command, 0.0))
+
+    def _output_force(self, context: Context, output: BasicVector) -> None:
+        output.SetAtIndex(0, self._config.force_limit)
+
+    def _output_active(self, context: Context, output: BasicVector) -> None:
+        active = self._get(context).phase not in (Phase.IDLE, Phase.DONE)
+        output.SetAtIndex(0, 1.0 if active else 0.0)
