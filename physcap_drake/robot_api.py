@@ -85,7 +85,8 @@ class RobotAPI:
 
     def home_pose(self) -> None:
         """Move the arm to its home (rest) joint positions, straight in joint space."""
-        self._run(MoveToJoints(self._robot.scenario.skills.home_position, "home_pose"))
+        self._run(MoveToJoints(self._robot.scenario.skills.home_position, "home_pose",
+                               check_workspace=False))
 
     def move_joints(self, positions) -> None:
         """Move the arm to joint positions [J1..J6] (radians), straight in joint space."""

@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 from pydrake.common.schema import Transform
 from pydrake.common.yaml import yaml_load_typed
-from pydrake.geometry import MeshcatParams, RenderEngineVtkParams
+from pydrake.geometry import MeshcatParams, RenderEngineGlParams, RenderEngineVtkParams
 from pydrake.math import RigidTransform, RollPitchYaw
 from pydrake.multibody.parsing import FlattenModelDirectives, ModelDirective, ModelDirectives
 from pydrake.multibody.plant import MultibodyPlantConfig
@@ -28,6 +28,7 @@ from physcap_drake.physx.physx_config import PhysxConfig
 from physcap_drake.resources import make_package_map
 from physcap_drake.scenario_errors import ScenarioError, file_label, locate_yaml_error
 from physcap_drake.station.can_config import PiperCan
+from physcap_drake.station.robot_model import arm_joint_limits, make_controller_plant
 from physcap_drake.station.sim_config import SimPiper
 
 #: Every station exports the ports of the camera with this name as `camera.rgb` etc.
@@ -135,6 +136,8 @@ def check_scenario(scenario: Scenario, filename: str = "<scenario>") -> None:
     scenario.physx.check(at.child("physx"))
     _check_directives(scenario, at)
     _check_cameras(scenario.cameras, at)
+    if isinstance(scenario.station, SimPiper):
+        _check_against_robot(scenario, at)
 
 
 def _check_plant_config(config: MultibodyPlantConfig, at: ConfigChecker) -> None:
@@ -172,6 +175,48 @@ def _check_directives(scenario: Scenario, at: ConfigChecker) -> None:
                                          f"(they add {names})", f"got {wanted!r}")
 
 
+def _check_joints(at: ConfigChecker, key: str, q: list[float], lower, upper) -> None:
+    for i, value in enumerate(q):
+        at.child(key).number(i, value, minimum=float(lower[i]), maximum=float(upper[i]),
+                             why=f"joint J{i + 1}'s limits, rad")
+
+
+def _check_against_robot(scenario: Scenario, at: ConfigChecker) -> None:
+    """Checks the values that only make sense against the robot model the directives add."""
+    station = scenario.station
+    plant = make_controller_plant(scenario.directives, station.arm_model, station.gripper_model)
+    lower, upper = arm_joint_limits(plant, plant.GetModelInstanceByName(station.arm_model))
+    _check_joints(at.child("station"), "initial_arm_position", station.initial_arm_position,
+                  lower, upper)
+    _check_joints(at.child("skills"), "home_position", scenario.skills.home_position,
+                  lower, upper)
+    gripper = plant.GetModelInstanceByName(station.gripper_model)
+    actuators = [plant.get_joint_actuator(i) for i in plant.GetJointActuatorIndices(gripper)]
+    if len(actuators) != 1:
+        at.child("station").fail("gripper_model", "a gripper model with one actuated finger",
+                                 f"{station.gripper_model!r} has {len(actuators)} actuators")
+    stroke = 2.0 * float(actuators[0].joint().position_upper_limits()[0])
+    at.child("station").number("initial_gripper_opening", station.initial_gripper_opening,
+                               minimum=0.0, maximum=stroke, why="the gripper's stroke, m")
+    max_force = station.gripper_servo.max_force
+    at.child("station").child("gripper_servo").number(
+        "max_force", max_force, minimum=0.0, maximum=0.5 * actuators[0].effort_limit(),
+        open_minimum=True, why="half the finger actuator's limit: it drives both fingers")
+    servo = station.joint_servo
+    at.child("skills").number("max_joint_velocity", scenario.skills.max_joint_velocity,
+                              minimum=0.0, maximum=servo.max_velocity, open_minimum=True,
+                              why="station.joint_servo.max_velocity, which the arm follows")
+    at.child("skills").number("max_joint_acceleration", scenario.skills.max_joint_acceleration,
+                              minimum=0.0, maximum=servo.max_acceleration, open_minimum=True,
+                              why="station.joint_servo.max_acceleration")
+    at.child("skills").number("grasp_force", scenario.skills.grasp_force, minimum=0.0,
+                              maximum=max_force, open_minimum=True,
+                              why="station.gripper_servo.max_force")
+    at.child("physx").child("stiffness").number(
+        "force_limit", scenario.physx.stiffness.force_limit, minimum=0.0, maximum=max_force,
+        open_minimum=True, why="station.gripper_servo.max_force")
+
+
 def _check_cameras(cameras: list[CameraConfig], at: ConfigChecker) -> None:
     names = [camera.name for camera in cameras]
     if MAIN_CAMERA not in names:
@@ -184,6 +229,11 @@ def _check_cameras(cameras: list[CameraConfig], at: ConfigChecker) -> None:
         here.number("width", camera.width, minimum=0, open_minimum=True)
         here.number("height", camera.height, minimum=0, open_minimum=True)
         here.number("fps", camera.fps, minimum=0.0, open_minimum=True)
+        renderer = camera.renderer_class
+        if not (isinstance(renderer, RenderEngineVtkParams | RenderEngineGlParams)
+                or renderer in ("", "RenderEngineVtk", "RenderEngineGl")):
+            here.fail("renderer_class", "!RenderEngineVtkParams {backend: EGL} (headless) or "
+                      "!RenderEngineGlParams {}", f"got {camera.renderer_class!r}")
         if not (camera.rgb and camera.depth and camera.label):
             here.fail("rgb", "rgb, depth and label all true (the station exports all three)",
                       f"got rgb={camera.rgb}, depth={camera.depth}, label={camera.label}")

@@ -63,3 +63,11 @@ def test_a_streamed_trajectory_is_followed_closely():
     t, q, _ = log.T
     lag_error = np.abs(q - 0.5 * (1.0 - np.cos(2.0 * t)))
     assert np.max(lag_error) < 0.01  # rad: follows without stopping at each target
+
+
+def test_a_small_step_from_rest_still_respects_the_acceleration_limit():
+    log = simulate(ConstantVectorSource([0.01]), 0.5)  # within one period's reach at 3 rad/s
+    _, q, v = log.T
+    assert np.max(np.abs(np.diff(v))) / DT <= A_MAX + 1e-6
+    assert np.max(np.abs(np.diff(q))) / DT <= V_MAX + 1e-6
+    assert q[-1] == pytest.approx(0.01, abs=1e-5)

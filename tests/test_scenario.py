@@ -103,6 +103,19 @@ def test_unknown_package_in_model_url():
      "plant_config.discrete_contact_approximation", "'sap'"),
     ("random_seed: -4", "random_seed", ">= 0"),
     ("station: !PiperCan {gripper_stroke_mm: 80}", "station.gripper_stroke_mm", "70, 100"),
+    ("station: !SimPiper {initial_arm_position: [0, -0.5, 0, 0, 0, 0]}",
+     "station.initial_arm_position[1]", ">= 0"),
+    ("station: !SimPiper {initial_gripper_opening: 0.2}", "station.initial_gripper_opening",
+     "<= 0.1"),
+    ("station: !SimPiper {gripper_servo: {max_force: 40}}", "station.gripper_servo.max_force",
+     "<= 30"),
+    ("skills: {home_position: [3, 0, 0, 0, 0, 0]}", "skills.home_position[0]", "<= 2.61"),
+    ("station: !SimPiper {joint_servo: {max_velocity: 2.0}}", "skills.max_joint_velocity",
+     "station.joint_servo.max_velocity"),
+    ("skills: {grasp_force: 26}", "skills.grasp_force", "station.gripper_servo.max_force"),
+    ("physx: {stiffness: {force_limit: 30}}", "physx.stiffness.force_limit", "<= 25"),
+    ("cameras: [{name: camera, rgb: true, depth: true, label: true, "
+     "renderer_class: RenderEngineOspray}]", "cameras[0].renderer_class", "RenderEngineVtk"),
 ])
 def test_out_of_range_values(snippet, key_path, needs):
     error = load_error(ROBOT + snippet + "\n")

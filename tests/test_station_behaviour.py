@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from pydrake.multibody.tree import JacobianWrtVariable
 
 from physcap_drake.sim_runner import make_simulator
 from physcap_drake.station import MakeStation, ports
@@ -46,17 +47,46 @@ def test_holds_home_within_2_mrad_after_the_first_second(table_scenario):
     assert np.max(np.abs(run.read(ports.ARM_VELOCITY_ESTIMATED))) < 1e-3
 
 
-def test_noise_free_torque_is_the_gravity_torque_of_our_model(table_scenario):
+def _simulated_gravity_torque(run: Run) -> np.ndarray:
+    """The torques that hold the simulated arm against gravity (ground truth), N·m."""
+    plant = run.plant
+    context = plant.GetMyContextFromRoot(run.simulator.get_context())
+    arm = plant.GetModelInstanceByName("piper")
+    joints = sorted((plant.get_joint(j) for j in plant.GetJointIndices(arm)
+                     if plant.get_joint(j).num_velocities() == 1), key=lambda joint: joint.index())
+    tau = -plant.CalcGravityGeneralizedForces(context)
+    return np.array([tau[joint.velocity_start()] for joint in joints])
+
+
+def test_noise_free_torque_is_the_simulated_holding_torque(table_scenario):
     run = Run(noise_free(table_scenario))
     run.advance_to(1.0)
     tau = run.read(ports.ARM_TORQUE_MEASURED)
-    feedforward = run.station.GetSubsystemByName("arm_feedforward")
-    expected = feedforward.get_output_port().Eval(feedforward.GetMyContextFromRoot(
-        run.simulator.get_context()))  # at rest: the gravity torque alone
-    np.testing.assert_allclose(tau, expected, atol=2e-3)
-    # Folded at home, the shoulder and elbow carry the arm's weight (reference/piper.md §1.5
-    # gives 2.73 and 4.65 N·m for the bare arm; the gripper adds to both).
-    assert 2.5 < abs(tau[1]) < 4.0 and 4.5 < abs(tau[2]) < 6.5
+    np.testing.assert_allclose(tau, _simulated_gravity_torque(run), atol=2e-3)
+    # Folded at home, the shoulder and elbow carry the arm and gripper: 2.73 and 4.65 N·m
+    # in magnitude (reference/piper.md §1.5).
+    assert abs(tau[1]) == pytest.approx(2.73, abs=0.02)
+    assert abs(tau[2]) == pytest.approx(4.65, abs=0.02)
+
+
+def test_holding_a_payload_adds_its_weight_to_the_reported_torque(hold_can_scenario):
+    run = Run(noise_free(hold_can_scenario), gripper_opening=0.0)
+    run.advance_to(1.5)
+    plant = run.plant
+    context = plant.GetMyContextFromRoot(run.simulator.get_context())
+    can = plant.GetBodyByName("soda_can")
+    world, gripper = plant.world_frame(), plant.GetFrameByName("gripper_base")
+    com_in_world = plant.EvalBodyPoseInWorld(context, can).multiply(can.default_com())
+    com_in_gripper = gripper.CalcPoseInWorld(context).inverse().multiply(com_in_world)
+    jacobian = plant.CalcJacobianTranslationalVelocity(  # the held can moves with the gripper
+        context, JacobianWrtVariable.kV, gripper, com_in_gripper, world, world)
+    arm_joints = [plant.GetJointByName(f"joint{i}").velocity_start() for i in range(1, 7)]
+    expected = can.default_mass() * 9.81 * jacobian[2, arm_joints]
+    extra = run.read(ports.ARM_TORQUE_MEASURED) - _simulated_gravity_torque(run)
+    # The simulated gravity torque above is the arm's and gripper's own; the rest of the
+    # reported torque carries the can, m·g·J_z at its centre of mass.
+    np.testing.assert_allclose(extra, expected, atol=0.01)
+    assert np.abs(expected).max() > 0.3  # a load the estimators can see
 
 
 def test_torque_noise_is_realistic_quantized_and_reproducible(table_scenario):

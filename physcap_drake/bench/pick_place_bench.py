@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import dataclasses as dc
-from collections.abc import Callable
 
 import numpy as np
 
@@ -75,23 +74,13 @@ def run_trial(seed: int, trial: int) -> PickPlaceTrial:
                           1000.0 * max(errors, default=np.nan))
 
 
-def run_pick_place_bench(trials: int, seed: int = 0,
-                         on_trial: Callable[[PickPlaceTrial], None] | None = None
-                         ) -> list[PickPlaceTrial]:
-    results = []
-    for trial in range(trials):
-        results.append(run_trial(seed, trial))
-        if on_trial is not None:
-            on_trial(results[-1])
-    return results
-
-
 def summarize(results: list[PickPlaceTrial]) -> dict:
     """The figures `physcap bench pick-place` prints and writes."""
     return {
         "successes": sum(r.success for r in results),
         "trials": len(results),
         "mean_robot_time_s": float(np.mean([r.robot_time_s for r in results])),
-        "max_tcp_error_mm": float(np.nanmax([r.max_tcp_error_mm for r in results])),
+        "max_tcp_error_mm": max((r.max_tcp_error_mm for r in results
+                                 if np.isfinite(r.max_tcp_error_mm)), default=None),
         "per_trial": [dc.asdict(r) for r in results],
     }

@@ -57,11 +57,3 @@ class JointPlan:
             return self.initial_position
         segment, local = self._locate(t)
         return segment.value(local).ravel()
-
-    def derivative(self, t: float, order: int) -> np.ndarray:
-        """Joint velocity (order 1, rad/s) or acceleration (order 2, rad/s²) at sim time t;
-        zero while holding before the start or after the end."""
-        if not self.segments or t < self.start_time or t > self.end_time:
-            return np.zeros(self.final_position.size)
-        segment, local = self._locate(t)
-        return segment.EvalDerivative(local, order).ravel()

@@ -37,10 +37,13 @@ def as_number(value, name: str, *, minimum: float = -math.inf) -> float:
 
 @dc.dataclass(frozen=True)
 class MoveToJoints:
-    """Move the arm to joint positions J1..J6 (rad) along a straight joint-space path."""
+    """Move the arm to joint positions J1..J6 (rad) along a straight joint-space path.
+    check_workspace: refuse goals whose fingertip leaves the workspace box (home, a folded
+    pose near the base, is exempt)."""
 
     positions: np.ndarray
     label: str = "move to joints"
+    check_workspace: bool = True
 
 
 @dc.dataclass(frozen=True)

@@ -129,7 +129,9 @@ class SkillExecutor(LeafSystem):
         if current.status.state == "running":
             raise SkillRefused(f"busy: '{current.status.label}' is still running")
         now = context.get_time()
-        opening = float(self._opening.Eval(context)[0])
+        # The measured gap can read a hair outside [0, stroke] (contact, rounding).
+        opening = float(np.clip(self._opening.Eval(context)[0], 0.0,
+                                self._planner.gripper_stroke))
         planned = self._planner.plan(
             request, now=now, q_now=current.arm_plan.final_position, opening_measured=opening,
             gripper_command=(current.gripper_opening, current.gripper_force))
@@ -190,8 +192,11 @@ class SkillExecutor(LeafSystem):
             moved = abs(opening - current.reference_opening)
             current = dc.replace(current, reference_opening=opening, reference_time=now)
             if moved < STALL_MOTION and now - skill.start_time >= GRIPPER_MIN_TIME:
-                return ("succeeded", f"{skill.label}: stopped at {1000 * opening:.1f} mm "
-                                     "(holding something or at its end)"), current
+                if skill.gripper_opening < opening:  # closing: stopped on what it holds
+                    return ("succeeded", f"{skill.label}: stopped at {1000 * opening:.1f} mm "
+                                         "(holding something)"), current
+                return ("failed", f"{skill.label}: blocked at {1000 * opening:.1f} mm, "
+                                  "short of the commanded opening"), current
         if now >= skill.deadline:
             return ("failed", f"{skill.label} timed out at {1000 * opening:.1f} mm"), current
         return None, current

@@ -35,8 +35,12 @@ APPROACH_STEP = 0.01
 APPROACH_JOINT_STEP = 0.25
 #: Largest allowed sideways deviation of the fingertip from a vertical approach, m.
 APPROACH_STRAIGHTNESS = 0.002
-#: Sampling step of the collision check along a planned motion, s.
-PATH_CHECK_STEP = 0.02
+#: The collision check along a planned motion samples it every PATH_CHECK_TIME s, finer
+#: where needed so that no joint moves more than PATH_CHECK_ANGLE rad between samples.
+PATH_CHECK_TIME = 0.02
+PATH_CHECK_ANGLE = 0.01
+#: Longest wait a request may ask for, s.
+MAX_WAIT = 120.0
 
 
 @dc.dataclass(frozen=True)
@@ -44,7 +48,6 @@ class PlannedSkill:
     """A skill ready to run: what the arm and gripper are commanded from `start_time` on.
 
     kind: "arm", "gripper" or "wait". arm_plan: the joint plan (arm skills) or the hold.
-    tcp_target: where the fingertip should end (world, m), for MoveToPose.
     """
 
     label: str
@@ -54,7 +57,6 @@ class PlannedSkill:
     gripper_opening: float
     gripper_force: float
     deadline: float
-    tcp_target: np.ndarray | None = None
     note: str = ""
 
 
@@ -80,6 +82,9 @@ class SkillPlanner:
             return self._plan_gripper(request, now, q_now)
         if isinstance(request, Wait):
             duration = as_number(request.duration, "wait duration (s)", minimum=0.0)
+            if duration > MAX_WAIT:
+                raise SkillRefused(f"wait duration {duration:g} s is longer than the "
+                                   f"{MAX_WAIT:g} s a single wait may take")
             return PlannedSkill(f"wait {duration:g} s", "wait", now, JointPlan.hold(q_now, now),
                                 *gripper_command, now + duration)
         raise SkillRefused(f"unknown skill request {request!r}")
@@ -100,24 +105,28 @@ class SkillPlanner:
 
     def _check_clear(self, segments: tuple, opening: float, what: str) -> None:
         for segment in segments:
-            times = np.arange(segment.start_time(), segment.end_time(), PATH_CHECK_STEP)
-            for t in np.append(times, segment.end_time()):
+            start, end = segment.start_time(), segment.end_time()
+            travel = np.abs(segment.value(end) - segment.value(start)).max()
+            count = int(np.ceil(max((end - start) / PATH_CHECK_TIME,
+                                    travel / PATH_CHECK_ANGLE))) + 1
+            for t in np.linspace(start, end, max(count, 2)):
                 distance, pair = self.model.min_distance(segment.value(t).ravel(), opening)
                 if distance <= 0.0:
                     raise SkillRefused(f"{what}: the motion would bring {pair} into contact; "
                                        "move the arm up or choose another target first")
 
     def _arm_skill(self, label: str, segments: tuple, now: float, q_now: np.ndarray,
-                   gripper_command: tuple[float, float], tcp_target=None,
-                   note="") -> PlannedSkill:
+                   gripper_command: tuple[float, float], note="") -> PlannedSkill:
         plan = JointPlan(now, q_now.copy(), segments)
         return PlannedSkill(label, "arm", now, plan, *gripper_command,
-                            plan.end_time + self.config.motion_timeout, tcp_target, note)
+                            plan.end_time + self.config.motion_timeout, note)
 
     def _plan_joints(self, request: MoveToJoints, now, q_now, opening,
                      gripper_command) -> PlannedSkill:
         goal = as_vector(request.positions, len(q_now), "joint positions (rad)")
         self._check_joint_limits(goal, f"{request.label} refused")
+        if request.check_workspace:
+            self._check_workspace(self.model.tcp_pose(goal).translation(), request.label)
         distance, pair = self.model.min_distance(goal, opening)
         if distance <= 0.0:
             raise SkillRefused(f"{request.label} refused: at the goal, {pair} would be in "
@@ -172,7 +181,7 @@ class SkillPlanner:
         self._check_clear(segments, opening, f"{label} refused")
         tilt = np.degrees(tilt_from_vertical(self.model.tcp_pose(q_target).rotation()))
         note = "" if rotation is not None else f"gripper {tilt:.1f}° from straight down"
-        return self._arm_skill(label, segments, now, q_now, gripper_command, target, note)
+        return self._arm_skill(label, segments, now, q_now, gripper_command, note)
 
     def _vertical_waypoints(self, target, above, q_now, rotation, opening) -> np.ndarray:
         """Joint waypoints (6 × N, top first) whose fingertips lie on the vertical segment from

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 from pydrake.systems.framework import BasicVector, Context, DiscreteValues, LeafSystem
 
-from physcap_drake.station.sim_config import GripperServo as GripperServoConfig
+from physcap_drake.station.sim_config import GripperServoConfig
 
 
 class GripperServo(LeafSystem):
@@ -30,7 +30,9 @@ class GripperServo(LeafSystem):
         effort (1): |f| / max_force, in [0, 1] (the normalized effort f̂, noise-free).
 
     Raises ValueError if the model's actuator cannot deliver 2·max_force.
-    Discrete state: s_ref (m), updated every `period` s.
+    Discrete state, updated every `period` s: [s_ref (m), F (N)]. The force limit is latched
+    like the command, so no output depends directly on an input (no feedthrough from the
+    gripper commands to the reported effort).
     """
 
     def __init__(self, config: GripperServoConfig, *, finger_travel: float,
@@ -47,16 +49,17 @@ class GripperServo(LeafSystem):
         self._command = self.DeclareVectorInputPort("opening_commanded", 1)
         self._force_limit = self.DeclareVectorInputPort("force_limit", 1)
         self._finger_state = self.DeclareVectorInputPort("finger_state", 4)
-        self.DeclareDiscreteState(1)
+        self._state = self.DeclareDiscreteState(2)
         self.DeclarePeriodicDiscreteUpdateEvent(self._dt, 0.0, self._step)
         self.DeclareInitializationDiscreteUpdateEvent(self._start_at_measured)
-        self.DeclareVectorOutputPort("finger_force", 1, self._output_force)
+        depends = {self.xd_ticket(), self._finger_state.ticket()}
+        self.DeclareVectorOutputPort("finger_force", 1, self._output_force, depends)
         self.DeclareVectorOutputPort("opening_measured", 1, self._output_opening,
                                      {self._finger_state.ticket()})
-        self.DeclareVectorOutputPort("effort", 1, self._output_effort)
+        self.DeclareVectorOutputPort("effort", 1, self._output_effort, depends)
 
     def _start_at_measured(self, context: Context, state: DiscreteValues) -> None:
-        state.set_value([self._finger_state.Eval(context)[0]])
+        state.set_value([self._finger_state.Eval(context)[0], self._force_limit_now(context)])
 
     def _step(self, context: Context, state: DiscreteValues) -> None:
         s_ref = context.get_discrete_state_vector().GetAtIndex(0)
@@ -66,17 +69,17 @@ class GripperServo(LeafSystem):
         # Anti-windup: against an object the reference stops where the force limit is
         # reached, so reopening moves the fingers at once instead of unwinding first.
         s = self._finger_state.Eval(context)[0]
-        band = self._force_limit_now(context) / self._config.stiffness
-        state.set_value([float(np.clip(s_ref, s - band, s + band))])
+        limit = self._force_limit_now(context)
+        band = limit / self._config.stiffness
+        state.set_value([float(np.clip(s_ref, s - band, s + band)), limit])
 
     def _force_limit_now(self, context: Context) -> float:
         return float(np.clip(self._force_limit.Eval(context)[0], 0.0, self._config.max_force))
 
     def _finger_force(self, context: Context) -> float:
         """f, the force each finger pushes with (positive opening), N."""
-        s_ref = context.get_discrete_state_vector().GetAtIndex(0)
+        s_ref, limit = context.get_discrete_state_vector().get_value()
         s, _, s_dot, _ = self._finger_state.Eval(context)
-        limit = self._force_limit_now(context)
         force = self._config.stiffness * (s_ref - s) - self._config.damping * s_dot
         return float(np.clip(force, -limit, limit))
 

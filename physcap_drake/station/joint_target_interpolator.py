@@ -72,10 +72,11 @@ class JointTargetInterpolator(LeafSystem):
         q_next = q_ref + v_next * dt
         # A joint already on a streamed trajectory, whose next step is within the limits,
         # follows the target exactly.
-        on_track = ((np.abs(target - q_ref) <= self._v_max * dt * (1 + 1e-6))
-                    & (np.abs(v_target - v_ref) <= a_dt * (1 + 1e-6)))
+        v_step = (target - q_ref) / dt
+        on_track = ((np.abs(v_step) <= self._v_max * (1 + 1e-6))
+                    & (np.abs(v_step - v_ref) <= a_dt * (1 + 1e-6)))
         q_next = np.where(on_track, target, q_next)
-        v_next = np.where(on_track, v_target, v_next)
+        v_next = np.where(on_track, v_step, v_next)
         state.set_value(np.concatenate([q_next, v_next, target, (v_next - v_ref) / dt]))
 
     def _output_reference(self, context: Context, output: BasicVector) -> None:

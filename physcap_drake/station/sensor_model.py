@@ -13,10 +13,11 @@ from physcap_drake.station.sim_config import SensorNoise
 class ReportedSignal(LeafSystem):
     """Turns a true signal into what the arm would report on the bus.
 
-    The value reported at time t belongs to sample k = floor(t · sample_rate): the true input
-    plus zero-mean Gaussian noise drawn for (seed, stream, k), rounded to the nearest multiple
-    of `resolution`, then limited to [lower, upper] when given. The noise depends only on the
-    seed and the sample index, so it is identical from run to run and needs no state.
+    The value reported at time t is the true input plus zero-mean Gaussian noise drawn for
+    sample k = floor(t · sample_rate) (so the noise changes at the arm's feedback rate while
+    the true part follows the simulation), rounded to the nearest multiple of `resolution`,
+    then limited to [lower, upper] when given. The noise depends only on the seed and the
+    sample index, so it is identical from run to run and needs no state.
 
     Input port:  true (n), in the signal's units.
     Output port: reported (n), same units.

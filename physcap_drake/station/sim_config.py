@@ -12,7 +12,7 @@ from physcap_drake.station.ports import NUM_ARM_JOINTS
 
 
 @dc.dataclass
-class JointServo:
+class JointServoConfig:
     """The PiPER firmware's joint mode (MOVE J, position-velocity), as the arm runs it when a
     host streams joint targets over CAN.
 
@@ -51,7 +51,7 @@ class JointServo:
 
 
 @dc.dataclass
-class GripperServo:
+class GripperServoConfig:
     """The gripper's firmware loop: the two coupled fingers move towards the commanded opening
     at a bounded speed and squeeze with at most the commanded force.
 
@@ -111,8 +111,9 @@ def _default_torque_noise() -> SensorNoise:
 
 
 def _default_effort_noise() -> SensorNoise:
-    # Gripper effort is reported in counts of 0.001 N·m (0x2A8); normalized by the
-    # configured maximum, one count is about 0.001, and current noise about 0.5 %.
+    # The real gripper reports its motor effort in counts of 0.001 N·m (0x2A8); normalized
+    # by a maximum of about 1 N·m one count is about 0.001 of the range, and current noise
+    # about 0.5 % of it.
     return SensorNoise(std=[0.005], resolution=[0.001])
 
 
@@ -130,8 +131,8 @@ class SimPiper:
         default_factory=lambda: [0.0] * NUM_ARM_JOINTS)
     # Gripper opening at the start, m (total gap between the fingers).
     initial_gripper_opening: float = 0.0
-    joint_servo: JointServo = dc.field(default_factory=JointServo)
-    gripper_servo: GripperServo = dc.field(default_factory=GripperServo)
+    joint_servo: JointServoConfig = dc.field(default_factory=JointServoConfig)
+    gripper_servo: GripperServoConfig = dc.field(default_factory=GripperServoConfig)
     # Noise and quantization of `piper.torque_measured`, N·m.
     torque_noise: SensorNoise = dc.field(default_factory=_default_torque_noise)
     # Noise and quantization of `gripper.effort_measured` (normalized, 0..1).

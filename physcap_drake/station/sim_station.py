@@ -15,11 +15,7 @@ from physcap_drake.station.arm_feedforward import ArmFeedforward
 from physcap_drake.station.cameras import add_camera
 from physcap_drake.station.gripper_servo import GripperServo
 from physcap_drake.station.joint_target_interpolator import JointTargetInterpolator
-from physcap_drake.station.robot_model import (
-    add_directives,
-    arm_joint_limits,
-    make_controller_plant,
-)
+from physcap_drake.station.robot_model import add_directives, make_controller_plant
 from physcap_drake.station.sensor_model import ReportedSignal
 from physcap_drake.station.sim_config import SimPiper
 
@@ -56,6 +52,24 @@ def _finger_actuator(plant: MultibodyPlant, gripper: ModelInstanceIndex) -> Join
     return actuators[0]
 
 
+def _release_arm_end_stops(plant: MultibodyPlant, arm: ModelInstanceIndex):
+    """Removes the arm joints' position limits from the simulated plant and returns them
+    (lower, upper; rad, joint order J1..J6).
+
+    The PiPER's joint limits are software limits: its firmware does not command past them
+    (here the JointTargetInterpolator clamps every target), and nothing mechanical stops the
+    joint there. Left in the plant, a limit would act as an end stop that carries load the
+    motor torque no longer shows, e.g. at home, where J2 and J3 sit exactly on a limit.
+    """
+    joints = sorted((plant.get_joint(j) for j in plant.GetJointIndices(arm)
+                     if plant.get_joint(j).num_positions() == 1), key=lambda j: j.index())
+    lower = np.array([j.position_lower_limits()[0] for j in joints])
+    upper = np.array([j.position_upper_limits()[0] for j in joints])
+    for joint in joints:
+        joint.set_position_limits([-np.inf], [np.inf])
+    return lower, upper
+
+
 def MakeSimStation(scenario, meshcat: Meshcat | None = None) -> Diagram:
     """Builds the simulated station for `scenario` (whose `station` is a `SimPiper`).
 
@@ -72,10 +86,10 @@ def MakeSimStation(scenario, meshcat: Meshcat | None = None) -> Diagram:
     for i, actuator in enumerate(_arm_actuators(plant, arm)):
         actuator.set_controller_gains(PdControllerGains(p=servo.stiffness[i],
                                                         d=servo.damping[i]))
+    lower, upper = _release_arm_end_stops(plant, arm)
     plant.Finalize()
     time_step = plant.time_step()
 
-    lower, upper = arm_joint_limits(plant, arm)
     q0 = np.asarray(config.initial_arm_position, dtype=float)
     if np.any(q0 < lower) or np.any(q0 > upper):
         raise ValueError(f"station.initial_arm_position {q0.tolist()} is outside the joint "
