@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import typer
 
-from physcap_drake.commands import bench, demo, sim
+from physcap_drake.commands import bench, calibrate, demo, sim
 
 app = typer.Typer(
     name="physcap",
@@ -15,6 +15,7 @@ app = typer.Typer(
 app.command("sim")(sim.sim)
 app.add_typer(demo.app, name="demo")
 app.add_typer(bench.app, name="bench")
+app.add_typer(calibrate.app, name="calibrate")
 
 
 def main() -> None:

@@ -24,8 +24,8 @@ from physcap_drake.control.requests import (
 )
 from physcap_drake.control.skill_executor import MONITOR_PERIOD, SkillStatus
 from physcap_drake.knowledge import KnowledgeEntry, SceneKnowledge
-from physcap_drake.physx.mass_probe import MassProbe
-from physcap_drake.physx.stiffness_probe import StiffnessProbe
+from physcap_drake.physx.mass_probe import MassMeasurement, MassProbe
+from physcap_drake.physx.stiffness_probe import StiffnessMeasurement, StiffnessProbe
 from physcap_drake.robot_diagram import RobotDiagram
 from physcap_drake.station import ports
 
@@ -36,7 +36,9 @@ class RobotAPI:
     Frames: positions are in the world frame, in metres: the origin is the centre of the
     arm's base on the table surface, x points forward (away from the arm, across the
     table), y to the arm's left, z up; the table surface is z = 0. The "fingertip" is the
-    point midway between the two finger tips.
+    point midway between the two finger tips. The fingertip frame has its z axis along the
+    fingers (pointing out of the gripper), its y axis along the line on which the fingers
+    open and close, and x = y × z.
     """
 
     def __init__(self, robot: RobotDiagram, simulator: Simulator,
@@ -57,14 +59,19 @@ class RobotAPI:
             robot.stiffness_estimator.GetMyContextFromRoot(root))
         #: What has been measured in this episode (get_mass and get_stiffness add to it).
         self.knowledge = SceneKnowledge()
+        #: The full outcome of the latest get_mass / get_stiffness (for tools and tests).
+        self.last_mass: MassMeasurement | None = None
+        self.last_stiffness: StiffnessMeasurement | None = None
 
     def goto_pose(self, position, quaternion_wxyz=None, z_approach=0.0) -> None:
         """Move the fingertip to `position` = [x, y, z] (metres, world frame).
 
         quaternion_wxyz: optional orientation [w, x, y, z] of the fingertip frame in the world
-            frame (its z axis points along the fingers, out of the gripper). If omitted, the
-            gripper points as close to straight down as the arm allows (exactly down for
-            targets up to about 8 cm above the table), turned as little as possible.
+            frame (see the class docstring for its axes). If omitted, the gripper points as
+            close to straight down as the arm allows (exactly down for targets up to about
+            8 cm above the table), turned about the vertical as little as possible; pass a
+            quaternion to choose the direction in which the fingers close (e.g. across the
+            faces of a box).
         z_approach: if > 0 (metres), first move to the point z_approach above `position`,
             then descend straight down to it (use this to reach down around an object).
 
@@ -84,7 +91,8 @@ class RobotAPI:
         self._run(MoveGripper(0.0, self._robot.scenario.skills.grasp_force, "close_gripper"))
 
     def home_pose(self) -> None:
-        """Move the arm to its home (rest) joint positions, straight in joint space."""
+        """Move the arm to its home pose, straight in joint space: folded at rest above its
+        base (all joints at 0 rad by default), fingertip near (0.19, 0.0, 0.23) m."""
         self._run(MoveToJoints(self._robot.scenario.skills.home_position, "home_pose",
                                check_workspace=False))
 
@@ -108,7 +116,7 @@ class RobotAPI:
         the object slipped); the reason is recorded in the scene knowledge.
         """
         subject = _subject(position, name)
-        result = self._mass_probe.measure(position)
+        result = self.last_mass = self._mass_probe.measure(position)
         self.knowledge.add(KnowledgeEntry(subject, "mass", result.mass_kg, "kg", result.ok,
                                           result.reason, self.robot_time))
         return result.mass_kg
@@ -129,7 +137,7 @@ class RobotAPI:
         (metal, wood, a full can); 0 if the measurement failed (recorded in the knowledge).
         """
         subject = _subject(position, name)
-        measurement = self._stiffness_probe.measure(position)
+        measurement = self.last_stiffness = self._stiffness_probe.measure(position)
         self.knowledge.add(KnowledgeEntry(subject, "stiffness", measurement.level, "level",
                                           measurement.level > 0, measurement.describe(),
                                           self.robot_time))

@@ -70,10 +70,10 @@ class SkillPlanner:
 
     def plan(self, request: SkillRequest, *, now: float, q_now: np.ndarray,
              opening_measured: float, gripper_command: tuple[float, float]) -> PlannedSkill:
-        """Plans `request` starting at sim time `now` from arm joints `q_now` (rad, the arm at
-        rest), with the fingers `opening_measured` (m) apart and the gripper commanded to
-        (opening m, force N) = `gripper_command` (kept during arm motions). Raises
-        SkillRefused if the request cannot run."""
+        """Plans `request` starting at sim time `now` from arm joints `q_now` (rad: where the
+        previous motion ended, the arm at rest there), with the fingers `opening_measured`
+        (m) apart and the gripper commanded to (opening m, force N) = `gripper_command`
+        (kept during arm motions). Raises SkillRefused if the request cannot run."""
         if isinstance(request, MoveToJoints):
             return self._plan_joints(request, now, q_now, opening_measured, gripper_command)
         if isinstance(request, MoveToPose):

@@ -47,8 +47,9 @@ class SkillsConfig:
     # IK solutions keep every joint this far inside its limits, rad: a joint resting on its
     # limit carries load that its motor torque no longer shows (and cannot move further).
     joint_limit_margin: float = 0.035
-    # A motion is done when every joint is this close to its goal, rad.
-    joint_tolerance: float = 0.003
+    # A motion is done when every joint is this close to its goal, rad (a payload makes the
+    # arm sag by about 1 mrad per kg).
+    joint_tolerance: float = 0.005
     # Time allowed beyond a motion's planned duration before it counts as failed, s.
     motion_timeout: float = 2.0
     # Squeeze force of each finger for close_gripper(), N.

@@ -14,6 +14,26 @@ from physcap_drake.station import ports
 
 #: Standard gravity, m/s².
 GRAVITY = 9.81
+#: Largest horizontal offset of the held object's centre of mass from the fingertip point
+#: that the estimate accepts, m: anything further is not between the fingers (and is noise).
+MAX_GRASP_OFFSET = 0.02
+
+
+def horizontal_load_offset(jacobian_z: np.ndarray, jacobian_wx: np.ndarray,
+                           jacobian_wy: np.ndarray, delta_tau: np.ndarray) -> np.ndarray:
+    """Where the load hangs relative to a point P, horizontally: (dx, dy) in m, world frame.
+
+    A load at P + d moves vertically with J_z + d_y·J_ωx − d_x·J_ωy (J_ω: the angular velocity
+    Jacobian), so Δτ = g·[J_z, J_ωx, −J_ωy]·[m, m·d_y, m·d_x]: linear least squares in
+    (m, m·d_y, m·d_x). The result is limited to MAX_GRASP_OFFSET.
+    """
+    basis = np.column_stack([jacobian_z, jacobian_wx, -jacobian_wy])
+    (m, m_dy, m_dx), *_ = np.linalg.lstsq(basis, np.asarray(delta_tau, dtype=float), rcond=None)
+    if abs(m) < 1e-9:
+        return np.zeros(2)
+    offset = np.array([m_dx, m_dy]) / m
+    norm = np.linalg.norm(offset)
+    return offset if norm <= MAX_GRASP_OFFSET else offset * (MAX_GRASP_OFFSET / norm)
 
 
 def mass_from_torque_change(jacobian_z: np.ndarray, delta_tau: np.ndarray,
@@ -103,14 +123,22 @@ class MassEstimator(LeafSystem):
         q[self._q_index] = q_arm
         self._plant.SetPositions(self._scratch, q)
 
-    def vertical_jacobian(self, q_arm: np.ndarray) -> np.ndarray:
-        """J_z: the world-z row of the fingertip point's translational Jacobian over the arm
-        joints at `q_arm`, m/rad (from the robot's model, not the simulator)."""
+    def fingertip_jacobian(self, q_arm: np.ndarray, offset_xy=(0.0, 0.0)) -> np.ndarray:
+        """The fingertip point's spatial velocity Jacobian over the arm joints at `q_arm`
+        (rows ωx, ωy, ωz in rad/rad, vx, vy, vz in m/rad; world frame), for the point
+        `offset_xy` (m, world frame) beside the fingertip — from the robot's model."""
         self._set_arm(q_arm)
         world = self._plant.world_frame()
-        jacobian = self._plant.CalcJacobianTranslationalVelocity(
-            self._scratch, JacobianWrtVariable.kV, self._tcp, np.zeros(3), world, world)
-        return jacobian[2, self._v_index]
+        X_WT = self._tcp.CalcPoseInWorld(self._scratch)
+        offset_in_tcp = X_WT.rotation().inverse().multiply([*offset_xy, 0.0])
+        jacobian = self._plant.CalcJacobianSpatialVelocity(
+            self._scratch, JacobianWrtVariable.kV, self._tcp, offset_in_tcp, world, world)
+        return jacobian[:, self._v_index]
+
+    def vertical_jacobian(self, q_arm: np.ndarray, offset_xy=(0.0, 0.0)) -> np.ndarray:
+        """J_z: the world-z row of the translational Jacobian of the point `offset_xy` (m)
+        beside the fingertip over the arm joints at `q_arm`, m/rad."""
+        return self.fingertip_jacobian(q_arm, offset_xy)[5]
 
     def arm_gravity_torque(self, q_arm: np.ndarray) -> np.ndarray:
         """Torques (N·m) that hold the unloaded arm at `q_arm`, from the robot's model."""
@@ -118,12 +146,19 @@ class MassEstimator(LeafSystem):
         return -self._plant.CalcGravityGeneralizedForces(self._scratch)[self._v_index]
 
     def estimate_mass(self, empty: TorqueWindow, loaded: TorqueWindow) -> float:
-        """The held mass (kg) from an empty and a loaded window at the same commanded pose.
+        """The held mass (kg) from an empty and a loaded window at the same commanded pose:
+        m = (J_z·Δτ) / (g·|J_z|²), J_z taken at the held object.
 
         The arm sags a little under the load; the change of its own gravity torque between
-        the two measured poses is taken out before the remainder is attributed to the load.
+        the two measured poses is taken out of Δτ first. The held object's centre of mass
+        may sit a little beside the fingertip point (a grasp is never perfectly centred); its
+        horizontal offset is estimated from the same torques (`horizontal_load_offset`) and
+        J_z is taken there.
         """
         own_change = (self.arm_gravity_torque(loaded.position)
                       - self.arm_gravity_torque(empty.position))
         delta_tau = loaded.torque - empty.torque - own_change
-        return mass_from_torque_change(self.vertical_jacobian(loaded.position), delta_tau)
+        jacobian = self.fingertip_jacobian(loaded.position)
+        offset = horizontal_load_offset(jacobian[5], jacobian[0], jacobian[1], delta_tau)
+        return mass_from_torque_change(self.vertical_jacobian(loaded.position, offset),
+                                       delta_tau)

@@ -22,15 +22,15 @@ class JointServoConfig:
     feed-forward computed from the arm model with an empty gripper: its weight, and with
     "inverse_dynamics" also its inertia along the reference, so the joints follow the
     reference's acceleration without the overshoot a bare PD shows. A payload makes the arm
-    sag by about tau_payload / stiffness (below 2 mrad for 0.35 kg).
+    sag by about tau_payload / stiffness (about 1 mrad per joint for a 1 kg payload).
     """
 
     # Position-loop stiffness per joint J1..J6, N·m/rad.
     stiffness: list[float] = dc.field(
-        default_factory=lambda: [1500.0, 1500.0, 1500.0, 300.0, 300.0, 150.0])
+        default_factory=lambda: [1500.0, 1500.0, 1500.0, 800.0, 800.0, 400.0])
     # Velocity-loop damping per joint J1..J6, N·m·s/rad.
     damping: list[float] = dc.field(
-        default_factory=lambda: [60.0, 60.0, 60.0, 6.0, 6.0, 3.0])
+        default_factory=lambda: [60.0, 60.0, 60.0, 16.0, 16.0, 8.0])
     # Largest joint speed the firmware interpolates with, rad/s (0x474 allows 0..3).
     max_velocity: float = 3.0
     # Largest joint acceleration the firmware interpolates with, rad/s² (0x475 allows 0..5).

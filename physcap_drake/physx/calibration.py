@@ -1,0 +1,131 @@
+"""Calibration runs of the probes on reference specimens (`physcap calibrate ...`).
+
+Each trial builds the calibration scene with one specimen from models/calibration/ at a
+randomly perturbed place, measures it through the robot API (the probes see only what the
+arm reports), and returns the figures; the specimen's true value comes from its file name.
+"""
+
+from __future__ import annotations
+
+import dataclasses as dc
+
+import numpy as np
+from pydrake.common.schema import Transform
+from pydrake.multibody.parsing import AddModel, ModelDirective
+
+from physcap_drake.physx.stiffness_levels import level_from_deformation, majority_level
+from physcap_drake.resources import stations_dir
+from physcap_drake.robot_api import RobotAPI
+from physcap_drake.robot_diagram import build_robot_diagram
+from physcap_drake.scenario import Scenario, load_scenario
+from physcap_drake.station.sim_config import SensorNoise
+
+SCENARIO = "calibration.yaml"
+#: Nominal specimen position (world frame, m) and the half-range of its perturbation.
+NOMINAL_XY = np.array([0.32, 0.05])
+PERTURBATION = 0.03
+#: Reference masses (g) and stiffness specimens (level), as in models/calibration/.
+REFERENCE_MASSES_G = (13, 120, 350, 600, 963)
+STIFFNESS_LEVELS = (1, 2, 3, 4, 5)
+AVOCADOS = {"avocado_overripe": "overripe", "avocado_ripe": "ripe",
+            "avocado_unripe": "unripe"}
+#: Fingertip heights of the grasp above the specimen's base, m: a reference mass at its
+#: centre of mass, a stiffness specimen low across its middle.
+MASS_GRASP_HEIGHT = 0.04
+STIFFNESS_GRASP_HEIGHT = 0.015
+
+
+def _scenario_with(specimen: str, seed: int, trial: int,
+                   noise: bool) -> tuple[Scenario, np.ndarray]:
+    scenario = load_scenario(stations_dir() / SCENARIO)
+    scenario.random_seed = seed * 1000 + trial
+    rng = np.random.default_rng((seed, trial, sum(map(ord, specimen))))
+    xy = NOMINAL_XY + rng.uniform(-PERTURBATION, PERTURBATION, 2)
+    pose = Transform()
+    pose.translation = np.array([xy[0], xy[1], 0.0])
+    scenario.directives.append(ModelDirective(add_model=AddModel(
+        name=specimen, file=f"package://physcap_models/calibration/{specimen}.sdf",
+        default_free_body_pose={specimen: pose})))
+    if not noise:
+        scenario.station.torque_noise = SensorNoise(std=[0.0] * 6, resolution=[0.0] * 6)
+        scenario.station.effort_noise = SensorNoise(std=[0.0], resolution=[0.0])
+    return scenario, np.array([xy[0], xy[1], 0.0])
+
+
+def _api(scenario: Scenario) -> RobotAPI:
+    robot = build_robot_diagram(scenario)
+    return RobotAPI(robot, robot.make_simulator())
+
+
+@dc.dataclass(frozen=True)
+class MassTrial:
+    true_g: float
+    estimate_g: float
+    ok: bool
+    robot_time_s: float
+
+
+def run_mass_trial(grams: int, trial: int, seed: int = 0, noise: bool = True) -> MassTrial:
+    """Weighs the `grams` reference mass once, at a perturbed place."""
+    scenario, base = _scenario_with(f"mass_{grams:03d}g", seed, trial, noise)
+    api = _api(scenario)
+    api.get_mass(base + [0.0, 0.0, MASS_GRASP_HEIGHT])
+    measurement = api.last_mass
+    return MassTrial(float(grams), 1000.0 * measurement.mass_kg, measurement.ok,
+                     measurement.robot_time_s)
+
+
+@dc.dataclass(frozen=True)
+class StiffnessTrial:
+    specimen: str
+    level: int  # measured (majority vote)
+    deformations_mm: tuple[float, ...]
+    robot_time_s: float
+
+
+def run_stiffness_trial(specimen: str, trial: int, seed: int = 0,
+                        noise: bool = True) -> StiffnessTrial:
+    """Probes the stiffness specimen (or avocado) `specimen` once, at a perturbed place."""
+    scenario, base = _scenario_with(specimen, seed, trial, noise)
+    api = _api(scenario)
+    api.get_stiffness(base + [0.0, 0.0, STIFFNESS_GRASP_HEIGHT])
+    measurement = api.last_stiffness
+    return StiffnessTrial(specimen, measurement.level, measurement.result.deformations_mm,
+                          measurement.robot_time_s)
+
+
+def summarize_mass(trials: list[MassTrial]) -> list[dict]:
+    """Per reference mass: the true mass, the mean and std of the estimates and the error (g)."""
+    rows = []
+    for grams in sorted({t.true_g for t in trials}):
+        estimates = np.array([t.estimate_g for t in trials if t.true_g == grams and t.ok])
+        failures = sum(1 for t in trials if t.true_g == grams and not t.ok)
+        rows.append({
+            "true_g": grams,
+            "mean_g": float(estimates.mean()) if estimates.size else None,
+            "std_g": float(estimates.std(ddof=1)) if estimates.size > 1 else 0.0,
+            "error_g": float(estimates.mean() - grams) if estimates.size else None,
+            "trials": int(estimates.size + failures),
+            "failures": failures,
+            "mean_robot_time_s": float(np.mean([t.robot_time_s for t in trials
+                                                if t.true_g == grams])),
+        })
+    return rows
+
+
+def fit_thresholds(mean_deformation_by_level: dict[int, float]) -> list[float]:
+    """Thresholds between adjacent levels: the geometric mean of their mean deformations
+    (the levels are roughly evenly spaced on a log scale of deformation)."""
+    means = [mean_deformation_by_level[level] for level in STIFFNESS_LEVELS]
+    return [float(np.sqrt(a * b)) for a, b in zip(means, means[1:], strict=False)]
+
+
+def confusion_matrix(trials: list[StiffnessTrial], thresholds) -> np.ndarray:
+    """Rows: the specimen's true level 1..5; columns: the measured level 0..5 (0 = failed),
+    re-classified per squeeze with `thresholds` and voted."""
+    matrix = np.zeros((len(STIFFNESS_LEVELS), 6), dtype=int)
+    for t in trials:
+        true_level = int(t.specimen.removeprefix("stiffness_level"))
+        levels = [level_from_deformation(d, thresholds) for d in t.deformations_mm]
+        matrix[true_level - 1, majority_level(levels)] += 1
+    return matrix

@@ -1,0 +1,90 @@
+"""MassEstimator on synthetic inputs, and one get_mass end to end in the diagram."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from physcap_drake.physx import calibration
+from physcap_drake.physx.mass_estimator import (
+    GRAVITY,
+    TorqueWindow,
+    horizontal_load_offset,
+    mass_from_torque_change,
+)
+from physcap_drake.resources import stations_dir
+from physcap_drake.robot_api import RobotAPI
+from physcap_drake.robot_diagram import build_robot_diagram
+from physcap_drake.scenario import load_scenario
+
+LIFT_POSE = np.array([0.3, 1.5, -1.3, 0.1, 1.0, 0.2])  # rad, an arm reaching over the table
+
+
+def test_a_known_torque_change_gives_the_exact_mass():
+    rng = np.random.default_rng(3)
+    jacobian_z = rng.normal(size=6) * 0.3
+    for mass in (0.013, 0.35, 0.963):
+        assert mass_from_torque_change(jacobian_z, mass * GRAVITY * jacobian_z) == (
+            pytest.approx(mass, rel=1e-12))
+
+
+def test_the_mass_is_the_least_squares_fit_over_all_joints():
+    jacobian_z = np.array([0.0, -0.34, -0.33, 0.0, -0.08, 0.0])
+    noise = np.array([0.0, 0.01, -0.01, 0.003, 0.0, 0.0])
+    estimate = mass_from_torque_change(jacobian_z, 0.5 * GRAVITY * jacobian_z + noise)
+    expected = 0.5 + jacobian_z @ noise / (GRAVITY * jacobian_z @ jacobian_z)
+    assert estimate == pytest.approx(expected, rel=1e-12)
+
+
+def test_a_point_that_cannot_move_vertically_is_an_error():
+    with pytest.raises(ValueError, match="cannot move vertically"):
+        mass_from_torque_change(np.zeros(6), np.ones(6))
+
+
+@pytest.fixture(scope="module")
+def estimator():
+    scenario = load_scenario(stations_dir() / calibration.SCENARIO)
+    return build_robot_diagram(scenario).mass_estimator
+
+
+def test_an_offset_grasp_is_found_and_weighed_exactly(estimator):
+    offset = np.array([0.004, -0.006])  # m: the load hangs beside the fingertip point
+    jacobian = estimator.fingertip_jacobian(LIFT_POSE, offset)
+    delta_tau = 0.6 * GRAVITY * jacobian[5]
+    tcp = estimator.fingertip_jacobian(LIFT_POSE)
+    found = horizontal_load_offset(tcp[5], tcp[0], tcp[1], delta_tau)
+    np.testing.assert_allclose(found, offset, atol=1e-9)
+    own = estimator.arm_gravity_torque(LIFT_POSE)
+    empty = TorqueWindow(LIFT_POSE, own, 200)
+    loaded = TorqueWindow(LIFT_POSE, own + delta_tau, 200)
+    assert estimator.estimate_mass(empty, loaded) == pytest.approx(0.6, rel=1e-9)
+    # Taken at the fingertip point instead, the same torques would read a different mass.
+    assert abs(mass_from_torque_change(tcp[5], delta_tau) - 0.6) > 1e-3
+
+
+def test_the_arms_own_sag_is_not_counted_as_load(estimator):
+    sagged = LIFT_POSE + [0.0, 0.002, 0.002, 0.0, 0.003, 0.0]
+    empty = TorqueWindow(LIFT_POSE, estimator.arm_gravity_torque(LIFT_POSE), 200)
+    jacobian_z = estimator.vertical_jacobian(sagged)
+    loaded = TorqueWindow(sagged, estimator.arm_gravity_torque(sagged)
+                          + 0.25 * GRAVITY * jacobian_z, 200)
+    assert estimator.estimate_mass(empty, loaded) == pytest.approx(0.25, rel=1e-9)
+
+
+def test_weighing_a_reference_mass_in_the_diagram():
+    trial = calibration.run_mass_trial(350, trial=0, seed=7, noise=True)
+    assert trial.ok
+    assert trial.estimate_g == pytest.approx(350.0, abs=10.0)
+    assert trial.robot_time_s < 20.0
+
+
+def test_nothing_grasped_is_a_failure_not_a_number():
+    scenario, base = calibration._scenario_with("mass_350g", 0, 0, noise=True)
+    robot = build_robot_diagram(scenario)
+    api = RobotAPI(robot, robot.make_simulator())
+    empty_spot = base + [0.0, 0.15, 0.04]  # 15 cm beside the mass: nothing to grasp
+    assert api.get_mass(empty_spot, name="air") == 0.0
+    entry = api.knowledge.latest("air", "mass")
+    assert entry is None  # no successful entry ...
+    failure = api.knowledge.entries[-1]
+    assert not failure.ok and "nothing was grasped" in failure.note
