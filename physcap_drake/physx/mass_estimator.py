@@ -99,6 +99,11 @@ class MassEstimator(LeafSystem):
         x[2 + n:] += self._tau.Eval(context)
         state.get_mutable_vector(self._state).SetFromVector(x)
 
+    @property
+    def model_plant(self) -> MultibodyPlant:
+        """The estimator's own model of the robot (arm and gripper only)."""
+        return self._plant
+
     def begin_window(self, context: Context) -> None:
         """Starts a new averaging window now (discarding any running one)."""
         x = np.zeros(2 + 2 * ports.NUM_ARM_JOINTS)

@@ -107,9 +107,11 @@ class StiffnessEstimator(LeafSystem):
     def _get(self, context: Context) -> ProbeState:
         return context.get_abstract_state(self._state).get_value()
 
-    def begin(self, context: Context) -> None:
-        """Starts probing from the current finger opening (the object between the fingers)."""
-        opening = float(self._opening.Eval(context)[0])
+    def begin(self, context: Context, start_opening: float | None = None) -> None:
+        """Starts probing, closing from `start_opening` (m; default: the measured opening,
+        with the object between the open fingers)."""
+        opening = (float(self._opening.Eval(context)[0]) if start_opening is None
+                   else float(start_opening))
         context.get_mutable_abstract_state(self._state).set_value(
             ProbeState(Phase.SEEK_CONTACT, command=opening))
 

@@ -1,0 +1,65 @@
+"""The skills and the PhysX estimators read only what the real arm reports: no simulator
+ground truth (body poses, the label image) and no object properties."""
+
+from __future__ import annotations
+
+import pytest
+
+from physcap_drake.resources import stations_dir
+from physcap_drake.robot_diagram import build_robot_diagram
+from physcap_drake.scenario import load_scenario
+from physcap_drake.station import ports
+
+REAL_ARM_OUTPUTS = set(ports.VECTOR_OUTPUTS)
+CONSUMERS = ("skill_executor", "mass_estimator", "stiffness_estimator",
+             "gripper_command_selector")
+
+
+@pytest.fixture(scope="module")
+def robot():
+    return build_robot_diagram(load_scenario(stations_dir() / "piper_table.yaml"))
+
+
+def test_no_system_reads_a_simulation_only_output(robot):
+    station = robot.station
+    for (consumer, _), (producer, output_index) in robot.diagram.connection_map().items():
+        if producer is station:
+            name = station.get_output_port(output_index).get_name()
+            assert name in REAL_ARM_OUTPUTS, f"{consumer.get_name()} reads {name}"
+            assert name not in ports.SIM_ONLY_OUTPUTS
+
+
+@pytest.mark.parametrize("name", CONSUMERS)
+def test_each_estimator_and_the_executor_reads_only_station_feedback(robot, name):
+    system = robot.diagram.GetSubsystemByName(name)
+    sources = {}
+    for (consumer, input_index), (producer, output_index) in \
+            robot.diagram.connection_map().items():
+        if consumer is system:
+            sources[system.get_input_port(input_index).get_name()] = (
+                producer.get_name(), producer.get_output_port(output_index).get_name())
+    assert sources, f"{name} has no inputs"
+    for input_name, (producer, output) in sources.items():
+        if producer == "station":
+            assert output in REAL_ARM_OUTPUTS
+        else:  # only the robot-side systems feed each other
+            assert producer in CONSUMERS, (input_name, producer)
+
+
+def test_the_estimators_expected_ports(robot):
+    mass = robot.diagram.GetSubsystemByName("mass_estimator")
+    assert {mass.get_input_port(i).get_name() for i in range(mass.num_input_ports())} == {
+        ports.ARM_POSITION_MEASURED, ports.ARM_TORQUE_MEASURED}
+    stiffness = robot.diagram.GetSubsystemByName("stiffness_estimator")
+    assert {stiffness.get_input_port(i).get_name()
+            for i in range(stiffness.num_input_ports())} == {
+        ports.GRIPPER_POSITION_MEASURED, ports.GRIPPER_EFFORT_MEASURED}
+
+
+def test_the_robots_own_models_contain_no_objects(robot):
+    objects = ("soda_can", "tray", "cube_5cm")
+    planning = robot.executor.planner.model.plant
+    for plant in (planning, robot.mass_estimator.model_plant):
+        for name in objects:
+            assert not plant.HasBodyNamed(name), name
+    assert planning.HasBodyNamed("table_top")  # the fixed workcell is known
