@@ -19,7 +19,7 @@ from physcap_drake.physx.stiffness_levels import load_thresholds
 from physcap_drake.scenario import Scenario
 from physcap_drake.sim_runner import make_simulator
 from physcap_drake.station import MakeStation, ports
-from physcap_drake.station.robot_model import make_controller_plant
+from physcap_drake.station.robot_model import make_controller_plant, moving_joints
 
 
 @dc.dataclass
@@ -91,8 +91,6 @@ def _make_mass_estimator(scenario: Scenario) -> MassEstimator:
     """The mass estimator with its own copy of the controller's model of the robot."""
     plant = make_controller_plant(scenario.directives, scenario.station.arm_model,
                                   scenario.station.gripper_model)
-    arm = plant.GetModelInstanceByName(scenario.station.arm_model)
-    joints = [plant.get_joint(j) for j in plant.GetJointIndices(arm)]
-    arm_joints = sorted((j for j in joints if j.num_positions() == 1), key=lambda j: j.index())
+    arm_joints = moving_joints(plant, plant.GetModelInstanceByName(scenario.station.arm_model))
     return MassEstimator(plant, arm_joints, TCP_FRAME,
                          sample_rate=scenario.physx.mass.sample_rate)

@@ -16,6 +16,7 @@ from pydrake.systems.framework import DiagramBuilder
 from physcap_drake.station.robot_model import (
     add_directives,
     make_model_plant,
+    moving_joints,
     robot_directives,
     world_welded_models,
 )
@@ -49,8 +50,9 @@ class PlanningModel:
         self.arm_plant = make_model_plant(directives, (arm_model,))
         arm = plant.GetModelInstanceByName(arm_model)
         gripper = plant.GetModelInstanceByName(gripper_model)
-        self.arm_position_indices = _single_dof_positions(plant, arm)
-        self.finger_position_indices = _single_dof_positions(plant, gripper)
+        self.arm_position_indices = [j.position_start() for j in moving_joints(plant, arm)]
+        self.finger_position_indices = [j.position_start()
+                                        for j in moving_joints(plant, gripper)]
         self.tcp_frame = plant.GetFrameByName(TCP_FRAME, gripper)
         self.lower = plant.GetPositionLowerLimits()[self.arm_position_indices]
         self.upper = plant.GetPositionUpperLimits()[self.arm_position_indices]
@@ -84,9 +86,3 @@ class PlanningModel:
         names = " and ".join(inspector.GetName(inspector.GetFrameId(g))
                              for g in (closest.id_A, closest.id_B))
         return closest.distance, names
-
-
-def _single_dof_positions(plant: MultibodyPlant, model) -> list[int]:
-    joints = [plant.get_joint(j) for j in plant.GetJointIndices(model)]
-    return [j.position_start() for j in sorted(joints, key=lambda j: j.index())
-            if j.num_positions() == 1]

@@ -7,6 +7,7 @@ the mass estimator's Jacobians are computed from it, never from the simulated wo
 
 from __future__ import annotations
 
+import numpy as np
 from pydrake.multibody.parsing import (
     FlattenModelDirectives,
     ModelDirectives,
@@ -73,12 +74,15 @@ def world_welded_models(directives: list) -> list[str]:
             if d.add_weld is not None and d.add_weld.parent == "world"]
 
 
+def moving_joints(plant: MultibodyPlant, model: ModelInstanceIndex) -> list:
+    """The model's one-degree-of-freedom joints (revolute, prismatic) in declaration order:
+    J1..J6 for the arm, the two fingers for the gripper (welds are left out)."""
+    joints = [plant.get_joint(j) for j in plant.GetJointIndices(model)]
+    return sorted((j for j in joints if j.num_positions() == 1), key=lambda j: j.index())
+
+
 def arm_joint_limits(plant: MultibodyPlant, arm: ModelInstanceIndex):
     """(lower, upper) position limits of the arm's joints, rad, in joint order J1..J6."""
-    return (plant.GetPositionLowerLimits()[_arm_slice(plant, arm)],
-            plant.GetPositionUpperLimits()[_arm_slice(plant, arm)])
-
-
-def _arm_slice(plant: MultibodyPlant, arm: ModelInstanceIndex) -> list[int]:
-    return [plant.get_joint(j).position_start() for j in plant.GetJointIndices(arm)
-            if plant.get_joint(j).num_positions() == 1]
+    joints = moving_joints(plant, arm)
+    return (np.array([j.position_lower_limits()[0] for j in joints]),
+            np.array([j.position_upper_limits()[0] for j in joints]))

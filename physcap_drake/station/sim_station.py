@@ -15,7 +15,12 @@ from physcap_drake.station.arm_feedforward import ArmFeedforward
 from physcap_drake.station.cameras import add_camera
 from physcap_drake.station.gripper_servo import GripperServo
 from physcap_drake.station.joint_target_interpolator import JointTargetInterpolator
-from physcap_drake.station.robot_model import add_directives, make_controller_plant
+from physcap_drake.station.robot_model import (
+    add_directives,
+    arm_joint_limits,
+    make_controller_plant,
+    moving_joints,
+)
 from physcap_drake.station.sensor_model import ReportedSignal
 from physcap_drake.station.sim_config import SimPiper
 
@@ -41,13 +46,12 @@ def _arm_actuators(plant: MultibodyPlant, arm: ModelInstanceIndex) -> list:
 
 def _finger_actuator(plant: MultibodyPlant, gripper: ModelInstanceIndex) -> JointActuator:
     actuators = _actuators_of(plant, gripper)
-    joints = [plant.get_joint(j) for j in plant.GetJointIndices(gripper)
-              if plant.get_joint(j).num_positions() == 1]
+    joints = moving_joints(plant, gripper)
     if len(actuators) != 1 or len(joints) != 2:
         raise ValueError(f"the gripper model '{plant.GetModelInstanceName(gripper)}' needs two "
                          f"finger joints and one actuator; it has {len(joints)} and "
                          f"{len(actuators)}")
-    if actuators[0].joint().index() != min(j.index() for j in joints):
+    if actuators[0].joint().index() != joints[0].index():
         raise ValueError("the gripper's actuated finger joint must be its first joint")
     return actuators[0]
 
@@ -61,11 +65,8 @@ def _release_arm_end_stops(plant: MultibodyPlant, arm: ModelInstanceIndex):
     joint there. Left in the plant, a limit would act as an end stop that carries load the
     motor torque no longer shows, e.g. at home, where J2 and J3 sit exactly on a limit.
     """
-    joints = sorted((plant.get_joint(j) for j in plant.GetJointIndices(arm)
-                     if plant.get_joint(j).num_positions() == 1), key=lambda j: j.index())
-    lower = np.array([j.position_lower_limits()[0] for j in joints])
-    upper = np.array([j.position_upper_limits()[0] for j in joints])
-    for joint in joints:
+    lower, upper = arm_joint_limits(plant, arm)
+    for joint in moving_joints(plant, arm):
         joint.set_position_limits([-np.inf], [np.inf])
     return lower, upper
 
