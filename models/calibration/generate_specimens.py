@@ -46,11 +46,18 @@ def inertial(mass: float, z: float, moments: tuple[float, float, float]) -> str:
             "</inertia>\n      </inertial>\n")
 
 
+#: Point-contact stiffness of every specimen, N/m. Without it Drake derives one from the
+#: body's weight and the plant's penetration allowance (130 N/m for 13 g), and the fingers
+#: would sink through a light specimen.
+POINT_STIFFNESS = "          <drake:point_contact_stiffness>1e5</drake:point_contact_stiffness>\n"
+
+
 def compliant(modulus: float) -> str:
     return ("          <drake:compliant_hydroelastic/>\n"
             f"          <drake:hydroelastic_modulus>{modulus:g}</drake:hydroelastic_modulus>\n"
             "          <drake:mesh_resolution_hint>0.005</drake:mesh_resolution_hint>\n"
-            "          <drake:hunt_crossley_dissipation>5</drake:hunt_crossley_dissipation>\n")
+            "          <drake:hunt_crossley_dissipation>5</drake:hunt_crossley_dissipation>\n"
+            + POINT_STIFFNESS)
 
 
 def body(name: str, comment: str, inertia_block: str, geometry: str, z: float, rgba: str,
@@ -78,7 +85,7 @@ def main() -> None:
         (HERE / f"{name}.sdf").write_text(body(
             name, f"Reference mass {grams} g: rigid cylinder 50 mm x 80 mm, uniform density.",
             inertial(mass, height / 2, cylinder_inertia(mass, radius, height)), geometry,
-            height / 2, "0.55 0.57 0.60 1", "", 0.8))
+            height / 2, "0.55 0.57 0.60 1", POINT_STIFFNESS, 0.8))
     radius, height, mass = 0.03, 0.06, 0.1
     for level, modulus in STIFFNESS_MODULI_PA.items():
         name = f"stiffness_level{level}"

@@ -54,7 +54,11 @@ def mass(trials: Trials = 20, seed: Seed = 0, workers: Workers = 2, noise: Noise
     measurement."""
     jobs = [(grams, trial, seed, noise) for grams in cal.REFERENCE_MASSES_G
             for trial in range(trials)]
-    rows = cal.summarize_mass(_run_all(cal.run_mass_trial, jobs, workers, "get_mass"))
+    trial_results = _run_all(cal.run_mass_trial, jobs, workers, "get_mass")
+    for (grams, trial, *_), result in zip(jobs, trial_results, strict=True):
+        if not result.ok:
+            console.print(f"{grams} g, trial {trial}: failed: {result.reason}")
+    rows = cal.summarize_mass(trial_results)
     table = Table(title=f"get_mass, {trials} trials per mass"
                   + ("" if noise else " (noise-free)"))
     for column in ("true (g)", "mean (g)", "std (g)", "error (g)", "failures",

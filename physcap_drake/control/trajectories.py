@@ -42,12 +42,15 @@ def peak_rates(trajectory: Trajectory) -> tuple[float, float]:
 
 def time_parameterize(arm_plant: MultibodyPlant, waypoints: np.ndarray, *, max_velocity: float,
                       max_acceleration: float) -> Trajectory:
-    """The fastest trajectory along the path through `waypoints` (6 × N, rad) that starts and
-    ends at rest and keeps every joint within ±max_velocity (rad/s) and ±max_acceleration
+    """The fastest trajectory along the path through `waypoints` (6 × N, rad; repeated ones
+    are dropped) that starts and ends at rest and keeps every joint within ±max_velocity (rad/s) and ±max_acceleration
     (rad/s²). Raises SkillRefused if no parameterization meets the limits."""
+    waypoints = np.asarray(waypoints, dtype=float)
+    keep = np.concatenate([[True], np.abs(np.diff(waypoints, axis=1)).max(axis=0) > 1e-9])
+    waypoints = waypoints[:, keep]
+    if waypoints.shape[1] == 1:  # already there: a 1 ms hold
+        return PiecewisePolynomial.FirstOrderHold([0.0, 1e-3], waypoints[:, [0, 0]])
     path = joint_path(waypoints)
-    if np.allclose(waypoints[:, 0], waypoints[:, -1]) and waypoints.shape[1] == 2:
-        return PiecewisePolynomial.FirstOrderHold([0.0, 1e-3], waypoints[:, [0, -1]])
     n = waypoints.shape[0]
     for margin in LIMIT_MARGINS:
         toppra = Toppra(path, arm_plant, Toppra.CalcGridPoints(path, CalcGridPointsOptions()))

@@ -13,6 +13,7 @@ import numpy as np
 from pydrake.common.schema import Transform
 from pydrake.multibody.parsing import AddModel, ModelDirective
 
+from physcap_drake.control.errors import SkillError
 from physcap_drake.physx.stiffness_levels import level_from_deformation, majority_level
 from physcap_drake.resources import stations_dir
 from physcap_drake.robot_api import RobotAPI
@@ -63,16 +64,21 @@ class MassTrial:
     estimate_g: float
     ok: bool
     robot_time_s: float
+    reason: str = ""
 
 
 def run_mass_trial(grams: int, trial: int, seed: int = 0, noise: bool = True) -> MassTrial:
-    """Weighs the `grams` reference mass once, at a perturbed place."""
+    """Weighs the `grams` reference mass once, at a perturbed place. A skill that fails
+    makes the trial a failure (with its reason), not an exception."""
     scenario, base = _scenario_with(f"mass_{grams:03d}g", seed, trial, noise)
     api = _api(scenario)
-    api.get_mass(base + [0.0, 0.0, MASS_GRASP_HEIGHT])
+    try:
+        api.get_mass(base + [0.0, 0.0, MASS_GRASP_HEIGHT])
+    except SkillError as error:
+        return MassTrial(float(grams), 0.0, False, api.robot_time, f"skill error: {error}")
     measurement = api.last_mass
     return MassTrial(float(grams), 1000.0 * measurement.mass_kg, measurement.ok,
-                     measurement.robot_time_s)
+                     measurement.robot_time_s, measurement.reason)
 
 
 @dc.dataclass(frozen=True)
@@ -81,6 +87,7 @@ class StiffnessTrial:
     level: int  # measured (majority vote)
     deformations_mm: tuple[float, ...]
     robot_time_s: float
+    reason: str = ""
 
 
 def run_stiffness_trial(specimen: str, trial: int, seed: int = 0,
@@ -88,7 +95,10 @@ def run_stiffness_trial(specimen: str, trial: int, seed: int = 0,
     """Probes the stiffness specimen (or avocado) `specimen` once, at a perturbed place."""
     scenario, base = _scenario_with(specimen, seed, trial, noise)
     api = _api(scenario)
-    api.get_stiffness(base + [0.0, 0.0, STIFFNESS_GRASP_HEIGHT])
+    try:
+        api.get_stiffness(base + [0.0, 0.0, STIFFNESS_GRASP_HEIGHT])
+    except SkillError as error:
+        return StiffnessTrial(specimen, 0, (), api.robot_time, f"skill error: {error}")
     measurement = api.last_stiffness
     return StiffnessTrial(specimen, measurement.level, measurement.result.deformations_mm,
                           measurement.robot_time_s)
