@@ -8,12 +8,14 @@ frames exactly.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
+from contextlib import contextmanager
 
 import numpy as np
 from pydrake.systems.analysis import Simulator
 
-from physcap_drake.control.errors import SkillFailed
+from physcap_drake.control.errors import SkillError, SkillFailed
 from physcap_drake.control.requests import (
     MoveGripper,
     MoveToJoints,
@@ -48,15 +50,15 @@ class RobotAPI:
         self._robot = robot
         self._simulator = simulator
         self._on_skill_done = on_skill_done
-        root = simulator.get_context()
-        self._executor_context = robot.executor.GetMyContextFromRoot(root)
+        root = simulator.get_mutable_context()
+        self._executor_context = robot.executor.GetMyMutableContextFromRoot(root)
         self._station_context = robot.station.GetMyContextFromRoot(root)
         self._mass_probe = MassProbe(self, robot.mass_estimator,
-                                     robot.mass_estimator.GetMyContextFromRoot(root),
+                                     robot.mass_estimator.GetMyMutableContextFromRoot(root),
                                      robot.scenario.physx.mass)
         self._stiffness_probe = StiffnessProbe(
             self, robot.stiffness_estimator,
-            robot.stiffness_estimator.GetMyContextFromRoot(root))
+            robot.stiffness_estimator.GetMyMutableContextFromRoot(root))
         #: What has been measured in this episode (get_mass and get_stiffness add to it).
         self.knowledge = SceneKnowledge()
         #: The full outcome of the latest get_mass / get_stiffness (for tools and tests).
@@ -112,11 +114,14 @@ class RobotAPI:
         name: how the object is called in the scene knowledge (default: its position).
         Make sure the gripper holds nothing before calling. Takes about 10 s.
 
-        Returns the mass in kilograms, or 0.0 if the measurement failed (nothing grasped, or
-        the object slipped); the reason is recorded in the scene knowledge.
+        Returns the mass in kilograms, or NaN (check with math.isnan) if the measurement
+        failed (nothing grasped, or the object slipped); the reason is recorded in the scene
+        knowledge. Raises SkillRefused or SkillFailed if a motion could not be made (also
+        recorded).
         """
         subject = _subject(position, name)
-        result = self.last_mass = self._mass_probe.measure(position)
+        with self._recording_failures(subject, "mass", "kg"):
+            result = self.last_mass = self._mass_probe.measure(position)
         self.knowledge.add(KnowledgeEntry(subject, "mass", result.mass_kg, "kg", result.ok,
                                           result.reason, self.robot_time))
         return result.mass_kg
@@ -135,13 +140,25 @@ class RobotAPI:
         Returns the stiffness level: 1 ultra-soft (foam, an overripe fruit), 2 soft (a ripe
         fruit, soft rubber), 3 semi-rigid, 4 stiff (an unripe fruit, hard rubber), 5 rigid
         (metal, wood, a full can); 0 if the measurement failed (recorded in the knowledge).
+        Raises SkillRefused or SkillFailed if a motion could not be made (also recorded).
         """
         subject = _subject(position, name)
-        measurement = self.last_stiffness = self._stiffness_probe.measure(position)
+        with self._recording_failures(subject, "stiffness", "level"):
+            measurement = self.last_stiffness = self._stiffness_probe.measure(position)
         self.knowledge.add(KnowledgeEntry(subject, "stiffness", measurement.level, "level",
                                           measurement.level > 0, measurement.describe(),
                                           self.robot_time))
         return measurement.level
+
+    @contextmanager
+    def _recording_failures(self, subject: str, prop: str, unit: str):
+        """Records a measurement that a skill error interrupted, then lets the error go on."""
+        try:
+            yield
+        except SkillError as error:
+            self.knowledge.add(KnowledgeEntry(subject, prop, math.nan, unit, False,
+                                              f"interrupted: {error}", self.robot_time))
+            raise
 
     @property
     def joint_target(self) -> np.ndarray:

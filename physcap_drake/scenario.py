@@ -212,9 +212,11 @@ def _check_against_robot(scenario: Scenario, at: ConfigChecker) -> None:
     at.child("skills").number("grasp_force", scenario.skills.grasp_force, minimum=0.0,
                               maximum=max_force, open_minimum=True,
                               why="station.gripper_servo.max_force")
+    probe = scenario.physx.stiffness
     at.child("physx").child("stiffness").number(
-        "force_limit", scenario.physx.stiffness.force_limit, minimum=0.0, maximum=max_force,
-        open_minimum=True, why="station.gripper_servo.max_force")
+        "force_limit", probe.force_limit, minimum=probe.target_effort * max_force,
+        maximum=max_force, why="from target_effort × station.gripper_servo.max_force (else "
+        "the target effort can never be reached) to station.gripper_servo.max_force")
 
 
 def _check_cameras(cameras: list[CameraConfig], at: ConfigChecker) -> None:

@@ -68,3 +68,16 @@ def test_bench_pick_place_writes_its_figures(tmp_path):
     assert figures["trials"] == 1 and figures["successes"] == 1
     assert 3.0 < figures["mean_robot_time_s"] < 20.0
     assert 0.0 < figures["max_tcp_error_mm"] < 5.0
+
+
+def test_calibrate_mass_writes_one_entry_per_reference_mass(tmp_path):
+    out = tmp_path / "mass.json"
+    result = runner.invoke(app, ["calibrate", "mass", "--trials", "1", "--workers", "1",
+                                 "--json", str(out)])
+    assert result.exit_code == 0, result.output
+    rows = json.loads(out.read_text())
+    assert [row["true_g"] for row in rows] == [13, 120, 350, 600, 963]
+    for row in rows:
+        assert abs(row["mean_g"] - row["true_g"]) < 10.0
+        assert row["std_g"] == 0.0 and row["failures"] == 0
+    assert "error (g)" in result.output

@@ -4,7 +4,9 @@ ground truth (body poses, the label image) and no object properties."""
 from __future__ import annotations
 
 import pytest
+from pydrake.multibody.tree import ModelInstanceIndex
 
+from physcap_drake.physx import calibration
 from physcap_drake.resources import stations_dir
 from physcap_drake.robot_diagram import build_robot_diagram
 from physcap_drake.scenario import load_scenario
@@ -63,3 +65,11 @@ def test_the_robots_own_models_contain_no_objects(robot):
         for name in objects:
             assert not plant.HasBodyNamed(name), name
     assert planning.HasBodyNamed("table_top")  # the fixed workcell is known
+
+
+def test_the_estimators_model_ignores_objects_added_to_the_scene():
+    scenario, _ = calibration._scenario_with("mass_600g", seed=0, trial=0, noise=True)
+    plant = build_robot_diagram(scenario).mass_estimator.model_plant
+    names = {plant.GetModelInstanceName(ModelInstanceIndex(i))
+             for i in range(plant.num_model_instances())}
+    assert names == {"WorldModelInstance", "DefaultModelInstance", "piper", "piper_gripper"}

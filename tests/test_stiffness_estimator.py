@@ -18,6 +18,8 @@ from physcap_drake.physx.stiffness_levels import (
     level_from_deformation,
     majority_level,
 )
+from physcap_drake.robot_api import RobotAPI
+from physcap_drake.robot_diagram import build_robot_diagram
 from physcap_drake.station import ports
 
 THRESHOLDS = StiffnessThresholds([13.0, 6.0, 2.7, 1.3])
@@ -27,17 +29,18 @@ class SyntheticGripper(LeafSystem):
     """A gripper closing on a linear spring object of width `width` (m) whose effort rises by
     `slope` per metre of squeeze. The finger settles where its servo (effort per metre
     `servo`) balances the object. Optionally a drive-friction spike: the effort reads
-    `spike` for the first two readings after the command first goes below `spike_at`,
-    whatever the fingers do next."""
+    `spike` for the first `spike_readings` readings after the command first goes below
+    `spike_at`, whatever the fingers do next."""
 
-    def __init__(self, width, slope, servo=40.0 / 0.001, spike_at=None, spike=0.2):
+    def __init__(self, width, slope, servo=40.0 / 0.001, spike_at=None, spike=0.2,
+                 spike_readings=2):
         super().__init__()
         self._width, self._slope, self._servo = width, slope, servo
-        self._spike_at, self._spike = spike_at, spike
+        self._spike_at, self._spike, self._spike_readings = spike_at, spike, spike_readings
         self._command = self.DeclareVectorInputPort(ports.GRIPPER_POSITION, 1)
         self.DeclareVectorInputPort(ports.GRIPPER_FORCE_LIMIT, 1)
-        self._readings = self.DeclareDiscreteState(1)  # spike readings left (−1: not yet)
-        self.DeclareDiscreteState(np.array([-1.0]))
+        self.DeclareDiscreteState(1)  # unused group 0, so the spike counter is group 1
+        self.DeclareDiscreteState(np.array([-1.0]))  # spike readings left (−1: not yet)
         self.DeclarePeriodicDiscreteUpdateEvent(0.06, 0.03, self._track_spike)
         self.DeclareVectorOutputPort(ports.GRIPPER_POSITION_MEASURED, 1, self._opening)
         self.DeclareVectorOutputPort(ports.GRIPPER_EFFORT_MEASURED, 1, self._effort)
@@ -51,7 +54,7 @@ class SyntheticGripper(LeafSystem):
         left = context.get_discrete_state(1).GetAtIndex(0)
         command = self._command.Eval(context)[0]
         if self._spike_at is not None and left < 0 and command < self._spike_at:
-            left = 2
+            left = self._spike_readings
         elif left > 0:
             left -= 1
         state.get_mutable_vector(1).SetAtIndex(0, left)
@@ -85,8 +88,8 @@ def probe(gripper: SyntheticGripper, start_opening: float, squeezes: int = 3):
     return estimator.result(context)
 
 
-@pytest.mark.parametrize("slope", [40.0, 100.0, 400.0])  # effort per metre: soft .. stiff
-def test_a_synthetic_squeeze_gives_the_right_deformation(slope):
+@pytest.mark.parametrize(("slope", "level"), [(40.0, 2), (100.0, 3), (400.0, 5)])
+def test_a_synthetic_squeeze_gives_the_right_deformation(slope, level):
     result = probe(SyntheticGripper(width=0.06, slope=slope), start_opening=0.07)
     config = StiffnessProbeConfig()
     # Contact is taken at the first reading at or above contact_effort, so the deformation
@@ -95,7 +98,7 @@ def test_a_synthetic_squeeze_gives_the_right_deformation(slope):
     for deformation in result.deformations_mm:
         assert upper - 1000 * config.contact_step < deformation <= upper + 1e-6
     assert np.ptp(result.deformations_mm) < 0.05  # the squeezes agree (mm)
-    assert result.level == level_from_deformation(result.deformations_mm[0], THRESHOLDS)
+    assert result.level == level  # Δd ≈ 11.8, 4.7 and 1.2 mm against THRESHOLDS
 
 
 def test_a_friction_spike_without_back_off_response_is_rejected():
@@ -105,6 +108,13 @@ def test_a_friction_spike_without_back_off_response_is_rejected():
     config = StiffnessProbeConfig()
     upper = 1000 * (config.target_effort - config.contact_effort) / 100.0
     assert upper - 1000 * config.contact_step < result.deformations_mm[0] <= upper + 1e-6
+
+
+def test_a_passing_spike_that_vanishes_on_back_off_is_not_taken_for_contact():
+    result = probe(SyntheticGripper(width=0.05, slope=100.0, spike_at=0.065, spike_readings=1),
+                   start_opening=0.07, squeezes=1)
+    assert any("passing spike" in note for note in result.notes)
+    assert result.level == 3  # the object's own deformation, not the spike's position
 
 
 def test_closing_on_nothing_fails_with_level_zero():
@@ -138,7 +148,28 @@ def test_thresholds_must_decrease():
 
 
 def test_probing_a_specimen_in_the_diagram():
-    trial = calibration.run_stiffness_trial("stiffness_level3", trial=0, seed=5)
-    assert trial.level == 3
-    assert len(trial.deformations_mm) == 5
-    assert trial.robot_time_s < 40.0
+    scenario, base = calibration._scenario_with("stiffness_level3", seed=5, trial=0, noise=True)
+    robot = build_robot_diagram(scenario)
+    api = RobotAPI(robot, robot.make_simulator())
+    assert api.get_stiffness(base + [0.0, 0.0, calibration.STIFFNESS_GRASP_HEIGHT],
+                             name="orange cylinder") == 3
+    measurement = api.last_stiffness
+    assert len(measurement.result.deformations_mm) == 5
+    assert measurement.robot_time_s < 40.0
+    entry = api.knowledge.latest("orange cylinder", "stiffness")
+    assert entry.value == 3 and "deformation per squeeze" in entry.note
+    # The gripper is the executor's again: it opens on request.
+    api.open_gripper()
+    assert api.gripper_opening > 0.09
+
+
+def test_thresholds_are_fitted_between_levels_and_scored():
+    means = {1: 20.0, 2: 8.0, 3: 4.0, 4: 2.0, 5: 1.0}
+    fitted = calibration.fit_thresholds(means)
+    np.testing.assert_allclose(fitted, [np.sqrt(160), np.sqrt(32), np.sqrt(8), np.sqrt(2)])
+    trials = [calibration.StiffnessTrial(f"stiffness_level{level}", 0, (d,) * 5, 20.0)
+              for level, d in means.items()]
+    trials.append(calibration.StiffnessTrial("stiffness_level2", 0, (3.0,) * 5, 20.0))
+    matrix = calibration.confusion_matrix(trials, StiffnessThresholds(fitted))
+    assert matrix[1, 2] == 1 and matrix[1, 3] == 1  # one level-2 trial read as level 3
+    assert np.trace(matrix[:, 1:]) == 5

@@ -62,13 +62,17 @@ def mass(trials: Trials = 20, seed: Seed = 0, workers: Workers = 2, noise: Noise
     table = Table(title=f"get_mass, {trials} trials per mass"
                   + ("" if noise else " (noise-free)"))
     for column in ("true (g)", "mean (g)", "std (g)", "error (g)", "failures",
-                   "robot time (s)"):
+                   "max robot time (s)"):
         table.add_column(column, justify="right")
     for row in rows:
         table.add_row(f"{row['true_g']:.0f}", _fmt(row["mean_g"]), f"{row['std_g']:.2f}",
                       _fmt(row["error_g"], "+.2f"), str(row["failures"]),
-                      f"{row['mean_robot_time_s']:.1f}")
+                      f"{row['max_robot_time_s']:.1f}")
     console.print(table)
+    within = all(row["failures"] == 0 and abs(row["error_g"]) <= 5.0 and row["std_g"] <= 10.0
+                 and row["max_robot_time_s"] <= 20.0 for row in rows)
+    console.print("every mass within |mean error| ≤ 5 g, std ≤ 10 g, no failure, ≤ 20 s per "
+                  f"measurement: {'yes' if within else 'NO'}")
     if json_path is not None:
         json_path.write_text(json.dumps(rows, indent=2))
         console.print(f"wrote {json_path}")
@@ -112,8 +116,9 @@ def stiffness(trials: Annotated[int, typer.Option("--trials", min=1,
                   "--avocados/--no-avocados", help="Also probe the three avocados.")] = True,
               ) -> None:
     """Squeeze the five stiffness specimens (levels 1..5) `trials` times each; print the
-    deformation per specimen, the thresholds fitted between levels, the confusion matrix
-    and, with --avocados, the levels measured on ripe and unripe avocados."""
+    deformation per specimen, the confusion matrix with the thresholds in use, the
+    thresholds fitted on these trials (--write saves them) and, with --avocados, the levels
+    measured on ripe and unripe avocados."""
     specimens = [f"stiffness_level{level}" for level in cal.STIFFNESS_LEVELS]
     if avocados:
         specimens += list(cal.AVOCADOS)
@@ -122,7 +127,7 @@ def stiffness(trials: Annotated[int, typer.Option("--trials", min=1,
     by_specimen = {s: [r for r in results if r.specimen == s] for s in specimens}
     table = Table(title=f"get_stiffness, {trials} trials per specimen")
     for column in ("specimen", "Δd mean (mm)", "Δd std (mm)", "levels measured",
-                   "robot time (s)"):
+                   "max robot time (s)"):
         table.add_column(column, justify="right")
     means = {}
     for specimen, rows in by_specimen.items():
@@ -132,30 +137,48 @@ def stiffness(trials: Annotated[int, typer.Option("--trials", min=1,
         levels = " ".join(str(r.level) for r in rows)
         table.add_row(specimen, f"{means[specimen]:.2f}",
                       f"{finite.std():.2f}" if finite.size else "-", levels,
-                      f"{np.mean([r.robot_time_s for r in rows]):.1f}")
+                      f"{np.max([r.robot_time_s for r in rows]):.1f}")
     console.print(table)
     fitted = cal.fit_thresholds({level: means[f"stiffness_level{level}"]
                                  for level in cal.STIFFNESS_LEVELS})
     thresholds = StiffnessThresholds(fitted, f"physcap calibrate stiffness --trials {trials} "
                                              f"--seed {seed}, {date.today().isoformat()}")
+    # Scored with the thresholds the robot uses (the file), not the ones fitted on these
+    # trials: run with another --seed than the calibration to validate on fresh data.
+    in_use = load_thresholds(load_scenario(stations_dir() / cal.SCENARIO)
+                             .physx.stiffness.thresholds_file)
     specimen_trials = [r for r in results if r.specimen.startswith("stiffness_level")]
-    matrix = cal.confusion_matrix(specimen_trials, thresholds)
+    matrix = cal.confusion_matrix(specimen_trials, in_use)
     accuracy = float(np.trace(matrix[:, 1:]) / matrix.sum())
-    console.print("fitted thresholds (mm): " + ", ".join(f"{t:.2f}" for t in fitted))
+    console.print("thresholds in use (mm): " + ", ".join(f"{t:.2f}" for t in
+                                                         in_use.thresholds_mm)
+                  + f"  ({in_use.source})")
+    console.print("thresholds fitted on these trials (mm): "
+                  + ", ".join(f"{t:.2f}" for t in fitted))
     console.print(_confusion_table(matrix))
-    console.print(f"accuracy (diagonal fraction): {accuracy:.3f}")
+    console.print(f"accuracy (diagonal fraction, thresholds in use): {accuracy:.3f}")
     avocado_summary = {}
     for specimen, ripeness in cal.AVOCADOS.items():
         if specimen in by_specimen:
             levels = [r.level for r in by_specimen[specimen]]
             avocado_summary[ripeness] = levels
             console.print(f"{ripeness} avocado: levels {levels}")
+    if avocado_summary:
+        ripe = avocado_summary["overripe"] + avocado_summary["ripe"]
+        separated = all(1 <= level <= 2 for level in ripe) and all(
+            level >= 3 for level in avocado_summary["unripe"])
+        console.print(f"ripe avocados ≤ 2 and unripe ≥ 3 in every trial: "
+                      f"{'yes' if separated else 'NO'}")
+    slowest = max(r.robot_time_s for r in results)
+    console.print(f"slowest measurement: {slowest:.1f} s of robot time "
+                  f"({'within' if slowest <= 40.0 else 'OVER'} 40 s)")
     if write:
         _write_thresholds(thresholds)
     if json_path is not None:
         json_path.write_text(json.dumps({
             "accuracy": accuracy,
-            "thresholds_mm": fitted,
+            "thresholds_mm": in_use.thresholds_mm,
+            "fitted_thresholds_mm": fitted,
             "confusion_matrix": matrix.tolist(),
             "mean_deformation_mm": means,
             "avocado_levels": avocado_summary,

@@ -43,8 +43,9 @@ def peak_rates(trajectory: Trajectory) -> tuple[float, float]:
 def time_parameterize(arm_plant: MultibodyPlant, waypoints: np.ndarray, *, max_velocity: float,
                       max_acceleration: float) -> Trajectory:
     """The fastest trajectory along the path through `waypoints` (6 × N, rad; repeated ones
-    are dropped) that starts and ends at rest and keeps every joint within ±max_velocity (rad/s) and ±max_acceleration
-    (rad/s²). Raises SkillRefused if no parameterization meets the limits."""
+    are dropped) that starts and ends at rest and keeps every joint within ±max_velocity
+    (rad/s) and ±max_acceleration (rad/s²). Raises SkillRefused if no parameterization
+    meets the limits."""
     waypoints = np.asarray(waypoints, dtype=float)
     keep = np.concatenate([[True], np.abs(np.diff(waypoints, axis=1)).max(axis=0) > 1e-9])
     waypoints = waypoints[:, keep]

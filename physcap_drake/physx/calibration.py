@@ -8,6 +8,7 @@ arm reports), and returns the figures; the specimen's true value comes from its 
 from __future__ import annotations
 
 import dataclasses as dc
+import math
 
 import numpy as np
 from pydrake.common.schema import Transform
@@ -75,7 +76,8 @@ def run_mass_trial(grams: int, trial: int, seed: int = 0, noise: bool = True) ->
     try:
         api.get_mass(base + [0.0, 0.0, MASS_GRASP_HEIGHT])
     except SkillError as error:
-        return MassTrial(float(grams), 0.0, False, api.robot_time, f"skill error: {error}")
+        return MassTrial(float(grams), math.nan, False, api.robot_time,
+                         f"skill error: {error}")
     measurement = api.last_mass
     return MassTrial(float(grams), 1000.0 * measurement.mass_kg, measurement.ok,
                      measurement.robot_time_s, measurement.reason)
@@ -119,6 +121,8 @@ def summarize_mass(trials: list[MassTrial]) -> list[dict]:
             "failures": failures,
             "mean_robot_time_s": float(np.mean([t.robot_time_s for t in trials
                                                 if t.true_g == grams])),
+            "max_robot_time_s": float(np.max([t.robot_time_s for t in trials
+                                              if t.true_g == grams])),
         })
     return rows
 

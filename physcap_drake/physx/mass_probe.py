@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses as dc
+import math
 
 import numpy as np
 
@@ -14,8 +15,8 @@ from physcap_drake.physx.physx_config import MassProbeConfig
 class MassMeasurement:
     """The outcome of one get_mass.
 
-    ok: False when the measurement failed; then mass_kg is 0.0 (never an estimate) and
-    `reason` says why (nothing grasped, the object slipped, ...).
+    ok: False when the measurement failed; then mass_kg is NaN (never a number that could
+    pass for a mass) and `reason` says why (nothing grasped, the object slipped, ...).
     robot_time_s: robot execution time the measurement took.
     """
 
@@ -34,6 +35,8 @@ class MassProbe:
        the torques (empty). 2. Descend straight down, grasp, return to the very same joint
        positions; settle; average (loaded). 3. m = J_z·Δτ / (g·|J_z|²) with the robot's model.
     4. Put the object back where it was and retreat upwards.
+    The return to the measurement pose in step 2 is a joint-space move between the ends of
+    the vertical descent, so the lifted object rises close to vertically.
     """
 
     def __init__(self, api, estimator: MassEstimator, estimator_context, config: MassProbeConfig):
@@ -70,13 +73,16 @@ class MassProbe:
         loaded = self._average()
         if api.gripper_opening < config.min_grasp_opening:
             return self._give_up(lift, start, "the object slipped out of the gripper", empty)
-        mass = self._estimator.estimate_mass(empty, loaded)
+        try:
+            mass, reason = self._estimator.estimate_mass(empty, loaded), ""
+        except ValueError as error:  # the pose cannot show a weight; still put it back
+            mass, reason = math.nan, str(error)
         api.goto_pose(grasp, z_approach=config.lift_height)  # put it back where it was
         api.open_gripper()
         api.goto_pose(lift)
-        return MassMeasurement(True, mass, "", api.robot_time - start, empty, loaded)
+        return MassMeasurement(not reason, mass, reason, api.robot_time - start, empty, loaded)
 
     def _give_up(self, lift, start, reason, empty) -> MassMeasurement:
         self._api.open_gripper()
         self._api.goto_pose(lift)
-        return MassMeasurement(False, 0.0, reason, self._api.robot_time - start, empty)
+        return MassMeasurement(False, math.nan, reason, self._api.robot_time - start, empty)

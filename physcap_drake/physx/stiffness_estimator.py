@@ -54,6 +54,7 @@ class ProbeState:
     deformations_mm: tuple[float, ...] = ()
     notes: tuple[str, ...] = ()
     release_ticks: int = 0
+    start_opening: float = math.inf
 
 
 @dc.dataclass(frozen=True)
@@ -75,9 +76,11 @@ class StiffnessEstimator(LeafSystem):
     least `backoff_drop` of its effort rise, friction in the drive does not (then closing
     resumes); the opening where the effort rose is d0; (3) close in `squeeze_step` steps
     recording (d_i, f̂_i) until f̂ reaches `target_effort`, and take Δd = |d0 − d(f̂*)|
-    (mm, interpolated);
-    (4) reopen to d0 + `release`. Closing fully without reaching the effort fails the
-    squeeze. Every step is held `dwell` s before the gripper is read.
+    (mm, interpolated); if the first reading back at the contact command shows no effort,
+    the rise was a passing spike and the search goes on;
+    (4) reopen to d0 + `release` (at most to the opening it started from). Closing fully
+    without reaching the effort fails the squeeze. Every step is held `dwell` s before the
+    gripper is read.
 
     It reads only gripper.position_measured and gripper.effort_measured, and while probing
     commands the gripper through its own outputs (see GripperCommandSelector).
@@ -113,7 +116,7 @@ class StiffnessEstimator(LeafSystem):
         opening = (float(self._opening.Eval(context)[0]) if start_opening is None
                    else float(start_opening))
         context.get_mutable_abstract_state(self._state).set_value(
-            ProbeState(Phase.SEEK_CONTACT, command=opening))
+            ProbeState(Phase.SEEK_CONTACT, command=opening, start_opening=opening))
 
     def done(self, context: Context) -> bool:
         return self._get(context).phase in (Phase.DONE, Phase.IDLE)
@@ -173,6 +176,14 @@ class StiffnessEstimator(LeafSystem):
 
     def _squeeze(self, s: ProbeState, d: float, f: float) -> ProbeState:
         c = self._config
+        if len(s.samples) == 1 and f < c.contact_effort:
+            # Back at the contact command the effort is gone: it was a passing spike (drive
+            # friction), not the object. Keep looking for the real contact.
+            note = f"rejected as a passing spike: effort {s.samples[0][1]:.2f} at " \
+                   f"{1000 * s.samples[0][0]:.1f} mm did not return"
+            return self._close_by(dc.replace(s, phase=Phase.SEEK_CONTACT, contact=None,
+                                             d0=math.nan, samples=(),
+                                             notes=s.notes + (note,)), c.contact_step)
         samples = s.samples + ((d, f),)
         if f >= c.target_effort:
             return self._finish_squeeze(s, deformation_at_effort(s.d0, list(samples),
@@ -180,7 +191,8 @@ class StiffnessEstimator(LeafSystem):
         return self._close_by(dc.replace(s, samples=samples), c.squeeze_step)
 
     def _finish_squeeze(self, s: ProbeState, deformation_mm: float, note: str = "") -> ProbeState:
-        reopen = (s.d0 if math.isfinite(s.d0) else s.command) + self._config.release
+        reopen = min((s.d0 if math.isfinite(s.d0) else s.command) + self._config.release,
+                     s.start_opening)
         notes = s.notes + ((f"squeeze {len(s.deformations_mm) + 1}: {note}",) if note else ())
         return dc.replace(s, phase=Phase.RELEASE, command=reopen, samples=(),
                           deformations_mm=s.deformations_mm + (deformation_mm,), notes=notes)

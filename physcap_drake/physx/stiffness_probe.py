@@ -14,8 +14,9 @@ from physcap_drake.physx.stiffness_levels import LEVEL_NAMES
 APPROACH = 0.10
 #: Simulated time the arm holds still between checks of the running probe, s.
 POLL = 0.1
-#: Longest a probe may run, s (five squeezes of the softest specimen take about 15 s).
-TIMEOUT = 60.0
+#: Longest the squeezing may run, s (five squeezes of the softest specimen take about 15 s;
+#: with the approach and retreat a measurement then stays within 40 s).
+TIMEOUT = 30.0
 
 
 @dc.dataclass(frozen=True)
