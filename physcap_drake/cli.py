@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import typer
 
-from physcap_drake.commands import bench, calibrate, demo, sim
+from physcap_drake.commands import bench, calibrate, demo, sim, task
 
 app = typer.Typer(
     name="physcap",
@@ -16,6 +16,7 @@ app.command("sim")(sim.sim)
 app.add_typer(demo.app, name="demo")
 app.add_typer(bench.app, name="bench")
 app.add_typer(calibrate.app, name="calibrate")
+app.add_typer(task.app, name="task")
 
 
 def main() -> None:

@@ -26,6 +26,7 @@ from physcap_drake.control.requests import (
 )
 from physcap_drake.control.skill_executor import MONITOR_PERIOD, SkillStatus
 from physcap_drake.knowledge import KnowledgeEntry, SceneKnowledge
+from physcap_drake.perception.object_locator import ObjectLocator
 from physcap_drake.physx.mass_probe import MassMeasurement, MassProbe
 from physcap_drake.physx.stiffness_probe import StiffnessMeasurement, StiffnessProbe
 from physcap_drake.robot_diagram import RobotDiagram
@@ -44,11 +45,14 @@ class RobotAPI:
     """
 
     def __init__(self, robot: RobotDiagram, simulator: Simulator,
-                 on_skill_done: Callable[[SkillStatus], None] | None = None):
+                 on_skill_done: Callable[[SkillStatus], None] | None = None,
+                 locator: ObjectLocator | None = None):
         """`on_skill_done(status)` is called after every skill that ran (not after refusals),
-        before a failure is raised."""
+        before a failure is raised. `locator` finds objects named by phrases in the camera
+        images (get_object_pose); without one, get_object_pose is not available."""
         self._robot = robot
         self._simulator = simulator
+        self._locator = locator
         self._on_skill_done = on_skill_done
         root = simulator.get_mutable_context()
         self._executor_context = robot.executor.GetMyMutableContextFromRoot(root)
@@ -64,6 +68,30 @@ class RobotAPI:
         #: The full outcome of the latest get_mass / get_stiffness (for tools and tests).
         self.last_mass: MassMeasurement | None = None
         self.last_stiffness: StiffnessMeasurement | None = None
+
+    def get_object_pose(self, name: str) -> np.ndarray:
+        """Find an object in the camera image and return its grasp point [x, y, z] (metres,
+        world frame): the fingertip target for a top-down grasp, at the middle of the
+        object's top, half its height down (at most 57 mm below its top).
+
+        name: a description that picks out one object, e.g. "red can", "large cup",
+            "second from left green avocado", "dark avocado on the right", "can with a straw".
+        Raises ValueError listing the visible objects if the name fits none or several.
+        """
+        if self._locator is None:
+            raise RuntimeError("this robot has no camera perception set up (no locator)")
+        station, context = self._robot.station, self._station_context
+        depth = station.GetOutputPort(ports.CAMERA_DEPTH).Eval(context).data
+        label = station.GetOutputPort(ports.CAMERA_LABEL).Eval(context).data
+        return self._locator.locate(name, depth, label).grasp_point
+
+    @property
+    def simulator(self) -> Simulator:
+        return self._simulator
+
+    @property
+    def locator(self) -> ObjectLocator | None:
+        return self._locator
 
     def goto_pose(self, position, quaternion_wxyz=None, z_approach=0.0) -> None:
         """Move the fingertip to `position` = [x, y, z] (metres, world frame).

@@ -70,6 +70,17 @@ def _default_camera() -> CameraConfig:
 
 
 @dc.dataclass
+class TaskConfig:
+    """Which evaluation task the scenario sets up (see physcap_drake/tasks/)."""
+
+    # Task name: "" (none), "identify_empty_can", "pick_ripe_avocado", ...
+    name: str = ""
+    # Pin which object carries the hidden property (its name, e.g. "red can"); "" draws it
+    # from the random seed among the visually plausible ones.
+    answer: str = ""
+
+
+@dc.dataclass
 class Scenario:
     """A station and its scene. See `stations/piper_table.yaml` for a commented example."""
 
@@ -84,6 +95,8 @@ class Scenario:
     directives: list[ModelDirective] = dc.field(default_factory=list)
     # Which station: the simulated arm (!SimPiper) or the real arm over CAN (!PiperCan).
     station: SimPiper | PiperCan = dc.field(default_factory=SimPiper)
+    # The evaluation task whose objects the scenario's seed lays out (none by default).
+    task: TaskConfig = dc.field(default_factory=TaskConfig)
     # Limits and tolerances of the robot skills (goto_pose, gripper, home).
     skills: SkillsConfig = dc.field(default_factory=SkillsConfig)
     # The physical probes get_mass and get_stiffness.

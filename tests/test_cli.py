@@ -57,7 +57,7 @@ def test_demo_pick_place_puts_the_can_on_the_tray():
     result = runner.invoke(app, ["demo", "pick-place", "--scenario", TABLE])
     assert result.exit_code == 0, result.output
     assert "close_gripper" in result.output and "home_pose" in result.output
-    assert "success: the can stands upright in the tray" in result.output
+    assert "success: the soda can is upright in the tray" in result.output
 
 
 def test_bench_pick_place_writes_its_figures(tmp_path):

@@ -32,15 +32,25 @@ def pick_and_place(api: RobotAPI, can_bottom: np.ndarray, tray_bottom: np.ndarra
     """Grasps the can standing at `can_bottom` (centre of its base, world frame, m) from
     above and sets it down in the tray whose floor centre is `tray_bottom`, then goes home.
     `on_goto(target)` is called after each goto_pose with its fingertip target (m)."""
+    grasp = np.asarray(can_bottom, dtype=float) + [0.0, 0.0, GRASP_HEIGHT]
+    move_to_tray(api, grasp, GRASP_HEIGHT, tray_bottom, on_goto)
+
+
+def move_to_tray(api: RobotAPI, grasp_point: np.ndarray, grasp_height: float,
+                 tray_bottom: np.ndarray,
+                 on_goto: Callable[[np.ndarray], None] | None = None) -> None:
+    """Grasps an object from above at `grasp_point` (fingertip target, world frame, m; the
+    grasp is `grasp_height` m above the object's base), sets it down in the tray whose floor
+    centre is `tray_bottom`, opens, retreats and goes home."""
 
     def goto(target, **options):
         api.goto_pose(target, **options)
         if on_goto is not None:
             on_goto(np.asarray(target, dtype=float))
 
-    grasp = np.asarray(can_bottom, dtype=float) + [0.0, 0.0, GRASP_HEIGHT]
+    grasp = np.asarray(grasp_point, dtype=float)
     place = np.asarray(tray_bottom, dtype=float) + [
-        0.0, 0.0, TRAY_FLOOR + PLACE_CLEARANCE + GRASP_HEIGHT]
+        0.0, 0.0, TRAY_FLOOR + PLACE_CLEARANCE + grasp_height]
     api.open_gripper()
     goto(grasp, z_approach=APPROACH)
     api.close_gripper()
@@ -63,17 +73,27 @@ def check_can_in_tray(plant, plant_context: Context, can_body: str = "soda_can",
                       tray_body: str = "tray") -> PlaceCheck:
     """Success check from the simulator's ground truth (for benchmarks, never for agents):
     the can stands upright (tilt ≤ 10°), wholly inside the tray's inner walls, on its floor."""
-    X_can = plant.EvalBodyPoseInWorld(plant_context, plant.GetBodyByName(can_body))
-    X_tray = plant.EvalBodyPoseInWorld(plant_context, plant.GetBodyByName(tray_body))
+    return check_in_tray(plant, plant_context, plant.GetBodyByName(can_body),
+                         plant.GetBodyByName(tray_body), CAN_RADIUS)
+
+
+def check_in_tray(plant, plant_context: Context, body, tray, radius: float,
+                  upright: bool = True) -> PlaceCheck:
+    """Ground-truth check that `body` (an object of `radius` m around its base frame's z
+    axis) is wholly inside the `tray` body's inner walls, resting on its floor, and with
+    `upright` also standing upright (tilt ≤ 10°)."""
+    what = body.name().replace("_", " ")
+    X_can = plant.EvalBodyPoseInWorld(plant_context, body)
+    X_tray = plant.EvalBodyPoseInWorld(plant_context, tray)
     axis = X_can.rotation().matrix()[:, 2]
     tilt = float(np.arccos(np.clip(axis[2], -1.0, 1.0)))
-    if tilt > UPRIGHT_TILT:
-        return PlaceCheck(False, f"the can is tipped over ({np.degrees(tilt):.0f}°)")
+    if upright and tilt > UPRIGHT_TILT:
+        return PlaceCheck(False, f"the {what} is tipped over ({np.degrees(tilt):.0f}°)")
     offset = X_tray.inverse().multiply(X_can.translation())
-    if np.any(np.abs(offset[:2]) + CAN_RADIUS > TRAY_INNER_HALF):
-        return PlaceCheck(False, f"the can is not inside the tray (offset {offset[:2].round(3)} "
+    if np.any(np.abs(offset[:2]) + radius > TRAY_INNER_HALF):
+        return PlaceCheck(False, f"the {what} is not inside the tray (offset {offset[:2].round(3)} "
                                  "m from its centre)")
     if not -0.005 <= offset[2] - TRAY_FLOOR <= 0.01:
-        return PlaceCheck(False, f"the can is not resting on the tray floor (bottom "
+        return PlaceCheck(False, f"the {what} is not resting on the tray floor (bottom "
                                  f"{offset[2]:.3f} m above the tray frame)")
-    return PlaceCheck(True, "the can stands upright in the tray")
+    return PlaceCheck(True, f"the {what} is {'upright ' if upright else ''}in the tray")

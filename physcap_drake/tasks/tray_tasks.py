@@ -1,0 +1,143 @@
+"""The two "put the right one on the tray" tasks: identify_empty_can and pick_ripe_avocado.
+
+Four objects stand in a row across the table, left of the tray; one of them carries the
+hidden property the prompt asks for. Layouts and the answer come from the seed (the answer
+only among the visually plausible objects) and the answer can be pinned.
+"""
+
+from __future__ import annotations
+
+import dataclasses as dc
+
+import numpy as np
+
+from physcap_drake.demos.pick_place import PlaceCheck, check_in_tray, move_to_tray
+from physcap_drake.perception.visible_objects import VisibleObject
+from physcap_drake.tasks.task_instance import SceneObject, TaskInstance
+
+#: Row of the four objects: x and the y of each slot (world frame, m), and the jitter.
+ROW_X = 0.37
+ROW_Y = (0.27, 0.16, 0.05, -0.06)
+JITTER = 0.01
+#: The tray's floor centre (as placed in the task scenarios), m.
+TRAY_BOTTOM = np.array([0.30, -0.27, 0.0])
+
+
+def _row(rng: np.random.Generator, count: int) -> list[tuple[float, float]]:
+    return [(ROW_X + rng.uniform(-JITTER, JITTER), y + rng.uniform(-JITTER, JITTER))
+            for y in ROW_Y[:count]]
+
+
+def _choose_answer(rng, plausible: list[str], pinned: str, task: str) -> str:
+    if pinned:
+        if pinned not in plausible:
+            raise ValueError(f"task.answer {pinned!r} is not a possible answer of {task}; "
+                             f"choose one of {plausible}")
+        return pinned
+    return plausible[int(rng.integers(len(plausible)))]
+
+
+@dc.dataclass(frozen=True)
+class TrayTask:
+    """Shared behaviour: success is the answer object alone in the tray."""
+
+    name: str
+    scenario_file: str
+    radius: float  # m, for the in-tray check
+    grasp_height: float  # m above the object's base
+    upright: bool
+
+    def check(self, instance: TaskInstance, plant, plant_context) -> PlaceCheck:
+        """Ground truth: the answer is in the tray and no other object is."""
+        tray = plant.GetBodyByName("tray")
+        for obj in instance.objects:
+            body = instance.body_of(plant, obj.visible.name)
+            inside = check_in_tray(plant, plant_context, body, tray, self.radius,
+                                   self.upright)
+            if obj.visible.name == instance.answer and not inside.success:
+                return PlaceCheck(False, f"the {obj.visible.name} (the answer) is not in the "
+                                         f"tray: {inside.reason}")
+            if obj.visible.name != instance.answer and _near_tray(plant, plant_context, body,
+                                                                  tray):
+                return PlaceCheck(False, f"the {obj.visible.name} is in the tray, but the "
+                                         f"answer was the {instance.answer}")
+        return PlaceCheck(True, f"the {instance.answer} alone is in the tray")
+
+    def solve(self, instance: TaskInstance, api, wrong: bool = False) -> None:
+        """Scripted solution that knows the answer (for testing the task only); with
+        `wrong`, it moves a wrong object to the tray instead."""
+        names = [o.visible.name for o in instance.objects]
+        target = instance.answer
+        if wrong:
+            target = next(n for n in names if n != instance.answer)
+        obj = instance.object(target)
+        grasp = np.array([*obj.xy, self.grasp_height])
+        move_to_tray(api, grasp, self.grasp_height, TRAY_BOTTOM)
+
+
+def _near_tray(plant, plant_context, body, tray) -> bool:
+    X_tray = plant.EvalBodyPoseInWorld(plant_context, tray)
+    offset = X_tray.inverse().multiply(plant.EvalBodyPoseInWorld(plant_context,
+                                                                 body).translation())
+    return bool(np.all(np.abs(offset[:2]) < [0.15, 0.11]) and offset[2] < 0.05)
+
+
+CAN_COLORS = ("red", "green", "blue", "black")
+OPEN_COLORS = ("red", "green")  # the paper's open cans; blue and black are sealed
+EMPTY_CAN_KG, HALF_FULL_CAN_KG, FULL_CAN_KG = 0.015, 0.404, 0.370
+
+
+class IdentifyEmptyCan(TrayTask):
+    def __init__(self):
+        super().__init__("identify_empty_can", "identify_empty_can.yaml", radius=0.033,
+                         grasp_height=0.065, upright=True)
+
+    prompt = ("Four soda cans stand on the table. Exactly one of them is empty; a can that "
+              "weighs less than 100 g counts as empty. Find the empty can and put it on the "
+              "wooden tray. Leave the other cans where they are.")
+
+    def instance(self, seed: int, answer: str = "") -> TaskInstance:
+        rng = np.random.default_rng((seed, 11))
+        colors = list(rng.permutation(CAN_COLORS))
+        answer = _choose_answer(rng, [f"{c} can" for c in OPEN_COLORS], answer, self.name)
+        objects = []
+        for color, xy in zip(colors, _row(rng, 4), strict=True):
+            is_open = color in OPEN_COLORS
+            name = f"{color} can"
+            mass = (EMPTY_CAN_KG if name == answer else HALF_FULL_CAN_KG) if is_open \
+                else FULL_CAN_KG
+            objects.append(SceneObject(
+                body=f"{color}_can", model=f"objects/can_{color}_{'open' if is_open else 'sealed'}",
+                visible=VisibleObject(name, "can", color, straw=is_open), xy=xy,
+                hidden={"mass_kg": mass}))
+        return TaskInstance(self.name, seed, self.prompt, tuple(objects), answer)
+
+
+class PickRipeAvocado(TrayTask):
+    def __init__(self):
+        super().__init__("pick_ripe_avocado", "pick_ripe_avocado.yaml", radius=0.042,
+                         grasp_height=0.036, upright=False)
+
+    prompt = ("Four avocados lie on the table. Exactly one of them is ripe; an avocado with a "
+              "stiffness level of 2 or lower is ripe. Find the ripe avocado and put it on the "
+              "wooden tray. Leave the others where they are.")
+
+    def instance(self, seed: int, answer: str = "") -> TaskInstance:
+        rng = np.random.default_rng((seed, 13))
+        skins = list(rng.permutation(["dark", "dark", "green", "green"]))
+        slots = _row(rng, 4)
+        names, counters = [], {"dark": 0, "green": 0}
+        for skin in skins:  # numbered left to right as the camera sees them (+y is left)
+            counters[skin] += 1
+            names.append(f"{skin} avocado {counters[skin]}")
+        answer = _choose_answer(rng, [n for n in names if n.startswith("dark")], answer,
+                                self.name)
+        objects = []
+        for index, (skin, name, xy) in enumerate(zip(skins, names, slots, strict=True)):
+            ripe = name == answer
+            objects.append(SceneObject(
+                body=f"avocado_{index}",
+                model=f"objects/avocado_{skin}_{'ripe' if ripe else 'firm'}",
+                visible=VisibleObject(name, "avocado", skin), xy=xy,
+                hidden={"stiffness_level": 2 if ripe else 4, "ripe": ripe}))
+        return TaskInstance(self.name, seed, self.prompt, tuple(objects), answer)

@@ -1,0 +1,65 @@
+"""The tasks: layouts from the seed, answers among the plausible objects, pinning, and the
+success check against scripted right and wrong solutions."""
+
+from __future__ import annotations
+
+import pytest
+
+from physcap_drake.tasks.episode import make_episode
+from physcap_drake.tasks.registry import TASKS, get_task
+
+
+@pytest.mark.parametrize("name", sorted(TASKS))
+def test_layouts_and_answers_follow_the_seed(name):
+    task = get_task(name)
+    first, again = task.instance(3), task.instance(3)
+    assert first == again
+    answers = {task.instance(seed).answer for seed in range(20)}
+    assert len(answers) == 2  # drawn among the two plausible objects
+    assert {o.xy for o in task.instance(4).objects} != {o.xy for o in first.objects}
+
+
+def test_the_empty_can_is_always_an_open_one():
+    task = get_task("identify_empty_can")
+    for seed in range(20):
+        instance = task.instance(seed)
+        empty = instance.object(instance.answer)
+        assert empty.visible.straw and empty.hidden["mass_kg"] < 0.1
+        assert sum(o.hidden["mass_kg"] < 0.1 for o in instance.objects) == 1
+
+
+def test_the_ripe_avocado_is_always_a_dark_one():
+    task = get_task("pick_ripe_avocado")
+    for seed in range(20):
+        instance = task.instance(seed)
+        assert instance.object(instance.answer).visible.color == "dark"
+        assert [o.hidden["ripe"] for o in instance.objects].count(True) == 1
+
+
+def test_the_answer_can_be_pinned_but_only_to_a_plausible_object():
+    task = get_task("identify_empty_can")
+    assert task.instance(0, "green can").answer == "green can"
+    with pytest.raises(ValueError, match="not a possible answer"):
+        task.instance(0, "blue can")
+
+
+def test_hidden_masses_are_in_the_simulation():
+    episode = make_episode("identify_empty_can", 2)
+    for obj in episode.instance.objects:
+        body = episode.instance.body_of(episode.plant, obj.visible.name)
+        assert body.get_mass(episode.plant_context) == pytest.approx(obj.hidden["mass_kg"])
+
+
+@pytest.mark.parametrize("name", ["identify_empty_can"])
+def test_the_oracle_succeeds_and_a_wrong_solution_fails(name):
+    right = make_episode(name, 5)
+    get_task(name).solve(right.instance, right.api)
+    assert right.check().success, right.check().reason
+    wrong = make_episode(name, 5)
+    get_task(name).solve(wrong.instance, wrong.api, wrong=True)
+    assert not wrong.check().success
+
+
+def test_unknown_task_names_are_listed():
+    with pytest.raises(KeyError, match="identify_empty_can"):
+        get_task("find_the_cat")
