@@ -1,13 +1,20 @@
 """The skills and the PhysX estimators read only what the real arm reports: no simulator
-ground truth (body poses, the label image) and no object properties."""
+ground truth (body poses, the label image) and no object properties. Perception reads the
+camera images (the label image as its perfect segmenter) and visible attributes only."""
 
 from __future__ import annotations
+
+import dataclasses
+import inspect
 
 import pytest
 from pydrake.multibody.tree import ModelInstanceIndex
 
+from physcap_drake.perception import camera_geometry, object_locator, offline_pointer
+from physcap_drake.perception.visible_objects import VisibleObject
 from physcap_drake.physx import calibration
 from physcap_drake.resources import stations_dir
+from physcap_drake.robot_api import RobotAPI
 from physcap_drake.robot_diagram import build_robot_diagram
 from physcap_drake.scenario import load_scenario
 from physcap_drake.station import ports
@@ -73,3 +80,16 @@ def test_the_estimators_model_ignores_objects_added_to_the_scene():
     names = {plant.GetModelInstanceName(ModelInstanceIndex(i))
              for i in range(plant.num_model_instances())}
     assert names == {"WorldModelInstance", "DefaultModelInstance", "piper", "piper_gripper"}
+
+
+def test_perception_sees_only_images_and_visible_attributes():
+    assert {f.name for f in dataclasses.fields(VisibleObject)} == {
+        "name", "category", "color", "straw", "size"}
+    for module in (camera_geometry, object_locator, offline_pointer):
+        source = inspect.getsource(module)
+        for forbidden in ("body_poses", "EvalBodyPose", "GetPositions", ".hidden", "mass_kg"):
+            assert forbidden not in source, (module.__name__, forbidden)
+    # The robot API hands perception the depth and label images and nothing else.
+    source = inspect.getsource(RobotAPI.get_object_pose)
+    assert "CAMERA_DEPTH" in source and "CAMERA_LABEL" in source
+    assert "BODY_POSES" not in source and "plant" not in source

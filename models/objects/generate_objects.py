@@ -21,8 +21,9 @@ Objects:
   the can top. Lid, opening and straw are visual only: the can's single collision
   geometry is the cylinder, so the straw never touches the gripper.
 - Paper cups standing upside down (mouth on the table), hollow: a ring of 16 thin boxes
-  along the tapered wall plus a disk for the closed top. The large one (mouth Ø 90 mm,
-  top Ø 70 mm, 100 mm high) covers a 5 cm cube with ~2.6 mm to spare; the small one
+  along the tapered wall plus a disk for the closed top (walls 5 mm thick, so finger pads
+  cannot push through them). The large one (mouth Ø 98 mm,
+  top Ø 78 mm, 100 mm high) covers a 5 cm cube with a few mm to spare; the small one
   (mouth Ø 56 mm, top Ø 44 mm, 66 mm high) cannot.
 - A wicker basket, 0.24 x 0.18 x 0.07 m outer, 4 mm floor and walls, 0.5 kg.
 - LIBERO-style closed cups with a lid: solid cylinder Ø 56 mm x 82.7 mm, 0.35 kg, mu 0.8, and
@@ -62,9 +63,9 @@ STRAW_RGBS = ("0.95 0.55 0.15", "0.97 0.97 0.95")  # orange and white stripes
 STRAW_STRIPE = 0.010  # nominal stripe length
 STRAW_INSERTION = 0.020  # straw length hidden inside the container
 
-CUP_WALL, CUP_SEGMENTS, CUP_RGB, CUP_MU = 0.002, 16, "0.95 0.95 0.92", 0.6
+CUP_WALL, CUP_SEGMENTS, CUP_RGB, CUP_MU = 0.005, 16, "0.95 0.95 0.92", 0.6
 PAPER_CUPS = {  # name: (mouth (bottom) diameter, closed top diameter, height, mass)
-    "paper_cup_large": (0.090, 0.070, 0.100, 0.012),
+    "paper_cup_large": (0.098, 0.078, 0.100, 0.015),
     "paper_cup_small": (0.056, 0.044, 0.066, 0.008),
 }
 

@@ -38,10 +38,11 @@ def pick_and_place(api: RobotAPI, can_bottom: np.ndarray, tray_bottom: np.ndarra
 
 def move_to_tray(api: RobotAPI, grasp_point: np.ndarray, grasp_height: float,
                  tray_bottom: np.ndarray,
-                 on_goto: Callable[[np.ndarray], None] | None = None) -> None:
+                 on_goto: Callable[[np.ndarray], None] | None = None,
+                 floor: float = TRAY_FLOOR) -> None:
     """Grasps an object from above at `grasp_point` (fingertip target, world frame, m; the
     grasp is `grasp_height` m above the object's base), sets it down in the tray whose floor
-    centre is `tray_bottom`, opens, retreats and goes home."""
+    centre is `tray_bottom` (its floor `floor` m thick), opens, retreats and goes home."""
 
     def goto(target, **options):
         api.goto_pose(target, **options)
@@ -50,7 +51,7 @@ def move_to_tray(api: RobotAPI, grasp_point: np.ndarray, grasp_height: float,
 
     grasp = np.asarray(grasp_point, dtype=float)
     place = np.asarray(tray_bottom, dtype=float) + [
-        0.0, 0.0, TRAY_FLOOR + PLACE_CLEARANCE + grasp_height]
+        0.0, 0.0, floor + PLACE_CLEARANCE + grasp_height]
     api.open_gripper()
     goto(grasp, z_approach=APPROACH)
     api.close_gripper()
@@ -78,10 +79,12 @@ def check_can_in_tray(plant, plant_context: Context, can_body: str = "soda_can",
 
 
 def check_in_tray(plant, plant_context: Context, body, tray, radius: float,
-                  upright: bool = True) -> PlaceCheck:
+                  upright: bool = True, inner_half=TRAY_INNER_HALF,
+                  floor: float = TRAY_FLOOR) -> PlaceCheck:
     """Ground-truth check that `body` (an object of `radius` m around its base frame's z
     axis) is wholly inside the `tray` body's inner walls, resting on its floor, and with
-    `upright` also standing upright (tilt ≤ 10°)."""
+    `upright` also standing upright (tilt ≤ 10°). `inner_half` (x, y half-sizes inside the
+    walls) and `floor` (thickness) describe the container, m; the defaults are the tray's."""
     what = body.name().replace("_", " ")
     X_can = plant.EvalBodyPoseInWorld(plant_context, body)
     X_tray = plant.EvalBodyPoseInWorld(plant_context, tray)
@@ -90,10 +93,12 @@ def check_in_tray(plant, plant_context: Context, body, tray, radius: float,
     if upright and tilt > UPRIGHT_TILT:
         return PlaceCheck(False, f"the {what} is tipped over ({np.degrees(tilt):.0f}°)")
     offset = X_tray.inverse().multiply(X_can.translation())
-    if np.any(np.abs(offset[:2]) + radius > TRAY_INNER_HALF):
-        return PlaceCheck(False, f"the {what} is not inside the tray (offset {offset[:2].round(3)} "
+    if np.any(np.abs(offset[:2]) + radius > inner_half):
+        return PlaceCheck(False, f"the {what} is not inside the {tray.name()} (offset "
+                                 f"{offset[:2].round(3)} "
                                  "m from its centre)")
-    if not -0.005 <= offset[2] - TRAY_FLOOR <= 0.01:
-        return PlaceCheck(False, f"the {what} is not resting on the tray floor (bottom "
+    if not -0.005 <= offset[2] - floor <= 0.01:
+        return PlaceCheck(False, f"the {what} is not resting on the {tray.name()} floor (bottom "
                                  f"{offset[2]:.3f} m above the tray frame)")
-    return PlaceCheck(True, f"the {what} is {'upright ' if upright else ''}in the tray")
+    return PlaceCheck(True, f"the {what} is {'upright ' if upright else ''}in the "
+                            f"{tray.name()}")

@@ -69,7 +69,12 @@ class OfflinePointer:
         """The pixel of the object `phrase` refers to (a mask pixel near its centre)."""
         in_view = self.visible(label_image)
         words = _tokens(phrase)
-        exact = [item for item in in_view if item[0].name.lower() == phrase.strip().lower()]
+        wanted = phrase.strip().lower()
+        exact = [item for item in in_view if item[0].name.lower() == wanted]
+        if not exact and any(obj.name.lower() == wanted for obj in self._catalog.values()):
+            listing = "; ".join(f"'{obj.name}'" for obj, *_ in in_view)
+            raise PointingError(f"'{phrase}' is not in view (hidden or out of the picture). "
+                                f"Visible objects, left to right: {listing}")
         candidates = exact or [item for item in in_view if self._matches(item[0], words)]
         candidates = self._apply_order(candidates, words, phrase, in_view)
         if len(candidates) != 1:

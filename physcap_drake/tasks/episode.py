@@ -17,6 +17,7 @@ from physcap_drake.tasks.task_instance import TaskInstance
 
 #: The tray every task puts things on, as the camera sees it.
 TRAY = VisibleObject("wooden tray", "tray", "brown")
+BASKET = VisibleObject("basket", "basket", "brown")
 
 
 @dc.dataclass
@@ -39,7 +40,7 @@ class Episode:
 
     def check(self):
         """The task's success check on the simulator's ground truth."""
-        return get_task(self.instance.task).check(self.instance, self.plant, self.plant_context)
+        return get_task(self.instance.task).check(self)
 
 
 def make_episode(task_name: str, seed: int, answer: str = "", meshcat=None) -> Episode:
@@ -56,7 +57,9 @@ def make_episode(task_name: str, seed: int, answer: str = "", meshcat=None) -> E
         simulator.get_mutable_context()))
     catalog = {int(instance.body_of(plant, o.visible.name).index()): o.visible
                for o in instance.objects}
-    catalog[int(plant.GetBodyByName("tray").index())] = TRAY
+    for container in (TRAY, BASKET):
+        if plant.HasBodyNamed(container.category):
+            catalog[int(plant.GetBodyByName(container.category).index())] = container
     camera = next(c for c in scenario.cameras if c.name == MAIN_CAMERA)
     api = RobotAPI(robot, simulator,
                    locator=ObjectLocator(CameraGeometry(camera), OfflinePointer(catalog)))

@@ -47,8 +47,9 @@ class TrayTask:
     grasp_height: float  # m above the object's base
     upright: bool
 
-    def check(self, instance: TaskInstance, plant, plant_context) -> PlaceCheck:
+    def check(self, episode) -> PlaceCheck:
         """Ground truth: the answer is in the tray and no other object is."""
+        instance, plant, plant_context = episode.instance, episode.plant, episode.plant_context
         tray = plant.GetBodyByName("tray")
         for obj in instance.objects:
             body = instance.body_of(plant, obj.visible.name)

@@ -1,0 +1,78 @@
+"""empty_cup: the LIBERO replica — four lidded cups, one empty; put it in the basket."""
+
+from __future__ import annotations
+
+import dataclasses as dc
+
+import numpy as np
+
+from physcap_drake.demos.pick_place import PlaceCheck, check_in_tray, move_to_tray
+from physcap_drake.perception.visible_objects import VisibleObject
+from physcap_drake.tasks.task_instance import SceneObject, TaskInstance
+from physcap_drake.tasks.tray_tasks import _choose_answer, _near_tray
+
+COLORS = ("red", "yellow", "blue", "white")
+EMPTY_KG, FULL_KG = 0.035, 0.350
+#: Spawn region of the cups (world frame, m) and the least distance between two of them.
+REGION_LOWER, REGION_UPPER = np.array([0.30, 0.0]), np.array([0.44, 0.32])
+MIN_SPACING = 0.10
+#: The basket (as placed in stations/empty_cup.yaml): floor centre, floor, inner half-size.
+BASKET_BOTTOM = np.array([0.32, -0.26, 0.0])
+BASKET_FLOOR = 0.004
+BASKET_INNER_HALF = np.array([0.116, 0.086])
+CUP_RADIUS, CUP_GRASP_HEIGHT = 0.028, 0.041
+#: The task's time limit on robot execution time, s (LIBERO's episode limit).
+TIME_LIMIT = 200.0
+
+
+@dc.dataclass(frozen=True)
+class EmptyCup:
+    name: str = "empty_cup"
+    scenario_file: str = "empty_cup.yaml"
+    prompt: str = ("Four cups with lids stand on the table. Exactly one of them is empty (it "
+                   "weighs much less than the others). Put the empty cup in the basket, within "
+                   f"{TIME_LIMIT:.0f} s of robot time. Leave the other cups where they are.")
+
+    def instance(self, seed: int, answer: str = "") -> TaskInstance:
+        rng = np.random.default_rng((seed, 19))
+        spots: list[np.ndarray] = []
+        while len(spots) < len(COLORS):
+            xy = rng.uniform(REGION_LOWER, REGION_UPPER)
+            if all(np.linalg.norm(xy - s) >= MIN_SPACING for s in spots):
+                spots.append(xy)
+        names = [f"{color} cup" for color in COLORS]
+        answer = _choose_answer(rng, names, answer, self.name)
+        objects = tuple(SceneObject(
+            f"{color}_cup", f"objects/libero_cup_{color}",
+            VisibleObject(name, "cup", color, straw=True), (float(xy[0]), float(xy[1])),
+            hidden={"mass_kg": EMPTY_KG if name == answer else FULL_KG})
+            for color, name, xy in zip(COLORS, names, spots, strict=True))
+        return TaskInstance(self.name, seed, self.prompt, objects, answer)
+
+    def check(self, episode) -> PlaceCheck:
+        """Ground truth: the empty cup in the basket, no full one, within the time limit."""
+        instance, plant, plant_context = episode.instance, episode.plant, episode.plant_context
+        robot_time = episode.api.robot_time
+        basket = plant.GetBodyByName("basket")
+        if robot_time > TIME_LIMIT:
+            return PlaceCheck(False, f"over the time limit ({robot_time:.0f} s > "
+                                     f"{TIME_LIMIT:.0f} s)")
+        for obj in instance.objects:
+            body = instance.body_of(plant, obj.visible.name)
+            if obj.visible.name == instance.answer:
+                inside = check_in_tray(plant, plant_context, body, basket, CUP_RADIUS,
+                                       upright=False, inner_half=BASKET_INNER_HALF,
+                                       floor=BASKET_FLOOR)
+                if not inside.success:
+                    return PlaceCheck(False, f"the empty {obj.visible.name} is not in the "
+                                             f"basket: {inside.reason}")
+            elif _near_tray(plant, plant_context, body, basket):
+                return PlaceCheck(False, f"the {obj.visible.name} (full) is in the basket")
+        return PlaceCheck(True, f"the empty {instance.answer} is in the basket")
+
+    def solve(self, instance: TaskInstance, api, wrong: bool = False) -> None:
+        target = instance.answer if not wrong else next(
+            o.visible.name for o in instance.objects if o.visible.name != instance.answer)
+        obj = instance.object(target)
+        move_to_tray(api, np.array([*obj.xy, CUP_GRASP_HEIGHT]), CUP_GRASP_HEIGHT,
+                     BASKET_BOTTOM, floor=BASKET_FLOOR)
