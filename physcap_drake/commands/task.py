@@ -13,6 +13,7 @@ from rich.table import Table
 
 from physcap_drake.commands.common import console, error_console, trial_progress
 from physcap_drake.control.errors import SkillError
+from physcap_drake.perception.offline_pointer import PointingError
 from physcap_drake.station import ports
 from physcap_drake.tasks.episode import make_episode
 from physcap_drake.tasks.registry import TASKS, get_task
@@ -53,7 +54,11 @@ def show(task: TaskName, seed: Annotated[int, typer.Option("--seed", min=0)] = 0
     image = station.GetOutputPort(ports.CAMERA_RGB).Eval(context).data[:, :, :3].copy()
     image = cv2.cvtColor(image, cv2.COLOR_RGB2BGR)
     for index, obj in enumerate(episode.instance.objects):
-        grasp = episode.api.get_object_pose(obj.visible.name)
+        try:
+            grasp = episode.api.get_object_pose(obj.visible.name)
+        except PointingError:
+            console.print(f"  {obj.visible.name:18s} ({obj.visible.describe()}): not in view")
+            continue
         console.print(f"  {obj.visible.name:18s} ({obj.visible.describe()}): grasp point "
                       f"{np.round(grasp, 3).tolist()} m")
         u, v = episode.api.locator.camera.project(grasp)[0]
