@@ -15,17 +15,20 @@ from physcap_drake.demos.pick_place import PlaceCheck, check_in_tray, move_to_tr
 from physcap_drake.perception.visible_objects import VisibleObject
 from physcap_drake.tasks.task_instance import SceneObject, TaskInstance
 
-#: Row of the four objects: x and the y of each slot (world frame, m), and the jitter.
+#: Row of the four objects: x and the y of each slot (world frame, m), and the jitter. The
+#: avocados (84 mm wide) stand further apart, so the open fingers (100 mm, plus their own
+#: thickness) fit between two of them.
 ROW_X = 0.37
 ROW_Y = (0.27, 0.16, 0.05, -0.06)
+AVOCADO_ROW_Y = (0.31, 0.175, 0.04, -0.095)
 JITTER = 0.01
 #: The tray's floor centre (as placed in the task scenarios), m.
 TRAY_BOTTOM = np.array([0.30, -0.27, 0.0])
 
 
-def _row(rng: np.random.Generator, count: int) -> list[tuple[float, float]]:
+def _row(rng: np.random.Generator, ys=ROW_Y) -> list[tuple[float, float]]:
     return [(ROW_X + rng.uniform(-JITTER, JITTER), y + rng.uniform(-JITTER, JITTER))
-            for y in ROW_Y[:count]]
+            for y in ys]
 
 
 def _choose_answer(rng, plausible: list[str], pinned: str, task: str) -> str:
@@ -102,7 +105,7 @@ class IdentifyEmptyCan(TrayTask):
         colors = list(rng.permutation(CAN_COLORS))
         answer = _choose_answer(rng, [f"{c} can" for c in OPEN_COLORS], answer, self.name)
         objects = []
-        for color, xy in zip(colors, _row(rng, 4), strict=True):
+        for color, xy in zip(colors, _row(rng), strict=True):
             is_open = color in OPEN_COLORS
             name = f"{color} can"
             mass = (EMPTY_CAN_KG if name == answer else HALF_FULL_CAN_KG) if is_open \
@@ -126,7 +129,7 @@ class PickRipeAvocado(TrayTask):
     def instance(self, seed: int, answer: str = "") -> TaskInstance:
         rng = np.random.default_rng((seed, 13))
         skins = list(rng.permutation(["dark", "dark", "green", "green"]))
-        slots = _row(rng, 4)
+        slots = _row(rng, AVOCADO_ROW_Y)
         names, counters = [], {"dark": 0, "green": 0}
         for skin in skins:  # numbered left to right as the camera sees them (+y is left)
             counters[skin] += 1
