@@ -15,6 +15,10 @@ from physcap_drake.perception.visible_objects import VisibleObject
 MAX_GRASP_DEPTH = 0.057
 #: Lowest fingertip height of a grasp above the table, m.
 MIN_GRASP_HEIGHT = 0.015
+#: Without a mask (a VLM pointer gives a pixel only), the object's points are those within
+#: this horizontal distance of the pointed point and above the table, m.
+NEIGHBOURHOOD = 0.045
+TABLE_CLEARANCE = 0.004
 #: The top of an object: its points within this distance below the 90th-percentile height
 #: (thin parts such as a straw stick out above it and are ignored), m.
 TOP_BAND = 0.012
@@ -64,3 +68,19 @@ class ObjectLocator:
         points = self.camera.back_project(cols, rows, depth[rows, cols])
         grasp, top = grasp_point_from_points(points)
         return ObjectLocation(pointed.target, pointed.pixel, point, grasp, top)
+
+    def locate_pixel(self, pixel: tuple[int, int], depth: np.ndarray) -> np.ndarray:
+        """A grasp point (m) from a pointed pixel alone (a VLM pointer's answer): the object's
+        surface is taken as the points near the pointed one, above the table."""
+        depth = depth.reshape(depth.shape[0], depth.shape[1])
+        u, v = pixel
+        if not np.isfinite(depth[v, u]):
+            raise ValueError(f"no depth at the pointed pixel ({u}, {v})")
+        point = self.camera.back_project(u, v, depth[v, u])[0]
+        rows, cols = np.nonzero(np.isfinite(depth))
+        points = self.camera.back_project(cols, rows, depth[rows, cols])
+        near = (np.linalg.norm(points[:, :2] - point[:2], axis=1) < NEIGHBOURHOOD) & (
+            points[:, 2] > TABLE_CLEARANCE)
+        if near.sum() < 10:
+            raise ValueError(f"the pointed pixel ({u}, {v}) is not on an object above the table")
+        return grasp_point_from_points(points[near])[0]

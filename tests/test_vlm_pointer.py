@@ -1,0 +1,58 @@
+"""The VLM pointer: answer parsing for Gemini- and Molmo-style points, and the whole path
+from a model's answer to a grasp point."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from physcap_drake.perception.offline_pointer import PointingError
+from physcap_drake.perception.vlm_pointer import VlmPointer, parse_point
+from physcap_drake.station import ports
+from physcap_drake.tasks.episode import make_episode
+
+W, H = 640, 360
+
+
+@pytest.mark.parametrize(("answer", "pixel"), [
+    ('[{"point": [500, 250], "label": "red can"}]', (160, 180)),
+    ('```json\n[{"point": [250, 500], "label": "cup"}]\n```', (320, 90)),
+    ("[1000, 0]", (0, 359)),
+    ('The can is here: <point x="25.0" y="50.0" alt="red can">red can</point>', (160, 180)),
+    ('<points x1="10" y1="20" x2="30" y2="40" alt="cans">cans</points>', (64, 72)),
+])
+def test_answers_are_parsed(answer, pixel):
+    assert parse_point(answer, W, H) == pixel
+
+
+@pytest.mark.parametrize("answer", [
+    "I cannot see a red can.", '[{"label": "red can"}]', "[1200, 10]", "[1, 2, 3]",
+    '<point alt="can">can</point>', "[{oops",
+])
+def test_bad_answers_are_clear_errors(answer):
+    with pytest.raises(PointingError):
+        parse_point(answer, W, H)
+
+
+def test_a_model_answer_becomes_a_grasp_point():
+    episode = make_episode("identify_empty_can", 0)
+    station = episode.robot.station
+    context = station.GetMyContextFromRoot(episode.api.simulator.get_context())
+    rgb = station.GetOutputPort(ports.CAMERA_RGB).Eval(context).data
+    depth = station.GetOutputPort(ports.CAMERA_DEPTH).Eval(context).data
+    label = station.GetOutputPort(ports.CAMERA_LABEL).Eval(context).data
+    target = episode.instance.object("green can")
+    pixel = episode.api.locator._pointer.point(label, "green can").pixel  # a "perfect" model
+    requests = []
+
+    def ask(jpeg: bytes, prompt: str) -> str:
+        requests.append((jpeg, prompt))
+        return f'[{{"point": [{1000 * pixel[1] / H:.1f}, {1000 * pixel[0] / W:.1f}]}}]'
+
+    pointed = VlmPointer(ask).point(rgb, "green can")
+    jpeg, prompt = requests[0]
+    assert jpeg[:2] == b"\xff\xd8" and "green can" in prompt and "[y, x]" in prompt
+    assert np.hypot(pointed[0] - pixel[0], pointed[1] - pixel[1]) <= 1.5
+    grasp = episode.api.locator.locate_pixel(pointed, depth)
+    assert np.linalg.norm(grasp[:2] - np.array(target.xy)) < 0.015
+    assert grasp[2] == pytest.approx(0.065, abs=0.005)
