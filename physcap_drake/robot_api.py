@@ -81,9 +81,10 @@ class RobotAPI:
         if self._locator is None:
             raise RuntimeError("this robot has no camera perception set up (no locator)")
         station, context = self._robot.station, self._station_context
+        rgb = station.GetOutputPort(ports.CAMERA_RGB).Eval(context).data
         depth = station.GetOutputPort(ports.CAMERA_DEPTH).Eval(context).data
         label = station.GetOutputPort(ports.CAMERA_LABEL).Eval(context).data
-        return self._locator.locate(name, depth, label).grasp_point
+        return self._locator.grasp_point(name, rgb, depth, label)
 
     @property
     def simulator(self) -> Simulator:

@@ -58,6 +58,8 @@ CATALOG = {
     ("large cup", "large cup"),
     ("the smaller cup", "small cup"),
     ("green avocado 1", "green avocado 1"),
+    ("the dark avocado 1", "dark avocado 1"),
+    ("black avocado", "dark avocado 1"),
 ])
 def test_referring_expressions_resolve(phrase, expected):
     pointer = OfflinePointer(CATALOG)
@@ -67,8 +69,9 @@ def test_referring_expressions_resolve(phrase, expected):
 
 
 @pytest.mark.parametrize(("phrase", "problem"), [
-    ("can", "ambiguous"), ("green thing", "ambiguous"), ("purple can", "matches no"),
-    ("banana", "matches no"), ("fifth can", "only 4"),
+    ("can", "ambiguous"), ("green thing", "unknown word"), ("purple can", "matches no"),
+    ("banana", "unknown word"), ("green bottle", "unknown word"),
+    ("fifth can", "only 4"),
 ])
 def test_ambiguous_or_unknown_names_list_the_candidates(phrase, problem):
     with pytest.raises(PointingError) as error:

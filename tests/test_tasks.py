@@ -3,9 +3,13 @@ success check against scripted right and wrong solutions."""
 
 from __future__ import annotations
 
+import re
+
 import numpy as np
 import pytest
+from pydrake.math import RigidTransform, RollPitchYaw
 
+from physcap_drake.resources import models_dir
 from physcap_drake.tasks.episode import make_episode
 from physcap_drake.tasks.registry import TASKS, get_task
 
@@ -82,3 +86,24 @@ def test_the_oracle_succeeds_and_a_wrong_solution_fails(name):
 def test_unknown_task_names_are_listed():
     with pytest.raises(KeyError, match="identify_empty_can"):
         get_task("find_the_cat")
+
+
+def test_a_knocked_over_cup_fails_find_blue_cube():
+    episode = make_episode("find_blue_cube", 1)
+    cup = episode.instance.body_of(episode.plant, "small cup")
+    context = episode.plant.GetMyMutableContextFromRoot(
+        episode.api.simulator.get_mutable_context())
+    X = episode.plant.EvalBodyPoseInWorld(context, cup)
+    episode.plant.SetFreeBodyPose(context, cup, RigidTransform(
+        RollPitchYaw(np.pi / 2, 0.0, 0.0), X.translation() + [0.0, 0.0, 0.05]))
+    result = episode.check()
+    assert not result.success and "knocked over" in result.reason
+
+
+def test_ripeness_does_not_show_in_the_avocado_models_visuals():
+    def visuals(name):
+        text = (models_dir() / "objects" / f"{name}.sdf").read_text()
+        return re.findall(r"<visual.*?</visual>", text, re.DOTALL)
+
+    for skin in ("dark", "green"):
+        assert visuals(f"avocado_{skin}_ripe") == visuals(f"avocado_{skin}_firm")

@@ -6,6 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from physcap_drake.perception.object_locator import ObjectLocator
 from physcap_drake.perception.offline_pointer import PointingError
 from physcap_drake.perception.vlm_pointer import VlmPointer, parse_point
 from physcap_drake.station import ports
@@ -56,3 +57,21 @@ def test_a_model_answer_becomes_a_grasp_point():
     grasp = episode.api.locator.locate_pixel(pointed, depth)
     assert np.linalg.norm(grasp[:2] - np.array(target.xy)) < 0.015
     assert grasp[2] == pytest.approx(0.065, abs=0.005)
+
+
+def test_get_object_pose_works_with_a_vlm_pointer():
+    episode = make_episode("pick_ripe_avocado", 0)
+    station = episode.robot.station
+    context = station.GetMyContextFromRoot(episode.api.simulator.get_context())
+    label = station.GetOutputPort(ports.CAMERA_LABEL).Eval(context).data
+    offline = episode.api.locator._pointer
+
+    def ask(jpeg: bytes, prompt: str) -> str:  # a model that points where the mask centre is
+        phrase = prompt.split("Point at the ", 1)[1].split(" in this image", 1)[0]
+        u, v = offline.point(label, phrase).pixel
+        return f'<point x="{100 * (u + 0.5) / W:.2f}" y="{100 * (v + 0.5) / H:.2f}">x</point>'
+
+    episode.api._locator = ObjectLocator(episode.api.locator.camera, VlmPointer(ask))
+    for obj in episode.instance.objects:
+        grasp = episode.api.get_object_pose(obj.visible.name)
+        assert np.linalg.norm(grasp[:2] - np.array(obj.xy)) < 0.015, obj.visible.name

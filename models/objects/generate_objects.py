@@ -83,11 +83,12 @@ LIBERO_COLOURS = {
 }
 
 AVOCADO_RADII, AVOCADO_MASS, AVOCADO_MU = (0.042, 0.042, 0.036), 0.2, 0.7
+# One look per skin colour: ripeness is hidden, so it must not show in the colour.
 AVOCADOS = {  # name: (hydroelastic modulus Pa, skin RGB)
     "avocado_dark_ripe": (1.5e5, "0.20 0.17 0.09"),
-    "avocado_dark_firm": (4.0e6, "0.18 0.16 0.10"),
+    "avocado_dark_firm": (4.0e6, "0.20 0.17 0.09"),
     "avocado_green_firm": (4.0e6, "0.33 0.52 0.14"),
-    "avocado_green_ripe": (1.5e5, "0.30 0.50 0.15"),
+    "avocado_green_ripe": (1.5e5, "0.33 0.52 0.14"),
 }
 
 # --------------------------------------------------------------------------------------------

@@ -86,14 +86,16 @@ def check(task: TaskName,
                         len(parse_seeds(seeds))) as advance:
         for seed in parse_seeds(seeds):
             episode = make_episode(task, seed)
+            crashed = False
             try:
                 solver.solve(episode.instance, episode.api, wrong=wrong)
                 result = episode.check()
                 success, reason = result.success, result.reason
             except SkillError as error:
-                success, reason = False, f"skill error: {error}"
+                success, reason, crashed = False, f"skill error: {error}", True
             rows.append({"seed": seed, "answer": episode.instance.answer, "success": success,
-                         "reason": reason, "robot_time_s": episode.api.robot_time})
+                         "skill_error": crashed, "reason": reason,
+                         "robot_time_s": episode.api.robot_time})
             advance(success)
     table = Table(title=f"{task}: {'wrong' if wrong else 'oracle'} solution")
     for column in ("seed", "answer", "success", "robot time (s)", "reason"):
@@ -102,6 +104,9 @@ def check(task: TaskName,
         table.add_row(str(row["seed"]), row["answer"], "yes" if row["success"] else "no",
                       f"{row['robot_time_s']:.1f}", row["reason"])
     console.print(table)
-    console.print(f"success {sum(r['success'] for r in rows)}/{len(rows)}")
+    errors = sum(r["skill_error"] for r in rows)
+    console.print(f"success {sum(r['success'] for r in rows)}/{len(rows)}"
+                  + (f" ({errors} ended in a skill error, not by the success check)"
+                     if errors else ""))
     if json_path is not None:
         json_path.write_text(json.dumps(rows, indent=2))

@@ -19,6 +19,10 @@ class CameraGeometry:
         if config.X_PB.base_frame:
             raise ValueError(f"camera '{config.name}' is mounted on '{config.X_PB.base_frame}'; "
                              "back-projection needs a camera fixed in the world")
+        if not config.X_BC.GetDeterministicValue().IsExactlyEqualTo(
+                config.X_BD.GetDeterministicValue()):
+            raise ValueError(f"camera '{config.name}': the colour and depth cameras must share "
+                             "one pose (X_BC == X_BD) to back-project depth at colour pixels")
         color, _ = config.MakeCameras()
         intrinsics = color.core().intrinsics()
         self.width, self.height = intrinsics.width(), intrinsics.height()

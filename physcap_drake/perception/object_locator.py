@@ -9,6 +9,7 @@ import numpy as np
 from physcap_drake.perception.camera_geometry import CameraGeometry
 from physcap_drake.perception.offline_pointer import OfflinePointer, PointResult
 from physcap_drake.perception.visible_objects import VisibleObject
+from physcap_drake.perception.vlm_pointer import VlmPointer
 
 #: Top-down grasps take an object at half its height, but never deeper than this below its
 #: top (the finger pads are 40 mm long; a tall can is held around its middle), m.
@@ -52,14 +53,25 @@ def grasp_point_from_points(points: np.ndarray) -> tuple[np.ndarray, float]:
 
 
 class ObjectLocator:
-    """Locates objects named by phrases in the current camera images."""
+    """Locates objects named by phrases in the current camera images, with either pointer:
+    the OfflinePointer (a perfect segmenter: the object's whole mask) or a VlmPointer (one
+    pixel; the object's surface is then taken around it)."""
 
-    def __init__(self, camera: CameraGeometry, pointer: OfflinePointer):
+    def __init__(self, camera: CameraGeometry, pointer: OfflinePointer | VlmPointer):
         self.camera = camera
         self._pointer = pointer
 
+    def grasp_point(self, phrase: str, rgb: np.ndarray, depth: np.ndarray,
+                    label: np.ndarray) -> np.ndarray:
+        """The top-down grasp point (world frame, m) of the object `phrase` names. Raises
+        PointingError (a ValueError) when the phrase fits no single object."""
+        if isinstance(self._pointer, VlmPointer):
+            return self.locate_pixel(self._pointer.point(rgb, phrase), depth)
+        return self.locate(phrase, depth, label).grasp_point
+
     def locate(self, phrase: str, depth: np.ndarray, label: np.ndarray) -> ObjectLocation:
-        """Raises PointingError (listing the candidates) if the phrase fits no single object."""
+        """With the OfflinePointer: the object's location from its mask. Raises PointingError
+        (listing the candidates) if the phrase fits no single object."""
         pointed: PointResult = self._pointer.point(label, phrase)
         depth = depth.reshape(depth.shape[0], depth.shape[1])
         u, v = pointed.pixel

@@ -26,6 +26,14 @@ CATEGORY_WORDS = {"can": "can", "cans": "can", "cup": "cup", "cups": "cup", "cub
 #: Colour words a phrase may use (besides those of the catalogued objects).
 COLOR_WORDS = {"red", "green", "blue", "black", "white", "yellow", "orange", "dark", "brown",
                "grey", "gray", "silver", "purple", "pink"}
+#: Words a phrase may use besides categories, colours, sizes and ordinals; anything else
+#: is refused rather than silently ignored.
+FILLER_WORDS = {"the", "a", "an", "one", "from", "on", "of", "to", "in", "at", "side", "with",
+                "without", "straw", "open", "opened", "sealed", "closed", "left", "right",
+                "leftmost", "rightmost", "middle", "most", "lid", "that", "is", "object"}
+#: A phrase's colour word also matches these object colours ("black avocado" = dark).
+COLOR_SYNONYMS = {"black": {"black", "dark"}, "dark": {"dark", "black"},
+                  "gray": {"gray", "grey"}, "grey": {"gray", "grey"}}
 SIZE_WORDS = {"large": "large", "big": "large", "larger": "large", "small": "small",
               "little": "small", "smaller": "small"}
 
@@ -69,9 +77,19 @@ class OfflinePointer:
         """The pixel of the object `phrase` refers to (a mask pixel near its centre)."""
         in_view = self.visible(label_image)
         words = _tokens(phrase)
+        unknown = [w for w in words if not (w in FILLER_WORDS or w in CATEGORY_WORDS
+                                           or w in SIZE_WORDS or w in ORDINALS or w.isdigit()
+                                           or w in self._colors)]
+        if unknown:
+            listing = "; ".join(f"'{obj.name}' ({obj.describe()})" for obj, *_ in in_view)
+            raise PointingError(f"'{phrase}': unknown word(s) {unknown}. Visible objects, "
+                                f"left to right: {listing}")
         wanted = phrase.strip().lower()
         exact = [item for item in in_view if item[0].name.lower() == wanted]
-        if not exact and any(obj.name.lower() == wanted for obj in self._catalog.values()):
+        numbered = [w for w in words if w.isdigit()]
+        if not exact and any(obj.name.lower() == wanted or (
+                numbered and self._matches(obj, words)) for obj in self._catalog.values()) \
+                and not any(self._matches(obj, words) for obj, *_ in in_view):
             listing = "; ".join(f"'{obj.name}'" for obj, *_ in in_view)
             raise PointingError(f"'{phrase}' is not in view (hidden or out of the picture). "
                                 f"Visible objects, left to right: {listing}")
@@ -94,7 +112,9 @@ class OfflinePointer:
                 return False
             if word in SIZE_WORDS and SIZE_WORDS[word] != obj.size:
                 return False
-            if word in self._colors and word != obj.color:
+            if word in self._colors and obj.color not in COLOR_SYNONYMS.get(word, {word}):
+                return False
+            if word.isdigit() and word not in obj.name.split():
                 return False
         if ("straw" in words or "open" in words) and "without" not in words and not obj.straw:
             return False
@@ -111,8 +131,9 @@ class OfflinePointer:
             if word in ORDINALS:
                 index = ORDINALS[word]
                 if index >= len(ordered):
+                    listing = ", ".join(repr(c[0].name) for c in ordered)
                     raise PointingError(f"'{phrase}': there are only {len(ordered)} such "
-                                        "objects in view")
+                                        f"objects in view ({listing})")
                 return [ordered[index]]
         if words and ({"leftmost", "left", "rightmost", "right"} & set(words)):
             return ordered[:1]

@@ -25,6 +25,20 @@ CUP_RADIUS, CUP_GRASP_HEIGHT = 0.028, 0.041
 TIME_LIMIT = 200.0
 
 
+def _spawn(rng: np.random.Generator, count: int) -> list[np.ndarray]:
+    """`count` spots in the spawn region at least MIN_SPACING apart (rejection sampling,
+    starting over when a layout has left no room)."""
+    for _ in range(1000):
+        spots: list[np.ndarray] = []
+        for _ in range(200):
+            xy = rng.uniform(REGION_LOWER, REGION_UPPER)
+            if all(np.linalg.norm(xy - s) >= MIN_SPACING for s in spots):
+                spots.append(xy)
+                if len(spots) == count:
+                    return spots
+    raise RuntimeError("no layout of the cups fits the spawn region")
+
+
 @dc.dataclass(frozen=True)
 class EmptyCup:
     name: str = "empty_cup"
@@ -35,11 +49,7 @@ class EmptyCup:
 
     def instance(self, seed: int, answer: str = "") -> TaskInstance:
         rng = np.random.default_rng((seed, 19))
-        spots: list[np.ndarray] = []
-        while len(spots) < len(COLORS):
-            xy = rng.uniform(REGION_LOWER, REGION_UPPER)
-            if all(np.linalg.norm(xy - s) >= MIN_SPACING for s in spots):
-                spots.append(xy)
+        spots = _spawn(rng, len(COLORS))
         names = [f"{color} cup" for color in COLORS]
         answer = _choose_answer(rng, names, answer, self.name)
         objects = tuple(SceneObject(
@@ -66,7 +76,7 @@ class EmptyCup:
                 if not inside.success:
                     return PlaceCheck(False, f"the empty {obj.visible.name} is not in the "
                                              f"basket: {inside.reason}")
-            elif _near_tray(plant, plant_context, body, basket):
+            elif _near_tray(plant, plant_context, body, basket, BASKET_INNER_HALF):
                 return PlaceCheck(False, f"the {obj.visible.name} (full) is in the basket")
         return PlaceCheck(True, f"the empty {instance.answer} is in the basket")
 

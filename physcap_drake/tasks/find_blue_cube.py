@@ -44,8 +44,10 @@ class FindBlueCube:
             xy = (CUP_X + rng.uniform(-JITTER, JITTER), y + rng.uniform(-JITTER, JITTER))
             cups.append(SceneObject(f"cup_{index}", f"objects/paper_cup_{size}",
                                     VisibleObject(name, "cup", "white", size=size), xy))
+        drawn = _choose_answer(rng, [c.visible.name for c in cups
+                                     if c.visible.size == "large"], "", self.name)
         answer = _choose_answer(rng, [c.visible.name for c in cups
-                                      if c.visible.size == "large"], answer, self.name)
+                                      if c.visible.size == "large"], answer or drawn, self.name)
         hiding = next(c for c in cups if c.visible.name == answer)
         cups = [dc.replace(c, hidden={"hides_cube": c is hiding}) for c in cups]
         cubes = [SceneObject(f"cube_{i}", "scene/cube_5cm",

@@ -11,7 +11,12 @@ import dataclasses as dc
 
 import numpy as np
 
-from physcap_drake.demos.pick_place import PlaceCheck, check_in_tray, move_to_tray
+from physcap_drake.demos.pick_place import (
+    TRAY_INNER_HALF,
+    PlaceCheck,
+    check_in_tray,
+    move_to_tray,
+)
 from physcap_drake.perception.visible_objects import VisibleObject
 from physcap_drake.tasks.task_instance import SceneObject, TaskInstance
 
@@ -70,20 +75,23 @@ class TrayTask:
     def solve(self, instance: TaskInstance, api, wrong: bool = False) -> None:
         """Scripted solution that knows the answer (for testing the task only); with
         `wrong`, it moves a wrong object to the tray instead."""
-        names = [o.visible.name for o in instance.objects]
         target = instance.answer
-        if wrong:
-            target = next(n for n in names if n != instance.answer)
+        if wrong:  # the most tempting wrong one: it looks like the answer
+            answer = instance.object(instance.answer).visible
+            decoys = [o.visible for o in instance.objects if o.visible.name != answer.name]
+            target = max(decoys, key=lambda v: (v.color == answer.color) + (
+                v.straw == answer.straw)).name
         obj = instance.object(target)
         grasp = np.array([*obj.xy, self.grasp_height])
         move_to_tray(api, grasp, self.grasp_height, TRAY_BOTTOM)
 
 
-def _near_tray(plant, plant_context, body, tray) -> bool:
+def _near_tray(plant, plant_context, body, tray, inner_half=TRAY_INNER_HALF) -> bool:
+    """Whether `body`'s base is within the container's walls and below its rim (ground truth)."""
     X_tray = plant.EvalBodyPoseInWorld(plant_context, tray)
     offset = X_tray.inverse().multiply(plant.EvalBodyPoseInWorld(plant_context,
                                                                  body).translation())
-    return bool(np.all(np.abs(offset[:2]) < [0.15, 0.11]) and offset[2] < 0.05)
+    return bool(np.all(np.abs(offset[:2]) < inner_half) and offset[2] < 0.05)
 
 
 CAN_COLORS = ("red", "green", "blue", "black")
