@@ -18,6 +18,7 @@ from physcap_drake.robot_api import RobotAPI
 from physcap_drake.robot_diagram import build_robot_diagram
 from physcap_drake.scenario import load_scenario
 from physcap_drake.station import ports
+from physcap_drake.tasks.episode import make_episode
 
 REAL_ARM_OUTPUTS = set(ports.VECTOR_OUTPUTS)
 CONSUMERS = ("skill_executor", "mass_estimator", "stiffness_estimator",
@@ -93,3 +94,37 @@ def test_perception_sees_only_images_and_visible_attributes():
     source = inspect.getsource(RobotAPI.get_object_pose)
     assert "CAMERA_RGB" in source and "CAMERA_DEPTH" in source and "CAMERA_LABEL" in source
     assert "BODY_POSES" not in source and "plant" not in source
+
+
+@pytest.mark.parametrize(("task", "answers"), [
+    ("identify_empty_can", ("red can", "green can")),
+    ("pick_ripe_avocado", ("dark avocado 1", "dark avocado 2")),
+    ("find_blue_cube", ("large cup 1", "large cup 2")),
+])
+def test_what_the_camera_and_perception_give_does_not_depend_on_the_answer(task, answers):
+    """Pinning the hidden answer to another plausible object changes nothing an agent can
+    see: the same image, the same named objects, the same grasp points."""
+    seen = []
+    for answer in answers:
+        episode = make_episode(task, seed=4, answer=answer)
+        assert episode.instance.answer == answer
+        station = episode.robot.station
+        context = station.GetMyContextFromRoot(episode.api.simulator.get_context())
+        rgb = station.GetOutputPort(ports.CAMERA_RGB).Eval(context).data.copy()
+        names = [o.visible for o in episode.instance.objects]
+        grasps = {}
+        for visible in names:
+            try:
+                grasps[visible.name] = episode.api.get_object_pose(visible.name).round(6)
+            except ValueError:
+                grasps[visible.name] = None  # out of view (the hidden cube), in both runs
+        seen.append((rgb, names, grasps))
+    (rgb_a, names_a, grasps_a), (rgb_b, names_b, grasps_b) = seen
+    assert names_a == names_b
+    assert (rgb_a == rgb_b).all()
+    assert grasps_a.keys() == grasps_b.keys()
+    for name in grasps_a:
+        if grasps_a[name] is None:
+            assert grasps_b[name] is None
+        else:
+            assert (grasps_a[name] == grasps_b[name]).all()
