@@ -1,0 +1,43 @@
+"""`physcap emulate-piper`: a virtual PiPER firmware on a CAN bus, until Ctrl-C."""
+
+from __future__ import annotations
+
+import time
+from typing import Annotated
+
+import can
+import typer
+
+from physcap_drake.can.emulator import PiperEmulator
+from physcap_drake.commands.common import console
+
+
+def emulate_piper(
+    channel: Annotated[str, typer.Option("--channel", help="CAN channel, e.g. vcan0.")],
+    interface: Annotated[str, typer.Option(
+        "--interface", help="python-can interface: socketcan (a separate process can talk "
+        "to it) or virtual (in-process only).")] = "socketcan",
+    firmware: Annotated[str, typer.Option("--firmware", help="Version it reports.")] = "S-V1.8-2",
+    seconds: Annotated[float, typer.Option(
+        "--seconds", min=0.0, help="Stop after this long (0: run until Ctrl-C).")] = 0.0,
+) -> None:
+    """Answer on the bus like a PiPER arm (status, joints, gripper, driver feedback at
+    200 Hz; enable, mode, joint and gripper commands, firmware and limit queries)."""
+    if interface not in ("socketcan", "virtual"):
+        raise typer.BadParameter(f"--interface must be socketcan or virtual, not {interface!r}")
+    try:
+        bus = can.Bus(interface=interface, channel=channel)
+    except (OSError, can.CanError) as error:
+        console.print(f"[bold red]cannot open {interface} channel {channel!r}:[/] {error}")
+        raise typer.Exit(code=2) from None
+    console.print(f"emulating a PiPER (firmware {firmware}) on {interface}:{channel}; "
+                  "Ctrl-C to stop")
+    try:
+        with PiperEmulator(bus, firmware=firmware):
+            start = time.monotonic()
+            while not seconds or time.monotonic() - start < seconds:
+                time.sleep(0.1)
+    except KeyboardInterrupt:
+        pass
+    finally:
+        bus.shutdown()
