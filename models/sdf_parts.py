@@ -1,0 +1,26 @@
+"""SDF pieces shared by the model generators in models/*/generate_*.py (plain Python)."""
+
+#: Point-contact stiffness of every free object, N/m. Without it Drake derives one from the
+#: body's weight and the plant's penetration allowance (130 N/m for 13 g), and the fingers
+#: would sink through a light object.
+POINT_STIFFNESS = "          <drake:point_contact_stiffness>1e5</drake:point_contact_stiffness>\n"
+
+
+def cylinder_inertia(mass: float, radius: float, height: float) -> tuple[float, float, float]:
+    """Solid cylinder about its COM (z along the axis), kg·m²."""
+    side = mass * (3 * radius**2 + height**2) / 12.0
+    return side, side, mass * radius**2 / 2.0
+
+
+def ellipsoid_inertia(mass: float, a: float, b: float, c: float) -> tuple[float, float, float]:
+    """Solid ellipsoid with semi-axes a, b, c (m) about its COM, kg·m²."""
+    return mass * (b**2 + c**2) / 5.0, mass * (a**2 + c**2) / 5.0, mass * (a**2 + b**2) / 5.0
+
+
+def compliant(modulus: float) -> str:
+    """Proximity properties of a compliant-hydroelastic body of `modulus` Pa."""
+    return ("          <drake:compliant_hydroelastic/>\n"
+            f"          <drake:hydroelastic_modulus>{modulus:g}</drake:hydroelastic_modulus>\n"
+            "          <drake:mesh_resolution_hint>0.005</drake:mesh_resolution_hint>\n"
+            "          <drake:hunt_crossley_dissipation>5</drake:hunt_crossley_dissipation>\n"
+            + POINT_STIFFNESS)
