@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import typer
 
-from physcap_drake.commands import bench, calibrate, demo, emulate, sim, task
+from physcap_drake.commands import bench, calibrate, demo, emulate, run, sim, task
 
 app = typer.Typer(
     name="physcap",
@@ -13,6 +13,7 @@ app = typer.Typer(
     pretty_exceptions_enable=False,
 )
 app.command("sim")(sim.sim)
+app.command("run")(run.run)
 app.command("emulate-piper")(emulate.emulate_piper)
 app.add_typer(demo.app, name="demo")
 app.add_typer(bench.app, name="bench")

@@ -3,10 +3,11 @@
 from __future__ import annotations
 
 import dataclasses as dc
+from collections.abc import Callable
 
 from pydrake.geometry import Meshcat
 from pydrake.systems.analysis import Simulator
-from pydrake.systems.framework import Diagram, DiagramBuilder
+from pydrake.systems.framework import Diagram, DiagramBuilder, LeafSystem
 from pydrake.systems.primitives import LogVectorOutput, VectorLogSink
 
 from physcap_drake.control.planning_model import TCP_FRAME, PlanningModel
@@ -36,6 +37,8 @@ class RobotDiagram:
     # and the measured joint velocities, one sample per plant step (VectorLogSink systems).
     command_log: VectorLogSink | None = None
     velocity_log: VectorLogSink | None = None
+    # With build_robot_diagram(..., make_agent=...): the AgentSystem, fed by the camera.
+    agent: LeafSystem | None = None
 
     def make_simulator(self) -> Simulator:
         """An initialized simulator configured by the scenario."""
@@ -43,11 +46,14 @@ class RobotDiagram:
 
 
 def build_robot_diagram(scenario: Scenario, meshcat: Meshcat | None = None, *,
-                        log_joints: bool = False) -> RobotDiagram:
+                        log_joints: bool = False,
+                        make_agent: Callable[[Diagram], LeafSystem] | None = None,
+                        ) -> RobotDiagram:
     """Station + SkillExecutor + the PhysX estimators, connected through the station's port
     contract (the gripper commands pass a GripperCommandSelector, so the stiffness probe can
     take the gripper over). With `log_joints`, the commanded positions and measured
-    velocities are logged every step."""
+    velocities are logged every step. `make_agent(station)` builds an AgentSystem whose
+    camera input ports are connected to the station's camera outputs."""
     builder = DiagramBuilder()
     station = builder.AddNamedSystem("station", MakeStation(scenario, meshcat))
     model = PlanningModel(scenario.directives, scenario.station.arm_model,
@@ -75,6 +81,11 @@ def build_robot_diagram(scenario: Scenario, meshcat: Meshcat | None = None, *,
     mass_estimator = builder.AddNamedSystem("mass_estimator", _make_mass_estimator(scenario))
     for name in (ports.ARM_POSITION_MEASURED, ports.ARM_TORQUE_MEASURED):
         builder.Connect(station.GetOutputPort(name), mass_estimator.GetInputPort(name))
+    agent = None
+    if make_agent is not None:
+        agent = builder.AddNamedSystem("agent", make_agent(station))
+        for name in (ports.CAMERA_RGB, ports.CAMERA_LABEL):
+            builder.Connect(station.GetOutputPort(name), agent.GetInputPort(name))
     logs = (None, None)
     if log_joints:
         period = scenario.plant_config.time_step
@@ -84,7 +95,7 @@ def build_robot_diagram(scenario: Scenario, meshcat: Meshcat | None = None, *,
     diagram = builder.Build()
     diagram.set_name("robot")
     return RobotDiagram(scenario, diagram, station, executor, mass_estimator,
-                        stiffness_estimator, *logs)
+                        stiffness_estimator, *logs, agent=agent)
 
 
 def _make_mass_estimator(scenario: Scenario) -> MassEstimator:

@@ -59,20 +59,20 @@ class ObjectLocator:
 
     def __init__(self, camera: CameraGeometry, pointer: OfflinePointer | VlmPointer):
         self.camera = camera
-        self._pointer = pointer
+        self.pointer = pointer
 
     def grasp_point(self, phrase: str, rgb: np.ndarray, depth: np.ndarray,
                     label: np.ndarray) -> np.ndarray:
         """The top-down grasp point (world frame, m) of the object `phrase` names. Raises
         PointingError (a ValueError) when the phrase fits no single object."""
-        if isinstance(self._pointer, VlmPointer):
-            return self.locate_pixel(self._pointer.point(rgb, phrase), depth)
+        if isinstance(self.pointer, VlmPointer):
+            return self.locate_pixel(self.pointer.point(rgb, phrase), depth)
         return self.locate(phrase, depth, label).grasp_point
 
     def locate(self, phrase: str, depth: np.ndarray, label: np.ndarray) -> ObjectLocation:
         """With the OfflinePointer: the object's location from its mask. Raises PointingError
         (listing the candidates) if the phrase fits no single object."""
-        pointed: PointResult = self._pointer.point(label, phrase)
+        pointed: PointResult = self.pointer.point(label, phrase)
         depth = depth.reshape(depth.shape[0], depth.shape[1])
         u, v = pointed.pixel
         point = self.camera.back_project(u, v, depth[v, u])[0]

@@ -77,15 +77,15 @@ class OfflinePointer:
         """The pixel of the object `phrase` refers to (a mask pixel near its centre)."""
         in_view = self.visible(label_image)
         words = _tokens(phrase)
-        unknown = [w for w in words if not (w in FILLER_WORDS or w in CATEGORY_WORDS
-                                           or w in SIZE_WORDS or w in ORDINALS or w.isdigit()
-                                           or w in self._colors)]
+        wanted = phrase.strip().lower()
+        exact = [item for item in in_view if item[0].name.lower() == wanted]
+        unknown = [] if exact else [
+            w for w in words if not (w in FILLER_WORDS or w in CATEGORY_WORDS or w in SIZE_WORDS
+                                     or w in ORDINALS or w.isdigit() or w in self._colors)]
         if unknown:
             listing = "; ".join(f"'{obj.name}' ({obj.describe()})" for obj, *_ in in_view)
             raise PointingError(f"'{phrase}': unknown word(s) {unknown}. Visible objects, "
                                 f"left to right: {listing}")
-        wanted = phrase.strip().lower()
-        exact = [item for item in in_view if item[0].name.lower() == wanted]
         numbered = [w for w in words if w.isdigit()]
         if not exact and any(obj.name.lower() == wanted or (
                 numbered and self._matches(obj, words)) for obj in self._catalog.values()) \

@@ -43,8 +43,9 @@ def _spawn(rng: np.random.Generator, count: int) -> list[np.ndarray]:
 class EmptyCup:
     name: str = "empty_cup"
     scenario_file: str = "empty_cup.yaml"
-    prompt: str = ("Four cups with lids stand on the table. Exactly one of them is empty (it "
-                   "weighs much less than the others). Put the empty cup in the basket, within "
+    prompt: str = ("Four cups with lids stand on the table. Exactly one of them is empty; a cup "
+                   "that weighs less than 100 g counts as empty. Put the empty cup in the "
+                   "basket, within "
                    f"{TIME_LIMIT:.0f} s of robot time. Leave the other cups where they are.")
 
     def instance(self, seed: int, answer: str = "") -> TaskInstance:

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import dataclasses as dc
 
+from physcap_drake.agent.agent_system import AgentSystem
 from physcap_drake.perception.camera_geometry import CameraGeometry
 from physcap_drake.perception.object_locator import ObjectLocator
 from physcap_drake.perception.offline_pointer import OfflinePointer
@@ -43,24 +44,38 @@ class Episode:
         return get_task(self.instance.task).check(self)
 
 
-def make_episode(task_name: str, seed: int, answer: str = "", meshcat=None) -> Episode:
+def make_episode(task_name: str, seed: int, answer: str = "", meshcat=None, *,
+                 with_agent: bool = False) -> Episode:
     """Loads stations/<task>.yaml, lays out the objects for `seed`, builds and initializes the
-    simulation with the objects' hidden masses, and wires camera perception to the API."""
+    simulation with the objects' hidden masses, and wires camera perception to the API (and,
+    `with_agent`, to an AgentSystem in the diagram)."""
     task = get_task(task_name)
     scenario = load_scenario(stations_dir() / task.scenario_file)
     instance = task.instance(seed, answer or scenario.task.answer)
     instance.add_to(scenario)
-    robot = build_robot_diagram(scenario, meshcat)
+    pointers: list[OfflinePointer] = []
+
+    def make_agent(station):
+        pointers.append(OfflinePointer(_catalog(instance, station.GetSubsystemByName("plant"))))
+        return AgentSystem(pointers[-1])
+
+    robot = build_robot_diagram(scenario, meshcat, make_agent=make_agent if with_agent
+                                else None)
     simulator = robot.make_simulator()
     plant = robot.station.GetSubsystemByName("plant")
     instance.apply_hidden_masses(plant, plant.GetMyMutableContextFromRoot(
         simulator.get_mutable_context()))
+    pointer = pointers[0] if pointers else OfflinePointer(_catalog(instance, plant))
+    camera = next(c for c in scenario.cameras if c.name == MAIN_CAMERA)
+    api = RobotAPI(robot, simulator, locator=ObjectLocator(CameraGeometry(camera), pointer))
+    return Episode(instance, scenario, robot, api)
+
+
+def _catalog(instance: TaskInstance, plant) -> dict:
+    """What each object looks like, by its body's label in the camera's label image."""
     catalog = {int(instance.body_of(plant, o.visible.name).index()): o.visible
                for o in instance.objects}
     for container in (TRAY, BASKET):
         if plant.HasBodyNamed(container.category):
             catalog[int(plant.GetBodyByName(container.category).index())] = container
-    camera = next(c for c in scenario.cameras if c.name == MAIN_CAMERA)
-    api = RobotAPI(robot, simulator,
-                   locator=ObjectLocator(CameraGeometry(camera), OfflinePointer(catalog)))
-    return Episode(instance, scenario, robot, api)
+    return catalog

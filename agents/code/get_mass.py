@@ -1,0 +1,11 @@
+import math
+
+print("THOUGHT: $thought | ACTION: weigh the $name")
+position = get_object_pose("$name")
+mass = get_mass(position, "$name")
+if math.isnan(mass):
+    print("MEASURED: the mass of the $name could not be measured")
+else:
+    print(f"MEASURED: $name mass = {mass:.3f} kg")
+home_pose()
+breakpoint_code_block()

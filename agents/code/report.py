@@ -1,0 +1,1 @@
+print("THOUGHT: $thought | ACTION: none")

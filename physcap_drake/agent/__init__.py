@@ -1,0 +1,1 @@
+"""The PhysCaP agent: planner, prioritizer, coder, sandbox and LLM backends."""

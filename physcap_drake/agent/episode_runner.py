@@ -1,0 +1,80 @@
+"""One agent episode in simulation: build the task's diagram with an AgentSystem, run the agent
+loop with the chosen variant and language model, and report the paper's metrics."""
+
+from __future__ import annotations
+
+import dataclasses as dc
+from collections.abc import Callable
+
+from physcap_drake.agent.llm import make_llm
+from physcap_drake.agent.llm.base import CallRecord, LLMClient
+from physcap_drake.agent.loop import AgentLoop, EpisodeOutcome
+from physcap_drake.agent.sandbox import SandboxLimits
+from physcap_drake.agent.transcript import Transcript, TranscriptEntry
+from physcap_drake.agent.variant import load_variant
+from physcap_drake.tasks.episode import Episode, make_episode
+
+#: Robot execution time after which an episode is stopped, s (no task needs more).
+ROBOT_TIME_LIMIT = 900.0
+
+
+@dc.dataclass
+class AgentRun:
+    """A finished episode: what happened (outcome, transcript, model calls) and how it was set
+    up (task, agent variant, seed, language model)."""
+
+    task: str
+    agent: str
+    seed: int
+    llm: str
+    model: str
+    outcome: EpisodeOutcome
+    transcript: Transcript
+    calls: list[CallRecord]
+    episode: Episode
+
+    def summary(self) -> dict:
+        """The metrics as plain data: success, oi, robot_time_s, and the run's particulars."""
+        outcome = self.outcome
+        return {
+            "task": self.task, "agent": self.agent, "seed": self.seed, "llm": self.llm,
+            "model": self.model, "success": outcome.success, "reason": outcome.reason,
+            "oi": outcome.oi, "robot_time_s": round(outcome.robot_time_s, 3),
+            "wall_time_s": round(outcome.wall_time_s, 3), "code_blocks": len(outcome.steps),
+            "failure": outcome.failure, "llm_calls": len(self.calls),
+            "input_tokens": sum(c.input_tokens for c in self.calls),
+            "output_tokens": sum(c.output_tokens for c in self.calls),
+            "llm_latency_s": round(sum(c.latency_s for c in self.calls), 3),
+        }
+
+
+def run_agent_episode(task: str, seed: int, *, agent: str = "physcap", llm: str = "reference",
+                      model: str | None = None, meshcat=None,
+                      limits: SandboxLimits | None = None, client: LLMClient | None = None,
+                      on_entry: Callable[[TranscriptEntry], None] | None = None,
+                      robot_time_limit: float = ROBOT_TIME_LIMIT) -> AgentRun:
+    """Runs one episode of `task` with layout `seed`. `llm` is a backend spec (see
+    physcap_drake.agent.llm.factory); `client` overrides it with a ready client (it should
+    be a RecordingClient for the calls to be reported). `on_entry` hears each transcript
+    entry as it is written."""
+    variant = load_variant(agent)
+    client = client or make_llm(llm, model, seed=seed)
+    episode = make_episode(task, seed, meshcat=meshcat, with_agent=True)
+    simulator, system = episode.api.simulator, episode.robot.agent
+    agent_context = system.GetMyMutableContextFromRoot(simulator.get_mutable_context())
+
+    def observe():
+        return system.observation(agent_context, episode.api.robot_time)
+
+    def on_phase(phase: str, steps: int, oi: int) -> None:
+        system.set_progress(agent_context, phase=phase, steps=steps, oi=oi)
+
+    transcript = Transcript(on_entry)
+    loop = AgentLoop(task=episode.instance.prompt, variant=variant, llm=client, api=episode.api,
+                     observe=observe, check=episode.check, seed=seed, limits=limits,
+                     robot_time_limit=robot_time_limit, transcript=transcript,
+                     on_phase=on_phase)
+    outcome = loop.run()
+    return AgentRun(task, variant.name, seed, getattr(client, "name", llm),
+                    getattr(client, "model", model or ""), outcome, transcript,
+                    list(getattr(client, "records", [])), episode)

@@ -1,0 +1,116 @@
+"""Small pieces the remote backends share: importing an optional SDK, configuration errors,
+reading a server's retry hint, the JSON instruction for backends that cannot enforce a
+schema, and a few HTTP status rules."""
+
+from __future__ import annotations
+
+import email.utils
+import importlib
+import json
+import re
+import time
+from collections.abc import Mapping
+from types import ModuleType
+from typing import Any
+
+from physcap_drake.agent.llm.base import LLMError
+
+INSTALL_HINT = "pip install 'physcap-drake[llm]'"
+
+
+class LLMConfigError(LLMError, ValueError):
+    """A backend cannot be set up: a missing API key, half a Vertex AI setting, a bad option.
+    Raised when the client is built, before any call is made."""
+
+
+def import_sdk(module: str, package: str) -> ModuleType:
+    """Import an optional SDK module, or fail with an ImportError that says how to get it."""
+    try:
+        return importlib.import_module(module)
+    except ImportError as err:
+        raise ImportError(
+            f"the '{package}' package is needed for this language-model backend but is not "
+            f"installed; install the extras with: {INSTALL_HINT}"
+        ) from err
+
+
+def is_transient_status(status: int | None) -> bool:
+    """Whether an HTTP status is worth retrying: request timeout (408), rate limit (429) and
+    any server-side error (5xx, including Anthropic's 529 'overloaded')."""
+    if status is None:
+        return False
+    return status in (408, 429) or status >= 500
+
+
+def retry_after_from_headers(headers: Mapping[str, str] | None) -> float | None:
+    """The server's retry hint in seconds, from `retry-after-ms` or `retry-after` (either a
+    number of seconds or an HTTP date). None when absent or unreadable."""
+    if not headers:
+        return None
+    millis = headers.get("retry-after-ms")
+    if millis is not None:
+        try:
+            return max(0.0, float(millis) / 1000.0)
+        except ValueError:
+            pass
+    value = headers.get("retry-after")
+    if value is None:
+        return None
+    try:
+        return max(0.0, float(value))
+    except ValueError:
+        pass
+    try:
+        when = email.utils.parsedate_to_datetime(value)
+    except (TypeError, ValueError):
+        return None
+    return max(0.0, when.timestamp() - time.time())
+
+
+_DURATION = re.compile(r"^\s*([0-9]+(?:\.[0-9]*)?)s\s*$")
+
+
+def retry_after_from_google_details(details: Any) -> float | None:
+    """Google APIs put the retry hint in the error body as a RetryInfo detail with a
+    `retryDelay` such as "17s". Find it anywhere in the decoded error JSON."""
+    stack = [details]
+    while stack:
+        item = stack.pop()
+        if isinstance(item, Mapping):
+            delay = item.get("retryDelay")
+            if isinstance(delay, str):
+                match = _DURATION.match(delay)
+                if match:
+                    return float(match.group(1))
+            stack.extend(item.values())
+        elif isinstance(item, list):
+            stack.extend(item)
+    return None
+
+
+def json_instruction(schema: Mapping[str, Any] | None) -> str:
+    """Text appended to the system prompt when the backend is not told about the schema
+    through its API (or may ignore it): answer with one bare JSON value following it."""
+    text = (
+        "Answer with exactly one JSON value and nothing else: no prose before or after it "
+        "and no Markdown code fence."
+    )
+    if schema is not None:
+        text += " The JSON must follow this JSON Schema:\n" + json.dumps(schema, indent=2)
+    return text
+
+
+_FENCE = re.compile(r"^\s*```[A-Za-z0-9_-]*\s*\n(.*?)\n?\s*```\s*$", re.DOTALL)
+
+
+def strip_code_fence(text: str) -> str:
+    """If the whole answer is one Markdown code block (models like to fence JSON), return
+    what is inside it; otherwise return the text unchanged."""
+    match = _FENCE.match(text)
+    return match.group(1).strip() if match else text
+
+
+def with_json_instruction(system: str, schema: Mapping[str, Any] | None) -> str:
+    """The system text followed by the JSON instruction, separated by a blank line."""
+    instruction = json_instruction(schema)
+    return f"{system.rstrip()}\n\n{instruction}" if system.strip() else instruction

@@ -1,0 +1,124 @@
+"""Building a language-model client from a short text spec (what the CLI and the agent
+configuration files name).
+
+Specs:
+  reference                      the offline rule-based reasoner (the default; no key needed)
+  gemini                         Gemini via google-genai (API key or Vertex AI)
+  anthropic                      Claude via the anthropic SDK
+  openai                         OpenAI via the openai SDK
+  openai-compatible:<base_url>   an OpenAI-compatible server, e.g. http://localhost:8000/v1
+  replay:<path.jsonl>            answers replayed from a recording
+
+Remote backends are wrapped in a `RetryingClient`; every client is wrapped in a
+`RecordingClient`, the outermost layer, whose `records` hold the calls made.
+"""
+
+from __future__ import annotations
+
+import importlib
+import inspect
+from typing import Any
+
+from physcap_drake.agent.llm.anthropic_backend import AnthropicClient
+from physcap_drake.agent.llm.base import LLMClient
+from physcap_drake.agent.llm.gemini import GeminiClient
+from physcap_drake.agent.llm.openai_backend import OpenAIClient
+from physcap_drake.agent.llm.recording import RecordingClient
+from physcap_drake.agent.llm.replay import ReplayClient
+from physcap_drake.agent.llm.retry import RetryingClient
+
+VALID_SPECS = (
+    "reference",
+    "gemini",
+    "anthropic",
+    "openai",
+    "openai-compatible:<base_url>",
+    "replay:<path.jsonl>",
+)
+RETRY_OPTIONS = ("attempts", "base_delay_s", "max_delay_s", "sleep")
+RECORDING_OPTIONS = ("on_record",)
+REFERENCE_MODULE = "physcap_drake.agent.reference.reasoner"
+
+_REMOTE: dict[str, type] = {
+    "gemini": GeminiClient,
+    "anthropic": AnthropicClient,
+    "openai": OpenAIClient,
+}
+
+
+def make_llm(spec: str, model: str | None = None, **options: Any) -> LLMClient:
+    """Build the client named by `spec` (see the module docstring).
+
+    `model` overrides the backend's default model; the offline backends (reference,
+    replay) ignore it. `options` go where they belong:
+      attempts, base_delay_s, max_delay_s, sleep -> RetryingClient (remote backends only);
+      on_record -> RecordingClient;
+      seed -> the reference reasoner (ignored by the others, so callers may always pass it);
+      anything else -> the backend's constructor (api_key, timeout_s, vertex_project,
+      vertex_location, max_tokens, schema_mode, client, ...); an option the backend does
+      not take is a ValueError naming the ones it does.
+    """
+    spec = spec.strip()
+    kind, _, argument = spec.partition(":")
+    retry_options = {k: options.pop(k) for k in RETRY_OPTIONS if k in options}
+    recording_options = {k: options.pop(k) for k in RECORDING_OPTIONS if k in options}
+    seed = options.pop("seed", 0)
+
+    inner: LLMClient
+    if kind == "reference" and not argument:
+        _reject_options(kind, options, ())
+        inner = _make_reference(seed)
+    elif kind == "replay":
+        if not argument:
+            raise ValueError("the replay spec needs a file: replay:<path.jsonl>")
+        _reject_options(kind, options, ())
+        inner = ReplayClient.from_jsonl(argument)
+    elif kind in _REMOTE and not argument:
+        inner = RetryingClient(_make_remote(_REMOTE[kind], kind, model, options),
+                               **retry_options)
+    elif kind == "openai-compatible":
+        if not argument:
+            raise ValueError(
+                "the openai-compatible spec needs the server's base URL: "
+                "openai-compatible:http://localhost:8000/v1"
+            )
+        if model is None:
+            raise ValueError(
+                "an OpenAI-compatible server needs the model name it serves: pass model="
+            )
+        if "base_url" in options:
+            raise ValueError("give the base URL in the spec, not also as base_url=")
+        options["base_url"] = argument
+        inner = RetryingClient(_make_remote(OpenAIClient, kind, model, options),
+                               **retry_options)
+    else:
+        raise ValueError(
+            f"unknown language-model spec {spec!r}; valid specs are: {', '.join(VALID_SPECS)}"
+        )
+    return RecordingClient(inner, **recording_options)
+
+
+def _make_reference(seed: int) -> LLMClient:
+    """The reference reasoner, imported only when asked for."""
+    module = importlib.import_module(REFERENCE_MODULE)
+    return module.ReferenceReasoner(seed=seed)
+
+
+def _make_remote(cls: type, kind: str, model: str | None, options: dict[str, Any]) -> LLMClient:
+    accepted = [
+        name for name in inspect.signature(cls).parameters if name not in ("self", "model")
+    ]
+    _reject_options(kind, options, accepted)
+    if model is not None:
+        options["model"] = model
+    return cls(**options)
+
+
+def _reject_options(kind: str, options: dict[str, Any], accepted: Any) -> None:
+    unknown = sorted(set(options) - set(accepted))
+    if unknown:
+        takes = ", ".join(accepted) if accepted else "no backend options"
+        raise ValueError(
+            f"the {kind} backend does not take option(s) {', '.join(unknown)}; it takes: "
+            f"{takes} (plus {', '.join(RETRY_OPTIONS + RECORDING_OPTIONS)}, seed)"
+        )

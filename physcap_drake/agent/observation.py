@@ -1,0 +1,76 @@
+"""What the agent sees at a decision: the camera image and the objects the perception module
+finds in it, left to right. Nothing here reads poses, masses or any other hidden state."""
+
+from __future__ import annotations
+
+import dataclasses as dc
+
+import cv2
+import numpy as np
+
+from physcap_drake.perception.offline_pointer import OfflinePointer
+
+#: JPEG quality of the images sent to the models.
+JPEG_QUALITY = 85
+
+
+@dc.dataclass(frozen=True)
+class ObjectInView:
+    """One object the perception module finds in the image: its name (the handle
+    get_object_pose accepts), its visible attributes, and where it appears in the image
+    (mean column and row of its pixels, px; columns grow to the image's right)."""
+
+    name: str
+    category: str
+    color: str
+    straw: bool
+    size: str
+    image_x: float
+    image_y: float
+
+    def describe(self) -> str:
+        size = f"{self.size} " if self.size else ""
+        straw = ", with a straw (opened)" if self.straw else ""
+        return f"'{self.name}': {size}{self.color} {self.category}{straw}"
+
+    def as_context(self) -> dict:
+        return dc.asdict(self)
+
+
+@dc.dataclass(frozen=True)
+class Observation:
+    """The scene at one decision: objects in view (left to right in the image) and the
+    camera image as JPEG. `robot_time_s`: robot execution time so far."""
+
+    objects: tuple[ObjectInView, ...]
+    jpeg: bytes
+    robot_time_s: float
+
+    def names(self) -> list[str]:
+        return [obj.name for obj in self.objects]
+
+    def as_text(self) -> str:
+        if not self.objects:
+            return "(the perception module finds no objects)"
+        return "\n".join(f"- {obj.describe()}" for obj in self.objects)
+
+
+def encode_jpeg(rgb: np.ndarray, quality: int = JPEG_QUALITY) -> bytes:
+    """An RGB(A) uint8 image (H × W × 3 or 4) as JPEG bytes."""
+    image = cv2.cvtColor(np.ascontiguousarray(rgb[:, :, :3]), cv2.COLOR_RGB2BGR)
+    ok, jpeg = cv2.imencode(".jpg", image, [cv2.IMWRITE_JPEG_QUALITY, quality])
+    if not ok:
+        raise RuntimeError("could not encode the camera image as JPEG")
+    return jpeg.tobytes()
+
+
+def observe(rgb: np.ndarray, label: np.ndarray, pointer: OfflinePointer,
+            robot_time_s: float) -> Observation:
+    """The observation from one camera frame: the objects the simulated perception module
+    (a perfect segmenter) recognizes in the label image, and the RGB image as JPEG."""
+    objects = []
+    for obj, mask, column in pointer.visible(label):
+        rows = np.nonzero(mask)[0]
+        objects.append(ObjectInView(obj.name, obj.category, obj.color, obj.straw, obj.size,
+                                    round(column, 1), round(float(rows.mean()), 1)))
+    return Observation(tuple(objects), encode_jpeg(rgb), robot_time_s)

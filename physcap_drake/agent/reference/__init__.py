@@ -1,0 +1,1 @@
+"""The offline reference reasoner: a rule-based stand-in for the language models."""

@@ -1,0 +1,117 @@
+"""The agents' answer schemas, the prioritizer's reorder-only rule and the repair path."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from physcap_drake.agent.llm.base import LLMRequest, LLMResponse
+from physcap_drake.agent.schemas import (
+    Candidate,
+    CoderAnswer,
+    PlannerAnswer,
+    PrioritizerAnswer,
+    check_reordering,
+)
+from physcap_drake.agent.structured_call import AgentAnswerError, ask_structured, extract_json
+
+
+def _candidate(name: str, action: str = "get_mass") -> Candidate:
+    return Candidate(name=name, action=action, description=f"Weigh the {name}.",
+                     parameters={"name": "str"}, expected_info="its mass",
+                     estimated_cost="medium")
+
+
+CANDIDATES = [_candidate("red can"), _candidate("blue can"), _candidate("green can")]
+
+
+def _answer(order: list[Candidate], scored: list[str] | None = None) -> PrioritizerAnswer:
+    names = scored if scored is not None else [c.name for c in CANDIDATES]
+    return PrioritizerAnswer(
+        scored_candidates=[{"name": n, "priority_score": 5, "reason": "r"} for n in names],
+        prioritized_candidates=order)
+
+
+def test_a_pure_reordering_is_accepted():
+    order = [CANDIDATES[2], CANDIDATES[0], CANDIDATES[1]]
+    assert check_reordering(CANDIDATES, _answer(order)) == order
+
+
+@pytest.mark.parametrize(("order", "message"), [
+    ([CANDIDATES[0], CANDIDATES[1]], "dropped candidates ['green can']"),
+    ([*CANDIDATES, _candidate("black can")], "added candidates ['black can']"),
+    ([CANDIDATES[0], CANDIDATES[0], CANDIDATES[1], CANDIDATES[2]], "repeated candidates"),
+    ([CANDIDATES[0], CANDIDATES[1], _candidate("green can", "get_stiffness")],
+     "edited the fields of ['green can']"),
+])
+def test_the_prioritizer_may_not_add_drop_repeat_or_edit(order, message):
+    with pytest.raises(ValueError, match="may only reorder") as error:
+        check_reordering(CANDIDATES, _answer(order))
+    assert message in str(error.value)
+
+
+def test_every_candidate_needs_a_score():
+    with pytest.raises(ValueError, match="scores must cover exactly"):
+        check_reordering(CANDIDATES, _answer(list(CANDIDATES), ["red can", "blue can"]))
+
+
+def test_an_insufficient_plan_must_propose_explorations():
+    with pytest.raises(ValueError, match="propose at least one exploration"):
+        PlannerAnswer(sufficient=False, reason="unknown masses")
+    with pytest.raises(ValueError, match="must be unique"):
+        PlannerAnswer(sufficient=False, reason="r",
+                      exploration_candidates=[CANDIDATES[0], CANDIDATES[0]])
+
+
+def test_json_is_found_inside_fences_and_prose():
+    assert extract_json('Sure!\n```json\n{"a": [1, 2]}\n```') == {"a": [1, 2]}
+    with pytest.raises(ValueError, match="no JSON"):
+        extract_json("I cannot help with that.")
+
+
+class ScriptedModel:
+    """Answers with the given texts in turn and keeps the requests it received."""
+
+    name, model = "scripted", "scripted-1"
+
+    def __init__(self, *texts: str):
+        self.texts, self.requests = list(texts), []
+
+    def complete(self, request: LLMRequest) -> LLMResponse:
+        self.requests.append(request)
+        return LLMResponse(self.texts.pop(0), self.model)
+
+
+REQUEST = LLMRequest(role="coder", system="write code", prompt="the task",
+                     json_schema=CoderAnswer.model_json_schema())
+VALID = json.dumps({"thought": "t", "code": "home_pose()"})
+
+
+def test_a_malformed_answer_is_repaired_with_the_problem_stated():
+    model = ScriptedModel("not json at all", '{"thought": "t"}', VALID)
+    answer, _ = ask_structured(model, REQUEST, CoderAnswer, repairs=2)
+    assert answer.code == "home_pose()"
+    assert len(model.requests) == 3
+    assert "no JSON object" in model.requests[1].prompt
+    assert "code: Field required" in model.requests[2].prompt
+    assert model.requests[2].context["repair"] == "code: Field required"
+
+
+def test_after_two_repairs_the_agent_fails_with_the_reason():
+    model = ScriptedModel("nope", "still nope", "{broken", VALID)
+    with pytest.raises(AgentAnswerError, match="the coder gave no valid answer in 3 "
+                                               "attempt") as error:
+        ask_structured(model, REQUEST, CoderAnswer, repairs=2)
+    assert "not valid JSON" in error.value.problem
+    assert len(model.texts) == 1  # the fourth answer was never asked for
+
+
+def test_a_failed_check_counts_as_malformed():
+    bad = _answer([CANDIDATES[0]]).model_dump_json()
+    good = _answer(list(CANDIDATES)).model_dump_json()
+    model = ScriptedModel(bad, good)
+    _, ordered = ask_structured(model, REQUEST, PrioritizerAnswer, repairs=2,
+                                check=lambda a: check_reordering(CANDIDATES, a))
+    assert [c.name for c in ordered] == ["red can", "blue can", "green can"]
+    assert "dropped candidates" in model.requests[1].prompt

@@ -1,0 +1,108 @@
+"""The offline reference reasoner: how it reads tasks, judges by look, stops and writes code."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from physcap_drake.agent.llm.base import LLMRequest
+from physcap_drake.agent.reference.reasoner import ReferenceReasoner
+from physcap_drake.agent.reference.task_reading import TaskNotUnderstood, read_task
+from physcap_drake.agent.sandbox import check_code
+from physcap_drake.tasks.registry import TASKS
+
+
+@pytest.mark.parametrize(("task", "kind", "subject", "destination", "threshold"), [
+    ("identify_empty_can", "mass", "can", "wooden tray", 0.1),
+    ("pick_ripe_avocado", "stiffness", "avocado", "wooden tray", 2.0),
+    ("empty_cup", "mass", "cup", "basket", 0.1),
+    ("find_blue_cube", "hidden", "cup", "wooden tray", 0.0),
+])
+def test_every_task_prompt_is_read(task, kind, subject, destination, threshold):
+    goal = read_task(TASKS[task].instance(0).prompt)
+    assert (goal.kind, goal.subject, goal.destination) == (kind, subject, destination)
+    assert goal.threshold == pytest.approx(threshold)
+    if kind == "hidden":
+        assert (goal.sought, goal.count) == ("cube", 3)
+
+
+def test_an_unreadable_task_is_refused_not_guessed():
+    with pytest.raises(TaskNotUnderstood, match="mass threshold"):
+        read_task("Stack the red cube on the blue cube.")
+
+
+def _can(name: str, straw: bool, x: float) -> dict:
+    color = name.split()[0]
+    return {"name": name, "category": "can", "color": color, "straw": straw, "size": "",
+            "image_x": x, "image_y": 100.0}
+
+
+CANS = [_can("red can", True, 100), _can("blue can", False, 200),
+        _can("green can", True, 300), _can("black can", False, 400)]
+TASK = TASKS["identify_empty_can"].prompt
+
+
+def _ask(mode: str, knowledge=(), **extra) -> dict:
+    context = {"task": TASK, "objects_in_view": CANS, "knowledge": list(knowledge),
+               "history": [], "mode": mode} | extra
+    request = LLMRequest(role="planner", system="", prompt="", context=context)
+    return json.loads(ReferenceReasoner(seed=0).complete(request).text)
+
+
+def _mass(name: str, kg: float) -> dict:
+    return {"subject": name, "prop": "mass", "value": kg, "unit": "kg", "ok": True, "note": ""}
+
+
+def test_the_planner_explores_until_the_evidence_singles_out_the_answer():
+    plan = _ask("planner")
+    assert not plan["sufficient"]
+    assert [c["name"] for c in plan["exploration_candidates"]] == [c["name"] for c in CANS]
+    plan = _ask("planner", [_mass("red can", 0.40)])
+    assert not plan["sufficient"]
+    assert "red can" not in [c["name"] for c in plan["exploration_candidates"]]
+    plan = _ask("planner", [_mass("red can", 0.40), _mass("green can", 0.016)])
+    assert plan["sufficient"] and "green can" in plan["reason"]
+
+
+def test_exactly_one_lets_the_planner_conclude_by_exclusion():
+    knowledge = [_mass(n, 0.37) for n in ("red can", "blue can", "black can")]
+    plan = _ask("planner", knowledge)
+    assert plan["sufficient"] and "must be the green can" in plan["reason"]
+
+
+def test_the_prioritizer_puts_sealed_cans_last_and_keeps_every_candidate():
+    candidates = _ask("planner")["exploration_candidates"]
+    answer = _ask("prioritizer", candidates=candidates)
+    order = [c["name"] for c in answer["prioritized_candidates"]]
+    assert order == ["red can", "green can", "blue can", "black can"]
+    scores = {s["name"]: s["priority_score"] for s in answer["scored_candidates"]}
+    assert scores["red can"] > 5 > scores["blue can"]
+    assert answer["prioritized_candidates"][0] == candidates[0]  # fields untouched
+
+
+def test_the_joint_planner_orders_its_candidates_by_look():
+    plan = _ask("joint_planner")
+    assert [c["name"] for c in plan["exploration_candidates"]][:2] == ["red can", "green can"]
+
+
+def test_generated_code_passes_the_sandbox_check_and_weighs_by_name():
+    candidate = _ask("planner")["exploration_candidates"][2]
+    code = _ask("explore", candidate=candidate)["code"]
+    check_code(code)
+    assert 'get_mass(position, "green can")' in code
+    final = _ask("final", [_mass("red can", 0.015)], reason="")
+    check_code(final["code"])
+    assert final["task_complete"] and 'get_object_pose("red can")' in final["code"]
+    assert 'get_object_pose("wooden tray")' in final["code"]
+
+
+def test_the_vision_only_coder_guesses_among_the_opened_cans():
+    guesses = set()
+    for seed in range(12):
+        request = LLMRequest(role="coder", system="", prompt="", context={
+            "task": TASK, "objects_in_view": CANS, "knowledge": [], "history": [],
+            "mode": "task"})
+        code = json.loads(ReferenceReasoner(seed=seed).complete(request).text)["code"]
+        guesses |= {c["name"] for c in CANS if f'get_object_pose("{c["name"]}")' in code}
+    assert guesses == {"red can", "green can"}
