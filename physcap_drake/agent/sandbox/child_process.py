@@ -1,0 +1,236 @@
+"""The sandboxed child as its parent handles it: start, talk, kill, reap.
+
+`ChildProcess.start` runs a fresh interpreter (`-I -B`: no environment variables, no user
+site, no bytecode written) in its own session, with an environment built from nothing
+(PATH, LANG, HOME and TMPDIR pointing at the private folder, one BLAS thread) and the private
+folder as its working directory. Its stdin and stdout are the protocol pipes, its stderr a
+third pipe whose last few kilobytes are kept for diagnosis.
+
+All reads and writes have deadlines and never block past them; frames are checked for size
+as soon as their header arrives. `terminate` kills the code's process first (so its own
+parent can reap it), then the whole process group, and reaps the child: nothing is left
+running, and no zombie is left behind.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import importlib.util
+import os
+import selectors
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+from . import protocol
+
+_PACKAGE_NAME = "_physcap_sandbox"
+# Loads this folder as a standalone package (its __init__ is not run), then the child.
+_BOOTSTRAP = (
+    "import importlib, sys, types\n"
+    "here, extra = sys.argv[1], sys.argv[2]\n"
+    "if extra and extra not in sys.path:\n"
+    "    sys.path.append(extra)\n"
+    f"package = types.ModuleType({_PACKAGE_NAME!r})\n"
+    "package.__path__ = [here]\n"
+    f"sys.modules[{_PACKAGE_NAME!r}] = package\n"
+    f"importlib.import_module({_PACKAGE_NAME!r} + '.child').main()\n"
+)
+_READ_CHUNK = 1 << 16
+_STDERR_KEEP = 8192
+
+
+class Deadline(Exception):
+    """The deadline passed before the child sent or took a whole message."""
+
+
+class ChildGone(Exception):
+    """The child closed its end of a protocol pipe (it exited, or closed the pipe)."""
+
+
+def scrubbed_environment(home: str) -> dict[str, str]:
+    """The child's environment, built from nothing: no credentials can leak into it."""
+    return {
+        "PATH": "/usr/bin:/bin",
+        "LANG": "C.UTF-8",
+        "HOME": home,
+        "TMPDIR": home,
+        "OPENBLAS_NUM_THREADS": "1",
+        "OMP_NUM_THREADS": "1",
+        "MKL_NUM_THREADS": "1",
+    }
+
+
+def _numpy_search_path() -> str:
+    """The folder numpy is imported from, for a child that cannot see PYTHONPATH."""
+    spec = importlib.util.find_spec("numpy")
+    if spec is None or not spec.submodule_search_locations:
+        return ""
+    return str(Path(next(iter(spec.submodule_search_locations))).parent)
+
+
+class ChildProcess:
+    """One running child and the parent's ends of its pipes."""
+
+    def __init__(self, popen: subprocess.Popen[bytes]):
+        self._popen = popen
+        assert popen.stdin is not None and popen.stdout is not None
+        assert popen.stderr is not None
+        self._to_child = popen.stdin.fileno()
+        self._from_child = popen.stdout.fileno()
+        self._errors = popen.stderr.fileno()
+        for fd in (self._to_child, self._from_child, self._errors):
+            os.set_blocking(fd, False)
+        self._inbox = bytearray()
+        self._stderr_tail = bytearray()
+        self._closed_out = False
+        self._closed_err = False
+        self._reaped = False
+
+    @classmethod
+    def start(cls, home: str) -> ChildProcess:
+        sandbox_dir = str(Path(__file__).resolve().parent)
+        popen = subprocess.Popen(
+            [sys.executable, "-I", "-B", "-c", _BOOTSTRAP, sandbox_dir, _numpy_search_path()],
+            stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+            cwd=home, env=scrubbed_environment(home), start_new_session=True, close_fds=True)
+        return cls(popen)
+
+    @property
+    def pid(self) -> int:
+        return self._popen.pid
+
+    def send(self, message: dict[str, Any], deadline: float) -> None:
+        """Write one message. ProtocolError if it is too large; Deadline; ChildGone."""
+        data = memoryview(protocol.pack(message))
+        with selectors.DefaultSelector() as selector:
+            selector.register(self._to_child, selectors.EVENT_WRITE)
+            while data:
+                try:
+                    data = data[os.write(self._to_child, data):]
+                    continue
+                except BlockingIOError:
+                    pass
+                except (BrokenPipeError, ConnectionResetError):
+                    raise ChildGone("the child closed its input") from None
+                left = deadline - time.monotonic()
+                if left <= 0:
+                    raise Deadline()
+                selector.select(left)
+
+    def receive(self, deadline: float) -> dict[str, Any]:
+        """The next message from the child. ProtocolError on a bad frame; Deadline;
+        ChildGone if its output closed first."""
+        with selectors.DefaultSelector() as selector:
+            if not self._closed_out:
+                selector.register(self._from_child, selectors.EVENT_READ)
+            if not self._closed_err:
+                selector.register(self._errors, selectors.EVENT_READ)
+            while True:
+                message = protocol.unpack_from(self._inbox)
+                if message is not None:
+                    return message
+                if self._closed_out:
+                    if self._inbox:
+                        raise protocol.ProtocolError("the child's output ended mid-frame")
+                    raise ChildGone("the child closed its output")
+                left = deadline - time.monotonic()
+                if left <= 0:
+                    raise Deadline()
+                for key, _events in selector.select(left):
+                    self._read_some(key.fd, selector)
+
+    def _read_some(self, fd: int, selector: selectors.BaseSelector) -> None:
+        try:
+            chunk = os.read(fd, _READ_CHUNK)
+        except BlockingIOError:
+            return
+        except OSError:
+            chunk = b""
+        if fd == self._from_child:
+            if chunk:
+                self._inbox += chunk
+            else:
+                self._closed_out = True
+                selector.unregister(fd)
+        elif chunk:
+            self._stderr_tail += chunk
+            del self._stderr_tail[:-_STDERR_KEEP]
+        else:
+            self._closed_err = True
+            selector.unregister(fd)
+
+    def stderr_tail(self, chars: int = 600) -> str:
+        """The last `chars` characters the child wrote to stderr."""
+        return self._stderr_tail.decode("utf-8", "replace")[-chars:].strip()
+
+    def exit_status(self, wait_s: float) -> int | None:
+        """The child's exit status, Popen-style (negative: killed by that signal), waiting up
+        to `wait_s` for it to end, without reaping it (so its process group and /proc entry
+        stay valid); None if it is still running."""
+        end = time.monotonic() + wait_s
+        while True:
+            try:
+                result = os.waitid(os.P_PID, self.pid, os.WEXITED | os.WNOHANG | os.WNOWAIT)
+            except ChildProcessError:
+                return self._popen.returncode
+            if result is not None and result.si_pid == self.pid:
+                if result.si_code == os.CLD_EXITED:
+                    return result.si_status
+                return -result.si_status
+            if time.monotonic() >= end:
+                return None
+            time.sleep(0.01)
+
+    def cpu_seconds(self) -> float | None:
+        """CPU time of the child and of the children it reaped (the code's process, when it
+        ran in a PID namespace), read from /proc while the child is not yet reaped."""
+        fields = _stat_fields(self.pid)
+        if fields is None:
+            return None
+        ticks = os.sysconf("SC_CLK_TCK")
+        return sum(int(value) for value in fields[11:15]) / ticks
+
+    def terminate(self) -> None:
+        """Kill the code's process, then the whole group; reap the child. Idempotent."""
+        if self._reaped:
+            return
+        for pid in _children_of(self.pid):
+            with contextlib.suppress(OSError):
+                os.kill(pid, signal.SIGKILL)
+        self.exit_status(wait_s=0.5)
+        with contextlib.suppress(OSError):
+            os.killpg(self.pid, signal.SIGKILL)
+        self._popen.wait()
+        self._reaped = True
+        for stream in (self._popen.stdin, self._popen.stdout, self._popen.stderr):
+            if stream is not None:
+                with contextlib.suppress(OSError):
+                    stream.close()
+
+
+def _stat_fields(pid: int) -> list[str] | None:
+    """The fields of /proc/<pid>/stat after the command name (state first), or None."""
+    try:
+        text = Path(f"/proc/{pid}/stat").read_text(encoding="ascii", errors="replace")
+    except OSError:
+        return None
+    return text[text.rfind(")") + 2:].split()
+
+
+def _children_of(parent: int) -> list[int]:
+    """Pids whose parent is `parent` (a scan of /proc: the kernel may not list children)."""
+    children = []
+    try:
+        entries = os.listdir("/proc")
+    except OSError:
+        return children
+    for entry in entries:
+        if entry.isdigit():
+            fields = _stat_fields(int(entry))
+            if fields is not None and len(fields) > 1 and fields[1] == str(parent):
+                children.append(int(entry))
+    return children
