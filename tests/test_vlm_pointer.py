@@ -43,7 +43,7 @@ def test_a_model_answer_becomes_a_grasp_point():
     depth = station.GetOutputPort(ports.CAMERA_DEPTH).Eval(context).data
     label = station.GetOutputPort(ports.CAMERA_LABEL).Eval(context).data
     target = episode.instance.object("green can")
-    pixel = episode.api.locator._pointer.point(label, "green can").pixel  # a "perfect" model
+    pixel = episode.api.locator.pointer.point(label, "green can").pixel  # a "perfect" model
     requests = []
 
     def ask(jpeg: bytes, prompt: str) -> str:
@@ -64,7 +64,7 @@ def test_get_object_pose_works_with_a_vlm_pointer():
     station = episode.robot.station
     context = station.GetMyContextFromRoot(episode.api.simulator.get_context())
     label = station.GetOutputPort(ports.CAMERA_LABEL).Eval(context).data
-    offline = episode.api.locator._pointer
+    offline = episode.api.locator.pointer
 
     def ask(jpeg: bytes, prompt: str) -> str:  # a model that points where the mask centre is
         phrase = prompt.split("Point at the ", 1)[1].split(" in this image", 1)[0]
