@@ -94,6 +94,11 @@ class RobotAPI:
     def locator(self) -> ObjectLocator | None:
         return self._locator
 
+    def use_locator(self, locator: ObjectLocator) -> None:
+        """Finds objects with `locator` from now on (e.g. a VLM pointer instead of the
+        simulated segmenter)."""
+        self._locator = locator
+
     def goto_pose(self, position, quaternion_wxyz=None, z_approach=0.0) -> None:
         """Move the fingertip to `position` = [x, y, z] (metres, world frame).
 

@@ -81,3 +81,23 @@ def test_calibrate_mass_writes_one_entry_per_reference_mass(tmp_path):
         assert abs(row["mean_g"] - row["true_g"]) < 10.0
         assert row["std_g"] == 0.0 and row["failures"] == 0
     assert "error (g)" in result.output
+
+
+def test_run_prints_the_transcript_and_writes_the_summary(tmp_path):
+    summary_path, calls_path = tmp_path / "summary.json", tmp_path / "calls.jsonl"
+    result = runner.invoke(app, ["run", "--task", "identify_empty_can", "--seed", "0",
+                                 "--json", str(summary_path), "--record", str(calls_path)])
+    assert result.exit_code == 0, result.output
+    assert "# Code block" not in result.output  # the console shows entries, not markdown
+    assert "MEASURED: red can mass" in result.output and "success" in result.output
+    summary = json.loads(summary_path.read_text())
+    assert summary["success"] is True and summary["oi"] == 1
+    assert summary["robot_time_s"] > 10.0 and summary["agent"] == "physcap"
+    assert len(calls_path.read_text().splitlines()) == summary["llm_calls"]
+
+
+def test_run_refuses_an_unknown_agent_or_backend():
+    result = runner.invoke(app, ["run", "--task", "identify_empty_can", "--agent", "nope"])
+    assert result.exit_code == 2 and "unknown agent variant 'nope'" in result.output
+    result = runner.invoke(app, ["run", "--task", "identify_empty_can", "--llm", "gpt9"])
+    assert result.exit_code == 2 and "unknown language-model spec 'gpt9'" in result.output

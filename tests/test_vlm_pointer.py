@@ -71,7 +71,28 @@ def test_get_object_pose_works_with_a_vlm_pointer():
         u, v = offline.point(label, phrase).pixel
         return f'<point x="{100 * (u + 0.5) / W:.2f}" y="{100 * (v + 0.5) / H:.2f}">x</point>'
 
-    episode.api._locator = ObjectLocator(episode.api.locator.camera, VlmPointer(ask))
+    episode.api.use_locator(ObjectLocator(episode.api.locator.camera, VlmPointer(ask)))
     for obj in episode.instance.objects:
         grasp = episode.api.get_object_pose(obj.visible.name)
         assert np.linalg.norm(grasp[:2] - np.array(obj.xy)) < 0.015, obj.visible.name
+
+
+def test_any_image_backend_can_serve_the_pointer():
+    """pointer_ask sends the JPEG and the question as a recorded "pointer" request."""
+    from physcap_drake.agent.llm import RecordingClient
+    from physcap_drake.agent.llm.base import LLMResponse
+    from physcap_drake.agent.llm.pointer_ask import pointer_ask
+
+    class Gemini:
+        name, model = "fake-gemini", "fake-1"
+
+        def complete(self, request):
+            assert request.role == "pointer" and len(request.images) == 1
+            assert request.images[0][:2] == b"\xff\xd8"  # a JPEG
+            return LLMResponse('```json\n[{"point": [500, 250], "label": "red can"}]\n```',
+                               self.model)
+
+    client = RecordingClient(Gemini())
+    rgb = np.zeros((360, 640, 3), dtype=np.uint8)
+    assert VlmPointer(pointer_ask(client)).point(rgb, "red can") == (160, 180)
+    assert client.records[0].role == "pointer" and "red can" in client.records[0].prompt

@@ -8,10 +8,13 @@ from collections.abc import Callable
 
 from physcap_drake.agent.llm import make_llm
 from physcap_drake.agent.llm.base import CallRecord, LLMClient
+from physcap_drake.agent.llm.pointer_ask import pointer_ask
 from physcap_drake.agent.loop import AgentLoop, EpisodeOutcome
 from physcap_drake.agent.sandbox import SandboxLimits
 from physcap_drake.agent.transcript import Transcript, TranscriptEntry
 from physcap_drake.agent.variant import load_variant
+from physcap_drake.perception.object_locator import ObjectLocator
+from physcap_drake.perception.vlm_pointer import VlmPointer
 from physcap_drake.tasks.episode import Episode, make_episode
 
 #: Robot execution time after which an episode is stopped, s (no task needs more).
@@ -52,14 +55,22 @@ def run_agent_episode(task: str, seed: int, *, agent: str = "physcap", llm: str 
                       model: str | None = None, meshcat=None,
                       limits: SandboxLimits | None = None, client: LLMClient | None = None,
                       on_entry: Callable[[TranscriptEntry], None] | None = None,
-                      robot_time_limit: float = ROBOT_TIME_LIMIT) -> AgentRun:
+                      robot_time_limit: float = ROBOT_TIME_LIMIT,
+                      pointer: str = "offline") -> AgentRun:
     """Runs one episode of `task` with layout `seed`. `llm` is a backend spec (see
     physcap_drake.agent.llm.factory); `client` overrides it with a ready client (it should
     be a RecordingClient for the calls to be reported). `on_entry` hears each transcript
-    entry as it is written."""
+    entry as it is written. `pointer`: how get_object_pose finds objects: "offline" (the
+    simulated perfect segmenter) or "vlm" (the language model points at them in the image;
+    the model must take images)."""
+    if pointer not in ("offline", "vlm"):
+        raise ValueError(f"pointer must be 'offline' or 'vlm', got {pointer!r}")
     variant = load_variant(agent)
     client = client or make_llm(llm, model, seed=seed)
     episode = make_episode(task, seed, meshcat=meshcat, with_agent=True)
+    if pointer == "vlm":
+        episode.api.use_locator(ObjectLocator(episode.api.locator.camera,
+                                              VlmPointer(pointer_ask(client))))
     simulator, system = episode.api.simulator, episode.robot.agent
     agent_context = system.GetMyMutableContextFromRoot(simulator.get_mutable_context())
 

@@ -46,6 +46,10 @@ def run(task: Annotated[str, typer.Option("--task", help=f"One of: {', '.join(TA
         record: Annotated[Path | None, typer.Option(
             "--record", help="Save the model calls as JSON Lines (replay with "
                              "--llm replay:FILE).")] = None,
+        pointer: Annotated[str, typer.Option(
+            "--pointer", help="How get_object_pose finds objects: offline (simulated "
+                              "segmenter) or vlm (the model points; needs an image model).")
+                           ] = "offline",
         quiet: Annotated[bool, typer.Option("--quiet", help="Print only the summary.")] = False,
         ) -> None:
     """Run one episode of a task with an agent and print success, OI, robot time and the
@@ -59,7 +63,8 @@ def run(task: Annotated[str, typer.Option("--task", help=f"One of: {', '.join(TA
         console.print(f"Meshcat is at {viewer.web_url()}")
     try:
         result = run_agent_episode(task, seed, agent=agent, llm=llm, model=model,
-                                   meshcat=viewer, on_entry=None if quiet else _print_entry)
+                                   meshcat=viewer, pointer=pointer,
+                                   on_entry=None if quiet else _print_entry)
     except (ValueError, ScenarioError, LLMError, ImportError) as error:
         error_console.print(f"[bold red]error:[/] {escape(str(error))}", soft_wrap=True)
         raise typer.Exit(code=2) from None
