@@ -13,7 +13,7 @@ from collections.abc import Mapping
 from types import ModuleType
 from typing import Any
 
-from physcap_drake.agent.llm.base import LLMError
+from physcap_drake.agent.llm.base import LLMError, LLMTimeout, TransientLLMError
 
 INSTALL_HINT = "pip install 'physcap-drake[llm]'"
 
@@ -114,3 +114,16 @@ def with_json_instruction(system: str, schema: Mapping[str, Any] | None) -> str:
     """The system text followed by the JSON instruction, separated by a blank line."""
     instruction = json_instruction(schema)
     return f"{system.rstrip()}\n\n{instruction}" if system.strip() else instruction
+
+
+def status_error(where: str, status: int, message: str,
+                 headers: Mapping[str, str] | None) -> LLMError:
+    """The error to raise for an HTTP error status: LLMTimeout for 408/504, TransientLLMError
+    for other retryable statuses (with the server's retry-after hint), LLMError otherwise."""
+    text = f"{where}: HTTP {status}: {message}"
+    if not is_transient_status(status):
+        return LLMError(text)
+    hint = retry_after_from_headers(headers)
+    if status in (408, 504):
+        return LLMTimeout(text, retry_after_s=hint)
+    return TransientLLMError(text, retry_after_s=hint)

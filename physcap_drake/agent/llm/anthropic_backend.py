@@ -16,8 +16,7 @@ from typing import Any
 from physcap_drake.agent.llm._common import (
     LLMConfigError,
     import_sdk,
-    is_transient_status,
-    retry_after_from_headers,
+    status_error,
     strip_code_fence,
     with_json_instruction,
 )
@@ -100,13 +99,8 @@ class AnthropicClient:
         except sdk.APIConnectionError as err:
             raise TransientLLMError(f"{where}: connection failed: {err}") from err
         except sdk.APIStatusError as err:
-            text = f"{where}: HTTP {err.status_code}: {err.message}"
-            if not is_transient_status(err.status_code):
-                raise LLMError(text) from err
-            hint = retry_after_from_headers(err.response.headers)
-            if err.status_code in (408, 504):
-                raise LLMTimeout(text, retry_after_s=hint) from err
-            raise TransientLLMError(text, retry_after_s=hint) from err
+            raise status_error(where, err.status_code, err.message,
+                               err.response.headers) from err
         except sdk.APIError as err:
             raise LLMError(f"{where}: {type(err).__name__}: {err}") from err
         latency = time.perf_counter() - start
