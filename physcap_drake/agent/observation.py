@@ -5,9 +5,9 @@ from __future__ import annotations
 
 import dataclasses as dc
 
-import cv2
 import numpy as np
 
+from physcap_drake.perception.jpeg import encode_jpeg
 from physcap_drake.perception.offline_pointer import OfflinePointer
 
 #: JPEG quality of the images sent to the models.
@@ -55,15 +55,6 @@ class Observation:
         return "\n".join(f"- {obj.describe()}" for obj in self.objects)
 
 
-def encode_jpeg(rgb: np.ndarray, quality: int = JPEG_QUALITY) -> bytes:
-    """An RGB(A) uint8 image (H × W × 3 or 4) as JPEG bytes."""
-    image = cv2.cvtColor(np.ascontiguousarray(rgb[:, :, :3]), cv2.COLOR_RGB2BGR)
-    ok, jpeg = cv2.imencode(".jpg", image, [cv2.IMWRITE_JPEG_QUALITY, quality])
-    if not ok:
-        raise RuntimeError("could not encode the camera image as JPEG")
-    return jpeg.tobytes()
-
-
 def observe(rgb: np.ndarray, label: np.ndarray, pointer: OfflinePointer,
             robot_time_s: float) -> Observation:
     """The observation from one camera frame: the objects the simulated perception module
@@ -73,4 +64,4 @@ def observe(rgb: np.ndarray, label: np.ndarray, pointer: OfflinePointer,
         rows = np.nonzero(mask)[0]
         objects.append(ObjectInView(obj.name, obj.category, obj.color, obj.straw, obj.size,
                                     round(column, 1), round(float(rows.mean()), 1)))
-    return Observation(tuple(objects), encode_jpeg(rgb), robot_time_s)
+    return Observation(tuple(objects), encode_jpeg(rgb, JPEG_QUALITY), robot_time_s)

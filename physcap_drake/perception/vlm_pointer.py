@@ -14,9 +14,9 @@ import json
 import re
 from collections.abc import Callable
 
-import cv2
 import numpy as np
 
+from physcap_drake.perception.jpeg import encode_jpeg
 from physcap_drake.perception.offline_pointer import PointingError
 
 #: What the pointer asks the model, in our own words.
@@ -78,9 +78,5 @@ class VlmPointer:
 
     def point(self, rgb: np.ndarray, phrase: str) -> tuple[int, int]:
         """The pixel (u, v) of the object `phrase` names in `rgb` (H × W × 3 or 4, uint8)."""
-        image = cv2.cvtColor(np.ascontiguousarray(rgb[:, :, :3]), cv2.COLOR_RGB2BGR)
-        ok, jpeg = cv2.imencode(".jpg", image, [cv2.IMWRITE_JPEG_QUALITY, self._quality])
-        if not ok:
-            raise RuntimeError("could not encode the camera image as JPEG")
-        answer = self._ask(jpeg.tobytes(), PROMPT.format(phrase=phrase))
+        answer = self._ask(encode_jpeg(rgb, self._quality), PROMPT.format(phrase=phrase))
         return parse_point(answer, rgb.shape[1], rgb.shape[0])

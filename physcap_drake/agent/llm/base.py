@@ -109,3 +109,17 @@ class LLMClient(Protocol):
     model: str
 
     def complete(self, request: LLMRequest) -> LLMResponse: ...
+
+
+class ClientLayer:
+    """Base of clients that wrap another (`inner`): they report its backend name and model."""
+
+    inner: LLMClient
+
+    @property
+    def name(self) -> str:
+        return self.inner.name
+
+    @property
+    def model(self) -> str:
+        return self.inner.model

@@ -16,7 +16,7 @@ import time
 from collections.abc import Callable, Iterable
 from pathlib import Path
 
-from physcap_drake.agent.llm.base import CallRecord, LLMClient, LLMRequest, LLMResponse
+from physcap_drake.agent.llm.base import CallRecord, ClientLayer, LLMClient, LLMRequest, LLMResponse
 
 
 def make_record(request: LLMRequest, response: LLMResponse, attempts: int = 1) -> CallRecord:
@@ -65,7 +65,7 @@ def load_jsonl(path: str | os.PathLike[str]) -> list[CallRecord]:
     return records
 
 
-class RecordingClient:
+class RecordingClient(ClientLayer):
     """Wraps a client and records each successful call.
 
     The record's latency is the response's `latency_s` when the inner client reports one
@@ -84,14 +84,6 @@ class RecordingClient:
         self.on_record = on_record
         self.records: list[CallRecord] = []
         self._lock = threading.Lock()
-
-    @property
-    def name(self) -> str:
-        return self.inner.name
-
-    @property
-    def model(self) -> str:
-        return self.inner.model
 
     def complete(self, request: LLMRequest) -> LLMResponse:
         start = time.perf_counter()

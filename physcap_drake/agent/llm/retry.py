@@ -13,6 +13,7 @@ import time
 from collections.abc import Callable
 
 from physcap_drake.agent.llm.base import (
+    ClientLayer,
     LLMClient,
     LLMError,
     LLMRequest,
@@ -21,7 +22,7 @@ from physcap_drake.agent.llm.base import (
 )
 
 
-class RetryingClient:
+class RetryingClient(ClientLayer):
     """Wraps a client and retries `TransientLLMError` (and so `LLMTimeout`).
 
     The wait before retry n (n = 1, 2, ...) is `base_delay_s * 2**(n-1)`, at most
@@ -56,14 +57,6 @@ class RetryingClient:
         self.max_delay_s = max_delay_s
         self._sleep = sleep
         self._local = threading.local()
-
-    @property
-    def name(self) -> str:
-        return self.inner.name
-
-    @property
-    def model(self) -> str:
-        return self.inner.model
 
     @property
     def last_attempts(self) -> int:
