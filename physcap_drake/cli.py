@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import typer
 
-from physcap_drake.commands import bench, calibrate, demo, emulate, run, sim, task
+from physcap_drake.commands import bench, calibrate, demo, emulate, evaluate, replay, run, sim, task
 
 app = typer.Typer(
     name="physcap",
@@ -14,6 +14,8 @@ app = typer.Typer(
 )
 app.command("sim")(sim.sim)
 app.command("run")(run.run)
+app.command("eval")(evaluate.evaluate)
+app.command("replay")(replay.replay)
 app.command("emulate-piper")(emulate.emulate_piper)
 app.add_typer(demo.app, name="demo")
 app.add_typer(bench.app, name="bench")

@@ -39,6 +39,8 @@ class RobotDiagram:
     velocity_log: VectorLogSink | None = None
     # With build_robot_diagram(..., make_agent=...): the AgentSystem, fed by the camera.
     agent: LeafSystem | None = None
+    # With build_robot_diagram(..., make_recorder=...): the recorder of the station's outputs.
+    recorder: LeafSystem | None = None
 
     def make_simulator(self) -> Simulator:
         """An initialized simulator configured by the scenario."""
@@ -48,12 +50,15 @@ class RobotDiagram:
 def build_robot_diagram(scenario: Scenario, meshcat: Meshcat | None = None, *,
                         log_joints: bool = False,
                         make_agent: Callable[[Diagram], LeafSystem] | None = None,
+                        make_recorder: Callable[[Diagram], LeafSystem] | None = None,
                         ) -> RobotDiagram:
     """Station + SkillExecutor + the PhysX estimators, connected through the station's port
     contract (the gripper commands pass a GripperCommandSelector, so the stiffness probe can
     take the gripper over). With `log_joints`, the commanded positions and measured
     velocities are logged every step. `make_agent(station)` builds an AgentSystem whose
-    camera input ports are connected to the station's camera outputs."""
+    camera input ports are connected to the station's camera outputs. `make_recorder(station)`
+    builds a recorder (e.g. McapRecorder) each of whose input ports is connected to the station
+    output of the same name."""
     builder = DiagramBuilder()
     station = builder.AddNamedSystem("station", MakeStation(scenario, meshcat))
     model = PlanningModel(scenario.directives, scenario.station.arm_model,
@@ -86,6 +91,12 @@ def build_robot_diagram(scenario: Scenario, meshcat: Meshcat | None = None, *,
         agent = builder.AddNamedSystem("agent", make_agent(station))
         for name in (ports.CAMERA_RGB, ports.CAMERA_LABEL):
             builder.Connect(station.GetOutputPort(name), agent.GetInputPort(name))
+    recorder = None
+    if make_recorder is not None:
+        recorder = builder.AddNamedSystem("recorder", make_recorder(station))
+        for index in range(recorder.num_input_ports()):
+            port = recorder.get_input_port(index)
+            builder.Connect(station.GetOutputPort(port.get_name()), port)
     logs = (None, None)
     if log_joints:
         period = scenario.plant_config.time_step
@@ -95,7 +106,7 @@ def build_robot_diagram(scenario: Scenario, meshcat: Meshcat | None = None, *,
     diagram = builder.Build()
     diagram.set_name("robot")
     return RobotDiagram(scenario, diagram, station, executor, mass_estimator,
-                        stiffness_estimator, *logs, agent=agent)
+                        stiffness_estimator, *logs, agent=agent, recorder=recorder)
 
 
 def _make_mass_estimator(scenario: Scenario) -> MassEstimator:

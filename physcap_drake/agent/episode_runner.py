@@ -15,6 +15,9 @@ from physcap_drake.agent.transcript import Transcript, TranscriptEntry
 from physcap_drake.agent.variant import load_variant
 from physcap_drake.perception.object_locator import ObjectLocator
 from physcap_drake.perception.vlm_pointer import VlmPointer
+from physcap_drake.recording.agent_recording import AgentRecording
+from physcap_drake.recording.git_state import git_state
+from physcap_drake.recording.mcap_sink import McapSink
 from physcap_drake.tasks.episode import Episode, make_episode
 
 #: Robot execution time after which an episode is stopped, s (no task needs more).
@@ -56,36 +59,59 @@ def run_agent_episode(task: str, seed: int, *, agent: str = "physcap", llm: str 
                       limits: SandboxLimits | None = None, client: LLMClient | None = None,
                       on_entry: Callable[[TranscriptEntry], None] | None = None,
                       robot_time_limit: float = ROBOT_TIME_LIMIT,
-                      pointer: str = "offline") -> AgentRun:
+                      pointer: str = "offline", sink: McapSink | None = None) -> AgentRun:
     """Runs one episode of `task` with layout `seed`. `llm` is a backend spec (see
     physcap_drake.agent.llm.factory); `client` overrides it with a ready client (it should
     be a RecordingClient for the calls to be reported). `on_entry` hears each transcript
     entry as it is written. `pointer`: how get_object_pose finds objects: "offline" (the
     simulated perfect segmenter) or "vlm" (the language model points at them in the image;
-    the model must take images)."""
+    the model must take images). With a `sink`, the run is recorded to it (robot signals by
+    an McapRecorder in the diagram, the agent's messages by an AgentRecording); the caller
+    closes the sink."""
     if pointer not in ("offline", "vlm"):
         raise ValueError(f"pointer must be 'offline' or 'vlm', got {pointer!r}")
     variant = load_variant(agent)
     client = client or make_llm(llm, model, seed=seed)
-    episode = make_episode(task, seed, meshcat=meshcat, with_agent=True)
+    episode = make_episode(task, seed, meshcat=meshcat, with_agent=True, sink=sink)
     if pointer == "vlm":
         episode.api.use_locator(ObjectLocator(episode.api.locator.camera,
                                               VlmPointer(pointer_ask(client))))
     simulator, system = episode.api.simulator, episode.robot.agent
-    agent_context = system.GetMyMutableContextFromRoot(simulator.get_mutable_context())
+    root = simulator.get_mutable_context()
+    agent_context = system.GetMyMutableContextFromRoot(root)
+    recording = None if sink is None else AgentRecording(
+        sink, root.get_time, client=client, recorder=episode.robot.recorder,
+        context=episode.robot.recorder.GetMyContextFromRoot(root))
+    if recording is not None:
+        recording.start({"task": task, "agent": variant.name, "seed": seed,
+                         "llm": getattr(client, "name", llm),
+                         "model": getattr(client, "model", model or ""), **git_state()})
 
     def observe():
+        if recording is not None:
+            recording.on_observe()
         return system.observation(agent_context, episode.api.robot_time)
 
     def on_phase(phase: str, steps: int, oi: int) -> None:
         system.set_progress(agent_context, phase=phase, steps=steps, oi=oi)
+        if recording is not None:
+            recording.on_phase(phase, steps, oi)
 
-    transcript = Transcript(on_entry)
+    def on_any_entry(entry: TranscriptEntry) -> None:
+        if recording is not None:
+            recording.on_entry(entry)
+        if on_entry is not None:
+            on_entry(entry)
+
+    transcript = Transcript(on_any_entry)
     loop = AgentLoop(task=episode.instance.prompt, variant=variant, llm=client, api=episode.api,
                      observe=observe, check=episode.check, seed=seed, limits=limits,
                      robot_time_limit=robot_time_limit, transcript=transcript,
                      on_phase=on_phase)
     outcome = loop.run()
-    return AgentRun(task, variant.name, seed, getattr(client, "name", llm),
-                    getattr(client, "model", model or ""), outcome, transcript,
-                    list(getattr(client, "records", [])), episode)
+    run = AgentRun(task, variant.name, seed, getattr(client, "name", llm),
+                   getattr(client, "model", model or ""), outcome, transcript,
+                   list(getattr(client, "records", [])), episode)
+    if recording is not None:
+        recording.finish(run.summary())
+    return run

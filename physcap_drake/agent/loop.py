@@ -111,7 +111,10 @@ class AgentLoop:
                 context = AgentContext(self.task, observation, tuple(self.api.knowledge.entries),
                                        tuple(self.steps))
                 decision = self._decide(context)
-                self._note("decision", _describe(decision))
+                self._note("decision", _describe(decision), {
+                    "kind": decision.kind, "reason": decision.reason,
+                    "candidate": decision.candidate.model_dump() if decision.candidate
+                    else None})
                 answer = self._write_code(context, decision)
                 step, observation = self._execute(decision, answer, observation)
                 finished = decision.kind == "final" or (decision.kind == "task"
@@ -151,11 +154,12 @@ class AgentLoop:
     def _look(self) -> Observation:
         self._phase("observing")
         observation = self._observe()
-        self._note("observation", "objects in view:\n" + observation.as_text())
+        self._note("observation", "objects in view:\n" + observation.as_text(),
+                   {"objects": [dc.asdict(o) for o in observation.objects]})
         return observation
 
-    def _note(self, kind: str, text: str) -> None:
-        self.transcript.add(kind, len(self.steps), self.api.robot_time, text)
+    def _note(self, kind: str, text: str, data: dict | None = None) -> None:
+        self.transcript.add(kind, len(self.steps), self.api.robot_time, text, data)
 
     # --- deciding ------------------------------------------------------------------------
 
@@ -183,7 +187,7 @@ class AgentLoop:
     def _plan(self, context: AgentContext, mode: str, model):
         plan, _ = ask_structured(self.llm, self._prompts.planner(context, mode), model,
                                  repairs=self.variant.repair_attempts)
-        self._note("planner", json.dumps(plan.model_dump(), indent=1))
+        self._note("planner", json.dumps(plan.model_dump(), indent=1), plan.model_dump())
         return plan
 
     def _order(self, context: AgentContext, candidates: list[Candidate]) -> list[Candidate]:
@@ -201,7 +205,8 @@ class AgentLoop:
             repairs=self.variant.repair_attempts,
             check=lambda a: check_reordering(candidates, a))
         self._note("prioritizer", "\n".join(
-            f"{s.priority_score:4.1f}  {s.name}: {s.reason}" for s in answer.scored_candidates))
+            f"{s.priority_score:4.1f}  {s.name}: {s.reason}" for s in answer.scored_candidates),
+            answer.model_dump())
         return ordered
 
     # --- coding and running --------------------------------------------------------------
@@ -218,17 +223,20 @@ class AgentLoop:
     def _execute(self, decision: Decision, answer: CoderAnswer,
                  before: Observation) -> tuple[StepRecord, Observation]:
         index = len(self.steps)
-        self._note("code", answer.code)
+        self._note("code", answer.code, {
+            "thought": answer.thought, "code": answer.code, "decision": decision.kind,
+            "target": decision.candidate.name if decision.candidate else ""})
         self._phase("executing")
         outcome: CodeOutcome = run_sandboxed(answer.code, self._code_api.functions(),
                                              self._limits)
         if outcome.stdout.strip():
-            self._note("output", outcome.stdout)
+            self._note("output", outcome.stdout, {"stdout": outcome.stdout})
         if not outcome.ok:
-            self._note("error", f"{outcome.kind}: {outcome.error}")
+            self._note("error", f"{outcome.kind}: {outcome.error}",
+                       {"kind": outcome.kind, "error": outcome.error})
             self._make_safe()
         for entry in self.api.knowledge.entries[self._known:]:
-            self._note("measurement", entry.describe())
+            self._note("measurement", entry.describe(), dc.asdict(entry))
         self._known = len(self.api.knowledge.entries)
         after = self._look()
         kind = "final" if decision.kind == "final" or (

@@ -14,12 +14,14 @@ KINDS = ("observation", "planner", "prioritizer", "decision", "code", "output", 
 @dc.dataclass(frozen=True)
 class TranscriptEntry:
     """One entry: its kind (see KINDS), the code-block index it belongs to (-1 before any),
-    the robot time when it was written (s) and its text."""
+    the robot time when it was written (s), its text and, for recordings, the same content as
+    plain data (e.g. the planner's answer as a dict)."""
 
     kind: str
     step: int
     robot_time_s: float
     text: str
+    data: dict = dc.field(default_factory=dict)
 
     def as_json(self) -> dict:
         return dc.asdict(self)
@@ -32,10 +34,11 @@ class Transcript:
         self.entries: list[TranscriptEntry] = []
         self._listener = listener
 
-    def add(self, kind: str, step: int, robot_time_s: float, text: str) -> None:
+    def add(self, kind: str, step: int, robot_time_s: float, text: str,
+            data: dict | None = None) -> None:
         if kind not in KINDS:
             raise ValueError(f"unknown transcript entry kind {kind!r}; one of {KINDS}")
-        entry = TranscriptEntry(kind, step, round(robot_time_s, 3), text)
+        entry = TranscriptEntry(kind, step, round(robot_time_s, 3), text, data or {})
         self.entries.append(entry)
         if self._listener is not None:
             self._listener(entry)

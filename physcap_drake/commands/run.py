@@ -16,6 +16,7 @@ from physcap_drake.agent.llm.factory import VALID_SPECS
 from physcap_drake.agent.transcript import TranscriptEntry
 from physcap_drake.agent.variant import variant_names
 from physcap_drake.commands.common import console, error_console
+from physcap_drake.recording.episode_folder import MCAP_FILE, record_episode
 from physcap_drake.scenario_errors import ScenarioError
 from physcap_drake.tasks.registry import TASKS
 
@@ -51,6 +52,14 @@ def run(task: Annotated[str, typer.Option("--task", help=f"One of: {', '.join(TA
                               "segmenter) or vlm (the model points; needs an image model).")
                            ] = "offline",
         quiet: Annotated[bool, typer.Option("--quiet", help="Print only the summary.")] = False,
+        out: Annotated[Path | None, typer.Option(
+            "--out", help="Write the episode's folder here: episode.mcap (open it in "
+                          "Foxglove), transcript.md, summary.json, calls.jsonl.")] = None,
+        meshcat_html: Annotated[bool, typer.Option(
+            "--meshcat-html", help="With --out: also save meshcat.html, a replay of the run "
+                                   "for any browser.")] = False,
+        overwrite: Annotated[bool, typer.Option(
+            "--overwrite", help="With --out: replace a recording already there.")] = False,
         ) -> None:
     """Run one episode of a task with an agent and print success, OI, robot time and the
     transcript (thoughts, code blocks, measurements)."""
@@ -58,14 +67,21 @@ def run(task: Annotated[str, typer.Option("--task", help=f"One of: {', '.join(TA
         error_console.print(f"[bold red]error:[/] unknown task {task!r}; one of "
                             f"{', '.join(TASKS)}")
         raise typer.Exit(code=2)
-    viewer = Meshcat() if meshcat else None
-    if viewer is not None:
+    if meshcat_html and out is None:
+        error_console.print("[bold red]error:[/] --meshcat-html needs --out DIR")
+        raise typer.Exit(code=2)
+    viewer = Meshcat() if (meshcat or meshcat_html) else None
+    if viewer is not None and meshcat:
         console.print(f"Meshcat is at {viewer.web_url()}")
+    options = dict(agent=agent, llm=llm, model=model, meshcat=viewer, pointer=pointer,
+                   on_entry=None if quiet else _print_entry)
     try:
-        result = run_agent_episode(task, seed, agent=agent, llm=llm, model=model,
-                                   meshcat=viewer, pointer=pointer,
-                                   on_entry=None if quiet else _print_entry)
-    except (ValueError, ScenarioError, LLMError, ImportError) as error:
+        if out is None:
+            result = run_agent_episode(task, seed, **options)
+        else:
+            result = record_episode(out, task, seed, meshcat_html=meshcat_html,
+                                    overwrite=overwrite, **options)
+    except (ValueError, ScenarioError, LLMError, ImportError, FileExistsError) as error:
         error_console.print(f"[bold red]error:[/] {escape(str(error))}", soft_wrap=True)
         raise typer.Exit(code=2) from None
     summary = result.summary()
@@ -82,5 +98,7 @@ def run(task: Annotated[str, typer.Option("--task", help=f"One of: {', '.join(TA
     if json_path is not None:
         json_path.write_text(json.dumps(summary, indent=2))
         console.print(f"summary written to {json_path}")
+    if out is not None:
+        console.print(f"episode folder: {out} (open {out / MCAP_FILE} in Foxglove)")
     if not summary["success"]:
         raise typer.Exit(code=1)

@@ -9,6 +9,8 @@ from physcap_drake.perception.camera_geometry import CameraGeometry
 from physcap_drake.perception.object_locator import ObjectLocator
 from physcap_drake.perception.offline_pointer import OfflinePointer
 from physcap_drake.perception.visible_objects import VisibleObject
+from physcap_drake.recording.mcap_recorder import make_mcap_recorder
+from physcap_drake.recording.mcap_sink import McapSink
 from physcap_drake.resources import stations_dir
 from physcap_drake.robot_api import RobotAPI
 from physcap_drake.robot_diagram import RobotDiagram, build_robot_diagram
@@ -45,10 +47,11 @@ class Episode:
 
 
 def make_episode(task_name: str, seed: int, answer: str = "", meshcat=None, *,
-                 with_agent: bool = False) -> Episode:
+                 with_agent: bool = False, sink: McapSink | None = None) -> Episode:
     """Loads stations/<task>.yaml, lays out the objects for `seed`, builds and initializes the
     simulation with the objects' hidden masses, and wires camera perception to the API (and,
-    `with_agent`, to an AgentSystem in the diagram)."""
+    `with_agent`, to an AgentSystem in the diagram). With a `sink`, an McapRecorder in the
+    diagram records the station's signals to it."""
     task = get_task(task_name)
     scenario = load_scenario(stations_dir() / task.scenario_file)
     instance = task.instance(seed, answer or scenario.task.answer)
@@ -59,8 +62,10 @@ def make_episode(task_name: str, seed: int, answer: str = "", meshcat=None, *,
         pointers.append(OfflinePointer(_catalog(instance, station.GetSubsystemByName("plant"))))
         return AgentSystem(pointers[-1])
 
-    robot = build_robot_diagram(scenario, meshcat, make_agent=make_agent if with_agent
-                                else None)
+    robot = build_robot_diagram(
+        scenario, meshcat, make_agent=make_agent if with_agent else None,
+        make_recorder=None if sink is None else (
+            lambda station: make_mcap_recorder(sink, station, scenario)))
     simulator = robot.make_simulator()
     plant = robot.station.GetSubsystemByName("plant")
     instance.apply_hidden_masses(plant, plant.GetMyMutableContextFromRoot(

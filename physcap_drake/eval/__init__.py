@@ -1,0 +1,1 @@
+"""The evaluation harness: the grid of tasks × agent variants × trials, and its tables."""

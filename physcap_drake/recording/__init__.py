@@ -1,0 +1,1 @@
+"""Recording runs to MCAP (written with foxglove-sdk, read with mcap) and episode folders."""

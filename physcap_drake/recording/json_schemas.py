@@ -1,0 +1,69 @@
+"""JSON Schemas of the agent's recorded messages (the `physcap.*` schemas of `topics`).
+
+Every agent message is a transcript entry: its kind, the code block it belongs to, the robot
+time (s), a readable text and, under `data`, the structured content for that topic.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from physcap_drake.agent.schemas import PlannerAnswer, PrioritizerAnswer
+from physcap_drake.recording import topics
+
+
+def _entry_schema(data_schema: dict[str, Any]) -> dict[str, Any]:
+    return {
+        "type": "object",
+        "properties": {
+            "kind": {"type": "string"},
+            "step": {"type": "integer", "description": "code block index (-1 before any)"},
+            "robot_time_s": {"type": "number", "description": "robot execution time, s"},
+            "text": {"type": "string"},
+            "data": data_schema,
+        },
+        "required": ["kind", "step", "robot_time_s", "text"],
+    }
+
+
+_ANY_OBJECT = {"type": "object"}
+_STRING = {"type": "string"}
+
+_CODE_BLOCK = {"type": "object", "properties": {
+    "thought": _STRING, "code": _STRING, "decision": _STRING, "target": _STRING}}
+_CODE_OUTPUT = {"type": "object", "properties": {"stdout": _STRING}}
+_AGENT_ERROR = {"type": "object", "properties": {"kind": _STRING, "error": _STRING}}
+_MEASUREMENT = {"type": "object", "properties": {
+    "subject": _STRING, "prop": _STRING, "value": {"type": "number"}, "unit": _STRING,
+    "ok": {"type": "boolean"}, "note": _STRING, "robot_time_s": {"type": "number"}}}
+
+_LLM_CALL = {"type": "object", "properties": {
+    "role": _STRING, "model": _STRING, "system": _STRING, "prompt": _STRING,
+    "response": _STRING, "latency_s": {"type": "number", "description": "wall clock, s"},
+    "input_tokens": {"type": "integer"}, "output_tokens": {"type": "integer"},
+    "images": {"type": "integer"}, "key": _STRING, "attempts": {"type": "integer"}}}
+_PROGRESS = {"type": "object", "properties": {
+    "phase": _STRING, "steps": {"type": "integer"}, "oi": {"type": "integer"},
+    "note": _STRING}}
+_SUMMARY = {"type": "object", "properties": {
+    "task": _STRING, "agent": _STRING, "seed": {"type": "integer"},
+    "success": {"type": ["boolean", "null"]}, "oi": {"type": "integer"},
+    "robot_time_s": {"type": "number"}}}
+
+
+def agent_schemas() -> dict[str, tuple[str, dict[str, Any]]]:
+    """topic -> (schema name, JSON Schema) for every JSON topic of a recording."""
+    return {
+        topics.AGENT_TRANSCRIPT: ("physcap.TranscriptEntry", _entry_schema(_ANY_OBJECT)),
+        topics.AGENT_PLANNER: ("physcap.PlannerAnswer",
+                               _entry_schema(PlannerAnswer.model_json_schema())),
+        topics.AGENT_PRIORITIZER: ("physcap.PrioritizerAnswer",
+                                   _entry_schema(PrioritizerAnswer.model_json_schema())),
+        topics.AGENT_CODE: ("physcap.CodeBlock", _entry_schema(_CODE_BLOCK)),
+        topics.AGENT_OUTPUT: ("physcap.CodeOutput", _entry_schema(_CODE_OUTPUT)),
+        topics.AGENT_ERROR: ("physcap.AgentError", _entry_schema(_AGENT_ERROR)),
+        topics.AGENT_MEASUREMENT: ("physcap.Measurement", _entry_schema(_MEASUREMENT)),
+        topics.LLM_CALLS: ("physcap.LLMCall", _LLM_CALL),
+        topics.AGENT_PROGRESS: ("physcap.AgentProgress", _PROGRESS),
+        topics.EPISODE_SUMMARY: ("physcap.EpisodeSummary", _SUMMARY),
+    }

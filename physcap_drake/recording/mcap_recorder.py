@@ -1,0 +1,159 @@
+"""McapRecorder: the diagram's recorder, writing the station's signals to an McapSink.
+
+It reads only station outputs, through input ports named like them: the arm's measured joint
+positions, velocities and torques, the gripper's opening and effort, the camera image and,
+where the station has it (simulation), `body_poses` for the frames of every body. From these it
+writes, by periodic publish events (so the simulation's state is untouched):
+
+- every `state_period` s: joint states (J1..J6 and the gripper) and the frame transforms
+  (every body in the world frame, plus the fingertip frame);
+- every `image_period` s: the camera image as JPEG (images are rendered only then);
+- every `flush_period` s: a flush, so a killed process leaves a readable file.
+
+The scene's geometry (SceneUpdate) is written once, at the first state sample.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from pydrake.common.value import AbstractValue
+from pydrake.math import RigidTransform
+from pydrake.multibody.plant import MultibodyPlant
+from pydrake.systems.framework import Context, EventStatus, LeafSystem
+from pydrake.systems.sensors import ImageRgba8U
+
+from physcap_drake.perception.jpeg import encode_jpeg
+from physcap_drake.recording import topics
+from physcap_drake.recording.mcap_sink import McapSink, frame_transform
+from physcap_drake.recording.scene_geometry import body_frame_name, scene_update
+from physcap_drake.station import ports
+
+#: The gripper's entry in the recorded joint states.
+GRIPPER_JOINT = "gripper"
+
+
+class McapRecorder(LeafSystem):
+    """See the module docstring.
+
+    Args:
+        sink: where messages go (the recorder does not close it).
+        joint_names: names of J1..J6 in the recording.
+        plant, scene_graph: the simulated world, for body names and geometry; None on a
+            station without `body_poses` (then only joint states and images are recorded).
+        fingertip: (body, X_BF), the fingertip frame F fixed in a body of the plant.
+        camera_frame: frame id written with the camera images.
+        state_period, image_period, flush_period: s of simulated time (image_period 0: no
+            periodic images; `record_image_now` still works).
+    """
+
+    def __init__(self, sink: McapSink, joint_names: list[str], *,
+                 plant: MultibodyPlant | None = None, scene_graph=None,
+                 fingertip: tuple | None = None, camera_frame: str = "camera",
+                 state_period: float = 0.05, image_period: float = 2.0,
+                 flush_period: float = 1.0):
+        super().__init__()
+        if len(joint_names) != ports.NUM_ARM_JOINTS:
+            raise ValueError(f"joint_names needs {ports.NUM_ARM_JOINTS} names, got "
+                             f"{len(joint_names)}")
+        for name, value in (("state_period", state_period), ("flush_period", flush_period)):
+            if not value > 0.0:
+                raise ValueError(f"{name} must be > 0 s, got {value}")
+        if image_period < 0.0:
+            raise ValueError(f"image_period must be >= 0 s, got {image_period}")
+        self._sink = sink
+        self._joint_names = [*joint_names, GRIPPER_JOINT]
+        self._plant, self._scene_graph = plant, scene_graph
+        self._camera_frame = camera_frame
+        self._vectors = {name: self.DeclareVectorInputPort(name, size)
+                         for name, size in ports.VECTOR_OUTPUTS.items()}
+        self._rgb = self.DeclareAbstractInputPort(ports.CAMERA_RGB,
+                                                  AbstractValue.Make(ImageRgba8U()))
+        self._body_poses = None
+        if plant is not None:
+            self._body_poses = self.DeclareAbstractInputPort(
+                ports.BODY_POSES, AbstractValue.Make([RigidTransform()]))
+            self._frames = [(int(b), body_frame_name(plant, plant.get_body(b)))
+                            for b in _body_indices(plant)]
+            self._fingertip = None if fingertip is None else (int(fingertip[0].index()),
+                                                              fingertip[1])
+        self.DeclareInitializationPublishEvent(self._write_scene)
+        self.DeclarePeriodicPublishEvent(state_period, 0.0, self._write_state)
+        if image_period > 0.0:
+            self.DeclarePeriodicPublishEvent(image_period, 0.0, self._write_image)
+        self.DeclarePeriodicPublishEvent(flush_period, 0.0, self._flush)
+
+    @property
+    def sink(self) -> McapSink:
+        return self._sink
+
+    def record_image_now(self, context: Context) -> None:
+        """Writes the camera image at this moment (used at every agent decision)."""
+        self._write_image(context)
+
+    # --- events --------------------------------------------------------------------------
+
+    def _write_scene(self, context: Context) -> EventStatus:
+        if self._plant is not None and self._scene_graph is not None:
+            self._sink.scene(context.get_time(), scene_update(self._plant, self._scene_graph,
+                                                              context.get_time()))
+        return EventStatus.Succeeded()
+
+    def _write_state(self, context: Context) -> EventStatus:
+        time_s = context.get_time()
+        value = {name: port.Eval(context) for name, port in self._vectors.items()}
+        position = np.append(value[ports.ARM_POSITION_MEASURED],
+                             value[ports.GRIPPER_POSITION_MEASURED])
+        velocity = np.append(value[ports.ARM_VELOCITY_ESTIMATED], np.nan)
+        effort = np.append(value[ports.ARM_TORQUE_MEASURED],
+                           value[ports.GRIPPER_EFFORT_MEASURED])
+        self._sink.joint_states(time_s, self._joint_names, position, velocity, effort)
+        if self._body_poses is not None:
+            poses = self._body_poses.Eval(context)
+            transforms = [frame_transform(time_s, name, poses[index])
+                          for index, name in self._frames]
+            if self._fingertip is not None:
+                body, X_BF = self._fingertip
+                transforms.append(frame_transform(time_s, topics.FINGERTIP_FRAME,
+                                                  poses[body] @ X_BF))
+            self._sink.transforms(time_s, transforms)
+        return EventStatus.Succeeded()
+
+    def _write_image(self, context: Context) -> EventStatus:
+        rgb = self._rgb.Eval(context).data
+        self._sink.camera_image(context.get_time(), encode_jpeg(rgb), self._camera_frame)
+        return EventStatus.Succeeded()
+
+    def _flush(self, context: Context) -> EventStatus:
+        self._sink.flush()
+        return EventStatus.Succeeded()
+
+
+def _body_indices(plant: MultibodyPlant) -> list:
+    """Every body except the world body (its frame is the root of the transforms)."""
+    from pydrake.multibody.tree import BodyIndex
+
+    return [BodyIndex(i) for i in range(1, plant.num_bodies())]
+
+
+def make_mcap_recorder(sink: McapSink, station, scenario, *, image_period: float = 2.0
+                       ) -> McapRecorder:
+    """The recorder for a built station: joint names from the arm model, and, when the
+    station has a simulated world (subsystems "plant" and "scene_graph"), its bodies, geometry
+    and the gripper's TCP frame as the fingertip."""
+    from physcap_drake.control.planning_model import TCP_FRAME
+    from physcap_drake.station.robot_model import moving_joints
+
+    plant = station.GetSubsystemByName("plant") if station.HasSubsystemNamed("plant") else None
+    scene_graph = (station.GetSubsystemByName("scene_graph")
+                   if station.HasSubsystemNamed("scene_graph") else None)
+    config = scenario.station
+    if plant is not None:
+        arm = plant.GetModelInstanceByName(config.arm_model)
+        joint_names = [joint.name() for joint in moving_joints(plant, arm)]
+        tcp = plant.GetFrameByName(TCP_FRAME, plant.GetModelInstanceByName(config.gripper_model))
+        fingertip = (tcp.body(), tcp.GetFixedPoseInBodyFrame())
+    else:
+        joint_names = [f"joint{i}" for i in range(1, ports.NUM_ARM_JOINTS + 1)]
+        fingertip = None
+    return McapRecorder(sink, joint_names, plant=plant, scene_graph=scene_graph,
+                        fingertip=fingertip, image_period=image_period)

@@ -1,0 +1,120 @@
+"""Reading a recording back with the `mcap` reader, including one cut short by a crash.
+
+A finished file is read through its summary; a file whose writer never closed (the process
+was killed) has no summary, so it is read front to back and reading stops cleanly where the
+data ends. Foxglove's protobuf messages are decoded with `mcap-protobuf-support`, the agent's
+JSON messages with `json`.
+"""
+
+from __future__ import annotations
+
+import dataclasses as dc
+import json
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+from mcap.decoder import DecoderFactory as McapDecoderFactory
+from mcap.exceptions import EndOfFile, McapError, RecordLengthLimitExceeded
+from mcap.reader import NonSeekingReader
+from mcap.records import Schema
+from mcap_protobuf.decoder import DecoderFactory as ProtobufDecoderFactory
+
+
+class JsonDecoderFactory(McapDecoderFactory):
+    """Decodes messages whose channel encoding is "json" into Python values."""
+
+    def decoder_for(self, message_encoding: str, schema: Schema | None):
+        if message_encoding != "json":
+            return None
+        return lambda data: json.loads(data)
+
+
+@dc.dataclass(frozen=True)
+class RecordedMessage:
+    """One message: its topic, schema name, log time (ns of simulated time) and the decoded
+    value (a protobuf message for Foxglove schemas, a dict for JSON topics)."""
+
+    topic: str
+    schema: str
+    log_time_ns: int
+    value: Any
+
+    @property
+    def time_s(self) -> float:
+        return self.log_time_ns * 1e-9
+
+
+@dc.dataclass
+class Recording:
+    """Everything read from one file. complete: the file was closed properly (it has its
+    summary section); False for a file cut short."""
+
+    path: Path
+    messages: list[RecordedMessage]
+    metadata: dict[str, dict[str, str]]
+    complete: bool
+
+    def on(self, topic: str) -> list[RecordedMessage]:
+        return [m for m in self.messages if m.topic == topic]
+
+    def topics(self) -> dict[str, str]:
+        """topic -> schema name, for every topic that has messages."""
+        return {m.topic: m.schema for m in self.messages}
+
+
+def iter_messages(path: str | Path) -> Iterator[RecordedMessage]:
+    """The file's messages in the order they were written, decoded; stops quietly at the end
+    of the data of a file cut short (see `read_recording` to know whether it was)."""
+    with Path(path).open("rb") as stream:
+        reader = NonSeekingReader(stream, decoder_factories=[ProtobufDecoderFactory(),
+                                                             JsonDecoderFactory()])
+        try:
+            for schema, channel, message, value in reader.iter_decoded_messages(
+                    log_time_order=False):
+                yield RecordedMessage(channel.topic, schema.name if schema else "",
+                                      message.log_time, value)
+        except (EndOfFile, RecordLengthLimitExceeded):
+            # The file was cut short: its data ends here (the writer had begun a chunk whose
+            # length it writes only when the chunk is finished).
+            return
+
+
+def read_recording(path: str | Path) -> Recording:
+    """Reads a whole recording (see the module docstring). Raises FileNotFoundError for a
+    missing file and McapError for a file that is not MCAP at all."""
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"no recording at {path}")
+    messages = list(iter_messages(path))
+    metadata, complete = _summary_metadata(path)
+    return Recording(path, messages, metadata, complete)
+
+
+def _summary_metadata(path: Path) -> tuple[dict[str, dict[str, str]], bool]:
+    """The metadata records, and whether the file is complete (has a footer and summary)."""
+    from mcap.reader import make_reader
+
+    with path.open("rb") as stream:
+        reader = make_reader(stream)
+        try:
+            metadata = {record.name: dict(record.metadata) for record in reader.iter_metadata()}
+            complete = reader.get_summary() is not None
+        except (McapError, EOFError):
+            return _metadata_front_to_back(path), False
+    return metadata, complete
+
+
+def _metadata_front_to_back(path: Path) -> dict[str, dict[str, str]]:
+    from mcap.records import Metadata
+    from mcap.stream_reader import StreamReader
+
+    found: dict[str, dict[str, str]] = {}
+    with path.open("rb") as stream:
+        try:
+            for record in StreamReader(stream).records:
+                if isinstance(record, Metadata):
+                    found[record.name] = dict(record.metadata)
+        except (McapError, EOFError):
+            pass
+    return found

@@ -1,0 +1,113 @@
+"""Replaying a recorded episode's motion in Meshcat, from its MCAP file alone.
+
+The recording's metadata names the task and seed; the scene is rebuilt from them (geometry
+only: nothing is simulated), then each recorded sample poses it: the arm's joints and the
+gripper's fingers from `/piper/joint_states`, every free object from `/tf`. The samples go into
+a Meshcat animation, which the browser plays (and `save_meshcat_html` can keep as one file).
+"""
+
+from __future__ import annotations
+
+import dataclasses as dc
+from pathlib import Path
+
+from pydrake.geometry import Meshcat
+
+from physcap_drake.recording import topics
+from physcap_drake.recording.mcap_recorder import GRIPPER_JOINT
+from physcap_drake.recording.reading import Recording, read_recording
+from physcap_drake.recording.scene_geometry import body_frame_name
+
+
+class ReplayError(ValueError):
+    """The file cannot be replayed (not an episode recording, or no motion in it)."""
+
+
+@dc.dataclass(frozen=True)
+class ReplayedEpisode:
+    """What was replayed: the recording, its task and seed, the number of samples, the names
+    of the objects moved from recorded transforms, and the animation's length (s)."""
+
+    recording: Recording
+    task: str
+    seed: int
+    samples: int
+    moved_objects: tuple[str, ...]
+    duration_s: float
+
+
+def episode_particulars(recording: Recording) -> tuple[str, int]:
+    meta = recording.metadata.get(topics.EPISODE_METADATA)
+    if not meta or "task" not in meta or "seed" not in meta:
+        raise ReplayError(f"{recording.path} has no '{topics.EPISODE_METADATA}' metadata "
+                          "(task and seed); it was not written by a physcap episode")
+    return meta["task"], int(meta["seed"])
+
+
+def replay_in_meshcat(path: str | Path, meshcat: Meshcat) -> ReplayedEpisode:
+    """Builds the recorded episode's scene in `meshcat` and loads its motion as an animation
+    (see the module docstring). Raises ReplayError or FileNotFoundError."""
+    from physcap_drake.tasks.episode import make_episode
+
+    recording = read_recording(path)
+    task, seed = episode_particulars(recording)
+    states = recording.on(topics.JOINT_STATES)
+    if not states:
+        raise ReplayError(f"{path} holds no joint states ({topics.JOINT_STATES}) to replay")
+    transforms = {m.log_time_ns: m.value for m in recording.on(topics.TRANSFORMS)}
+    episode = make_episode(task, seed, meshcat=meshcat)
+    diagram = episode.robot.diagram
+    context = diagram.CreateDefaultContext()
+    plant = episode.plant
+    plant_context = plant.GetMyMutableContextFromRoot(context)
+    joints = {joint.name(): joint for joint in
+              (plant.get_joint(i) for i in plant.GetJointIndices())}
+    fingers = [joints[j.name()] for j in _finger_joints(plant, episode.scenario)]
+    free_bodies = {body_frame_name(plant, plant.get_body(i)): plant.get_body(i)
+                   for i in plant.GetFloatingBaseBodies()}
+    moved: set[str] = set()
+    meshcat.StartRecording(frames_per_second=32.0, set_visualizations_while_recording=False)
+    for message in states:
+        context.SetTime(message.time_s)
+        for state in message.value.joints:
+            if state.name == GRIPPER_JOINT:
+                for finger in fingers:
+                    finger.set_translation(plant_context, 0.5 * state.position)
+            elif state.name in joints:
+                joints[state.name].set_angle(plant_context, state.position)
+        frame = transforms.get(message.log_time_ns)
+        for transform in (frame.transforms if frame is not None else []):
+            body = free_bodies.get(transform.child_frame_id)
+            if body is not None:
+                plant.SetFreeBodyPose(plant_context, body, _rigid_transform(transform))
+                moved.add(transform.child_frame_id)
+        diagram.ForcedPublish(context)
+    meshcat.StopRecording()
+    meshcat.PublishRecording()
+    return ReplayedEpisode(recording, task, seed, len(states), tuple(sorted(moved)),
+                           states[-1].time_s)
+
+
+def _finger_joints(plant, scenario) -> list:
+    from physcap_drake.station.robot_model import moving_joints
+
+    return moving_joints(plant, plant.GetModelInstanceByName(scenario.station.gripper_model))
+
+
+def _rigid_transform(transform):
+    from pydrake.common.eigen_geometry import Quaternion
+    from pydrake.math import RigidTransform, RotationMatrix
+
+    q, p = transform.rotation, transform.translation
+    return RigidTransform(RotationMatrix(Quaternion(w=q.w, x=q.x, y=q.y, z=q.z)),
+                          [p.x, p.y, p.z])
+
+
+def transcript_markdown(recording: Recording) -> str:
+    """The recorded transcript, rendered as in transcript.md."""
+    from physcap_drake.agent.transcript import Transcript, TranscriptEntry
+
+    transcript = Transcript()
+    transcript.entries = [TranscriptEntry(**m.value) for m in
+                          recording.on(topics.AGENT_TRANSCRIPT)]
+    return transcript.as_markdown(f"Transcript of {recording.path.name}")

@@ -1,0 +1,55 @@
+"""The topics of a recorded run and the schemas their messages follow.
+
+Robot and scene topics use Foxglove's well-known schemas (protobuf), so Foxglove's panels show
+them without set-up; the agent's topics are JSON with a JSON Schema named `physcap.*`.
+Times: every message's log time is the simulator's time in nanoseconds since the start of the
+episode (not wall-clock time: a recording is identical whenever the run is). Simulated time
+runs while the robot executes skills and while it holds still after one; the episode's robot
+execution time counts only the former, so it is a little shorter than the last log time.
+"""
+
+#: foxglove.JointStates: J1..J6 (position rad, velocity rad/s, effort N·m, measured) and the
+#: gripper (position = opening in m, effort = normalized effort 0..1).
+JOINT_STATES = "/piper/joint_states"
+#: foxglove.FrameTransforms: every body's pose in the world frame, and the fingertip frame.
+TRANSFORMS = "/tf"
+#: foxglove.SceneUpdate: the scene's geometry, each entity locked to its body's frame.
+SCENE = "/scene"
+#: foxglove.CompressedImage (JPEG): the workspace camera, at a low rate and at each decision.
+CAMERA_IMAGE = "/camera/image"
+#: foxglove.Log: every transcript entry as one readable line (Foxglove's Log panel).
+AGENT_LOG = "/agent/log"
+#: physcap.TranscriptEntry (JSON): every transcript entry, with its structured data.
+AGENT_TRANSCRIPT = "/agent/transcript"
+#: physcap.PlannerAnswer, physcap.PrioritizerAnswer, physcap.CodeBlock, physcap.CodeOutput,
+#: physcap.AgentError, physcap.Measurement (JSON): the agent's messages by kind.
+AGENT_PLANNER = "/agent/planner"
+AGENT_PRIORITIZER = "/agent/prioritizer"
+AGENT_CODE = "/agent/code"
+AGENT_OUTPUT = "/agent/stdout"
+AGENT_ERROR = "/agent/error"
+AGENT_MEASUREMENT = "/agent/measurement"
+#: physcap.LLMCall (JSON): one record per language-model call (prompt, answer, latency, tokens).
+LLM_CALLS = "/agent/llm_calls"
+#: physcap.AgentProgress (JSON): the AgentSystem's phase, code blocks run and OI.
+AGENT_PROGRESS = "/agent/progress"
+#: physcap.EpisodeSummary (JSON): written once, when the episode ends.
+EPISODE_SUMMARY = "/episode/summary"
+
+#: The fingertip frame's name in TRANSFORMS (the gripper's TCP between the finger pads).
+FINGERTIP_FRAME = "fingertip"
+#: The root frame every transform hangs from.
+WORLD_FRAME = "world"
+
+#: Transcript kinds that also go to their own topic.
+TOPIC_OF_KIND = {
+    "planner": AGENT_PLANNER,
+    "prioritizer": AGENT_PRIORITIZER,
+    "code": AGENT_CODE,
+    "output": AGENT_OUTPUT,
+    "error": AGENT_ERROR,
+    "measurement": AGENT_MEASUREMENT,
+}
+
+#: MCAP metadata record holding the episode's particulars (task, agent, seed, ...).
+EPISODE_METADATA = "physcap.episode"

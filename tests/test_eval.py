@@ -1,0 +1,102 @@
+"""The evaluation harness: the tables' arithmetic, the grid command (parallel workers,
+resume, the three result files) and determinism of a replayed run."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+from typer.testing import CliRunner
+
+from physcap_drake.cli import app
+from physcap_drake.eval.grid import EpisodeSpec, make_grid, parse_names
+from physcap_drake.eval.tables import make_cell, results_markdown
+from physcap_drake.recording import topics
+from physcap_drake.recording.episode_folder import record_episode
+from physcap_drake.recording.reading import read_recording
+
+
+def _summary(success: bool, oi: int, robot_time: float) -> dict:
+    return {"success": success, "oi": oi, "robot_time_s": robot_time, "wall_time_s": 1.0}
+
+
+def test_a_cell_averages_oi_over_all_trials_and_time_over_successes():
+    cell = make_cell("empty_cup", "physcap", [_summary(True, 1, 20.0), _summary(True, 2, 30.0),
+                                              _summary(False, 3, 99.0)], unfinished=1)
+    assert (cell.trials, cell.successes, cell.unfinished) == (3, 2, 1)
+    assert cell.sr == pytest.approx(2 / 3)
+    assert cell.oi_mean == pytest.approx(2.0) and cell.oi_std == pytest.approx(0.8165, abs=1e-4)
+    assert cell.time_mean_s == pytest.approx(25.0) and cell.time_std_s == pytest.approx(5.0)
+    row = cell.as_row()
+    assert row["paper_sr"] == pytest.approx(0.78) and row["paper_oi"] == pytest.approx(1.44)
+
+
+def test_a_cell_without_successes_has_no_time():
+    cell = make_cell("identify_empty_can", "cap", [_summary(False, 0, 10.0)], unfinished=0)
+    assert cell.sr == 0.0 and cell.time_mean_s is None
+
+
+def test_results_markdown_has_the_papers_two_tables():
+    cells = {("identify_empty_can", "physcap"): make_cell(
+                 "identify_empty_can", "physcap", [_summary(True, 1, 18.6)], 0),
+             ("empty_cup", "physcap"): make_cell("empty_cup", "physcap",
+                                                 [_summary(True, 2, 30.0)], 0)}
+    text = results_markdown(cells, ["identify_empty_can", "empty_cup"], ["physcap"], {})
+    assert "## Table 1 layout" in text and "## Simulated empty-cup task" in text
+    assert "| physcap | 1/1 | 1.00 | 18.6 ± 0.0 s |" in text
+    assert "| physcap | 80% | 2.5 | 239.0 ± 27.0 s |" in text  # the paper's Table 1 figure
+
+
+def test_grid_names_are_checked():
+    assert parse_names("all", ["a", "b"], "task") == ["a", "b"]
+    with pytest.raises(ValueError, match="unknown task 'c'.*a, b"):
+        parse_names("a,c", ["a", "b"], "task")
+    specs = make_grid(["empty_cup"], ["cap", "physcap"], 2)
+    assert specs[1] == EpisodeSpec("empty_cup", "cap", 1) and len(specs) == 4
+    with pytest.raises(ValueError, match="trials"):
+        make_grid(["empty_cup"], ["cap"], 0)
+
+
+def test_eval_runs_the_grid_in_parallel_and_resumes(tmp_path):
+    runner = CliRunner()
+    args = ["eval", "--tasks", "identify_empty_can", "--agents", "physcap,cap",
+            "--trials", "2", "--workers", "2", "--out", str(tmp_path)]
+    first = runner.invoke(app, args)
+    assert first.exit_code == 0, first.output
+    assert "4 to run with 2 worker(s)" in first.output
+    for name in ("results.md", "results.csv", "results.json"):
+        assert (tmp_path / name).is_file()
+    results = json.loads((tmp_path / "results.json").read_text())
+    cell = next(c for c in results["cells"] if c["agent"] == "physcap")
+    assert (cell["trials"], cell["successes"], cell["oi_mean"]) == (2, 2, 1.0)
+    summary = tmp_path / "identify_empty_can" / "physcap" / "seed_001" / "summary.json"
+    stamp = summary.stat().st_mtime_ns
+    (tmp_path / "identify_empty_can" / "cap" / "seed_000" / "summary.json").unlink()
+    second = runner.invoke(app, args)
+    assert second.exit_code == 0, second.output
+    assert "3 already finished" in second.output and "1 to run" in second.output
+    assert summary.stat().st_mtime_ns == stamp  # a finished episode is not run again
+    csv_rows = (tmp_path / "results.csv").read_text().splitlines()
+    assert csv_rows[0].startswith("task,agent,trials,successes") and len(csv_rows) == 3
+
+
+def test_eval_names_an_unknown_agent():
+    result = CliRunner().invoke(app, ["eval", "--agents", "physcap,oracle", "--out", "/tmp/x"])
+    assert result.exit_code == 2 and "unknown agent variant 'oracle'" in result.output
+
+
+def test_a_replayed_run_gives_identical_results(tmp_path):
+    first = record_episode(tmp_path / "first", "identify_empty_can", 2, agent="physcap")
+    again = record_episode(tmp_path / "again", "identify_empty_can", 2, agent="physcap",
+                           llm=f"replay:{tmp_path / 'first' / 'calls.jsonl'}")
+    varying = ("wall_time_s", "llm", "llm_latency_s")
+    assert {k: v for k, v in first.summary().items() if k not in varying} == \
+        {k: v for k, v in again.summary().items() if k not in varying}
+    assert first.transcript.entries == again.transcript.entries
+
+    def motion(folder):
+        recording = read_recording(folder / "episode.mcap")
+        return [(m.log_time_ns, [(j.position, j.effort) for j in m.value.joints])
+                for m in recording.on(topics.JOINT_STATES)]
+
+    assert motion(tmp_path / "first") == motion(tmp_path / "again")

@@ -1,0 +1,240 @@
+"""Recording an episode: the MCAP's topics and schemas, the episode folder, a recording cut
+short by a kill or Ctrl-C, the Meshcat replay (in headless Chromium) and replaying from MCAP."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+from browser import find_chromium, meshcat_scene_tree
+from mcap.reader import NonSeekingReader
+from pydrake.geometry import Meshcat
+
+from physcap_drake.agent.llm import load_jsonl
+from physcap_drake.recording import topics
+from physcap_drake.recording.episode_folder import record_episode
+from physcap_drake.recording.reading import read_recording
+from physcap_drake.recording.replay import ReplayError, replay_in_meshcat, transcript_markdown
+
+TASK, SEED = "identify_empty_can", 0
+
+EXPECTED_SCHEMAS = {
+    topics.JOINT_STATES: "foxglove.JointStates",
+    topics.TRANSFORMS: "foxglove.FrameTransforms",
+    topics.SCENE: "foxglove.SceneUpdate",
+    topics.CAMERA_IMAGE: "foxglove.CompressedImage",
+    topics.AGENT_LOG: "foxglove.Log",
+    topics.AGENT_TRANSCRIPT: "physcap.TranscriptEntry",
+    topics.AGENT_PLANNER: "physcap.PlannerAnswer",
+    topics.AGENT_PRIORITIZER: "physcap.PrioritizerAnswer",
+    topics.AGENT_CODE: "physcap.CodeBlock",
+    topics.AGENT_OUTPUT: "physcap.CodeOutput",
+    topics.AGENT_MEASUREMENT: "physcap.Measurement",
+    topics.LLM_CALLS: "physcap.LLMCall",
+    topics.AGENT_PROGRESS: "physcap.AgentProgress",
+    topics.EPISODE_SUMMARY: "physcap.EpisodeSummary",
+}
+
+
+@pytest.fixture(scope="module")
+def episode_folder(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("episode")
+    run = record_episode(folder, TASK, SEED, agent="physcap", llm="reference",
+                         meshcat_html=True, meshcat=Meshcat())
+    assert run.outcome.success
+    return folder
+
+
+@pytest.fixture(scope="module")
+def recording(episode_folder):
+    return read_recording(episode_folder / "episode.mcap")
+
+
+def test_recording_has_the_documented_topics_and_schemas(recording):
+    assert recording.complete
+    assert recording.topics() == EXPECTED_SCHEMAS
+
+
+def test_every_recorded_message_decodes(episode_folder, recording):
+    with (episode_folder / "episode.mcap").open("rb") as stream:
+        raw = sum(1 for _ in NonSeekingReader(stream).iter_messages(log_time_order=False))
+    assert len(recording.messages) == raw > 500
+    for message in recording.messages:
+        assert message.value is not None, message.topic
+
+
+def test_joint_states_and_frames_carry_the_robot_signals(recording):
+    states = recording.on(topics.JOINT_STATES)
+    names = [joint.name for joint in states[0].value.joints]
+    assert len(names) == 7 and names[-1] == "gripper"
+    times = np.array([m.time_s for m in states])
+    assert np.allclose(np.diff(times), 0.05, atol=1e-6)  # 20 Hz of simulated time
+    summary = recording.on(topics.EPISODE_SUMMARY)[0].value
+    assert summary["robot_time_s"] <= times[-1] <= summary["robot_time_s"] + 1.0
+    moving = np.array([[j.position for j in m.value.joints[:6]] for m in states])
+    assert np.ptp(moving, axis=0).max() > 0.5  # the arm moved, rad
+    torques = np.array([[j.effort for j in m.value.joints[:6]] for m in states])
+    assert 1.0 < np.abs(torques[:, 1:3]).max() < 20.0  # J2, J3 carry the arm's weight, N·m
+    frames = recording.on(topics.TRANSFORMS)[-1].value.transforms
+    children = {t.child_frame_id for t in frames}
+    assert topics.FINGERTIP_FRAME in children
+    assert {"red_can::red_can", "piper::link6"} <= children or any(
+        c.startswith("red_can::") for c in children)
+    assert all(t.parent_frame_id == topics.WORLD_FRAME for t in frames)
+
+
+def test_scene_and_camera_images(recording):
+    scene = recording.on(topics.SCENE)[0].value
+    frames = {entity.frame_id for entity in scene.entities}
+    assert any(f.startswith("piper::") for f in frames)
+    assert all(entity.frame_locked for entity in scene.entities)
+    images = recording.on(topics.CAMERA_IMAGE)
+    code_blocks = len(recording.on(topics.AGENT_CODE))
+    assert len(images) >= code_blocks + 1  # one per observation, plus the periodic ones
+    image = cv2.imdecode(np.frombuffer(images[0].value.data, np.uint8), cv2.IMREAD_COLOR)
+    assert images[0].value.format == "jpeg" and image.shape[2] == 3 and image.shape[0] >= 240
+
+
+def test_agent_messages_are_structured(recording):
+    planner = recording.on(topics.AGENT_PLANNER)[0].value
+    assert planner["kind"] == "planner" and planner["data"]["sufficient"] is False
+    assert planner["data"]["exploration_candidates"]
+    prioritizer = recording.on(topics.AGENT_PRIORITIZER)[0].value["data"]
+    assert all("priority_score" in c for c in prioritizer["scored_candidates"])
+    code = recording.on(topics.AGENT_CODE)[0].value["data"]
+    assert "get_mass" in code["code"] and code["decision"] == "explore"
+    measurement = recording.on(topics.AGENT_MEASUREMENT)[0].value["data"]
+    assert measurement["prop"] == "mass" and measurement["unit"] == "kg"
+    calls = [m.value for m in recording.on(topics.LLM_CALLS)]
+    assert {c["role"] for c in calls} >= {"planner", "prioritizer", "coder"}
+    assert all(c["input_tokens"] > 0 and c["latency_s"] >= 0 for c in calls)
+    meta = recording.metadata[topics.EPISODE_METADATA]
+    assert (meta["task"], meta["seed"], meta["agent"]) == (TASK, str(SEED), "physcap")
+
+
+def test_episode_folder_holds_transcript_summary_and_calls(episode_folder, recording):
+    summary = json.loads((episode_folder / "summary.json").read_text())
+    for key in ("task", "agent", "seed", "success", "oi", "robot_time_s", "wall_time_s",
+                "llm_calls", "input_tokens", "output_tokens", "llm_latency_s", "git_commit",
+                "git_dirty"):
+        assert key in summary, key
+    assert summary["success"] is True and summary["oi"] >= 1
+    assert summary == {**recording.on(topics.EPISODE_SUMMARY)[0].value,
+                       "git_commit": summary["git_commit"], "git_dirty": summary["git_dirty"]}
+    transcript = (episode_folder / "transcript.md").read_text()
+    assert "# Code block 0" in transcript and "# Code block 1" in transcript
+    assert len(load_jsonl(episode_folder / "calls.jsonl")) == summary["llm_calls"]
+
+
+def test_meshcat_html_shows_the_arm_in_headless_chromium(episode_folder, tmp_path):
+    chromium = find_chromium()
+    if chromium is None:
+        pytest.fail("Chromium is missing: `./run test` installs it (Debian package "
+                    "'chromium'); or install it yourself")
+    tree = meshcat_scene_tree(episode_folder / "meshcat.html", chromium, tmp_path)
+    illustration = tree["drake"]["illustration"]
+    assert "piper" in illustration and "piper_gripper" in illustration
+    assert len(illustration["piper"]) >= 6  # the arm's links
+    assert "red_can" in illustration
+
+
+def test_replay_rebuilds_the_motion_from_the_mcap(episode_folder, recording):
+    replayed = replay_in_meshcat(episode_folder / "episode.mcap", Meshcat())
+    assert (replayed.task, replayed.seed) == (TASK, SEED)
+    assert replayed.samples == len(recording.on(topics.JOINT_STATES))
+    assert {"red_can::red_can", "green_can::green_can"} <= set(replayed.moved_objects) or \
+        len(replayed.moved_objects) >= 4
+    text = transcript_markdown(replayed.recording)
+    assert "# Code block 0" in text
+
+
+def test_replay_refuses_a_file_that_is_not_an_episode(tmp_path):
+    from physcap_drake.recording.mcap_sink import McapSink
+
+    sink = McapSink(tmp_path / "other.mcap")
+    sink.json(topics.AGENT_PROGRESS, 0.0, {"phase": "idle", "steps": 0, "oi": 0, "note": ""})
+    sink.close()
+    with pytest.raises(ReplayError, match="physcap.episode"):
+        replay_in_meshcat(tmp_path / "other.mcap", Meshcat())
+
+
+# --- a run that is stopped --------------------------------------------------------------
+
+_CHILD = """
+import sys
+from physcap_drake.recording.episode_folder import record_episode
+def told(entry):
+    print(entry.kind, entry.step, entry.robot_time_s, flush=True)
+record_episode(sys.argv[1], "empty_cup", 1, agent="cap_physx", on_entry=told)
+"""
+
+
+def _start_child(folder: Path) -> subprocess.Popen:
+    env = {**os.environ, "PYTHONUNBUFFERED": "1"}
+    return subprocess.Popen([sys.executable, "-c", _CHILD, str(folder)],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
+
+
+def _wait_for_code_block(child: subprocess.Popen, index: int) -> float:
+    """Reads the child's transcript lines until code block `index` starts executing; returns
+    its robot time (s)."""
+    deadline = time.monotonic() + 240
+    for line in child.stdout:
+        kind, step, robot_time = line.split()
+        if kind == "code" and int(step) == index:
+            return float(robot_time)
+        assert time.monotonic() < deadline, "the child episode did not get there in time"
+    raise AssertionError(f"the child ended early: {child.stderr.read()[-2000:]}")
+
+
+def _announced_code_blocks(child: subprocess.Popen, seen: int) -> list[int]:
+    """Indices of the code blocks the (ended) child announced: `seen` read so far plus those
+    still in the pipe. Each is announced after its transcript entry was flushed to disk."""
+    rest = [line.split() for line in child.stdout.read().splitlines()]
+    return list(range(seen)) + [int(step) for kind, step, _ in rest if kind == "code"]
+
+
+def test_a_killed_run_leaves_a_readable_recording_up_to_the_kill(tmp_path):
+    child = _start_child(tmp_path)
+    try:
+        code_time = _wait_for_code_block(child, 1)
+        time.sleep(2.0)  # the second block's motion is under way
+        child.send_signal(signal.SIGKILL)
+        child.wait(timeout=30)
+    finally:
+        child.kill()
+    recording = read_recording(tmp_path / "episode.mcap")
+    assert not recording.complete
+    recorded = [m.value["step"] for m in recording.on(topics.AGENT_CODE)]
+    announced = _announced_code_blocks(child, 2)
+    # Every code block announced before the kill is in the file (one more may have been
+    # written between its flush and its announcement).
+    assert recorded[:len(announced)] == announced and len(recorded) <= len(announced) + 1
+    states = recording.on(topics.JOINT_STATES)
+    assert states and states[-1].time_s >= code_time - 1.0  # flushed every 1 s of sim time
+    assert not (tmp_path / "summary.json").exists()
+
+
+def test_ctrl_c_closes_the_recording_and_says_why(tmp_path):
+    child = _start_child(tmp_path)
+    try:
+        _wait_for_code_block(child, 1)
+        child.send_signal(signal.SIGINT)
+        child.wait(timeout=60)
+    finally:
+        child.kill()
+    recording = read_recording(tmp_path / "episode.mcap")
+    assert recording.complete
+    assert len(recording.on(topics.AGENT_CODE)) >= 2
+    error = json.loads((tmp_path / "error.json").read_text())
+    assert error["error"].startswith("KeyboardInterrupt")
+    assert "(stopped)" in (tmp_path / "transcript.md").read_text()
+    assert not (tmp_path / "summary.json").exists()
