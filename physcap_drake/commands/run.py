@@ -84,6 +84,10 @@ def run(task: Annotated[str, typer.Option("--task", help=f"One of: {', '.join(TA
     except (ValueError, ScenarioError, LLMError, ImportError, FileExistsError) as error:
         error_console.print(f"[bold red]error:[/] {escape(str(error))}", soft_wrap=True)
         raise typer.Exit(code=2) from None
+    except KeyboardInterrupt:
+        where = f"; the recording so far is in {out}" if out is not None else ""
+        error_console.print(f"[bold red]interrupted[/]{where}", soft_wrap=True)
+        raise typer.Exit(code=130) from None
     summary = result.summary()
     if record is not None:
         save_jsonl(result.calls, record)
