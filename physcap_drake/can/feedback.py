@@ -25,10 +25,14 @@ log = logging.getLogger("physcap_drake.can")
 
 #: The arm sends these at its feedback rate; they are the heartbeat the watchdog counts.
 PERIODIC = (codec.ARM_STATUS, *codec.JOINT_FEEDBACK, codec.GRIPPER_FEEDBACK, *codec.HIGH_SPEED)
-LOSS_CYCLES = 20  # feedback cycles over which frame loss is counted (0.1 s at 200 Hz)
+#: Feedback cycles over which frame loss is counted (80 ms at 200 Hz): 160 frames, enough to
+#: tell 1 % from 10 % loss (means 1.6 and 16 lost) and to do so within 100 ms.
+LOSS_CYCLES = 16
 #: Values beyond these are not feedback but garbage: joint angle beyond its limit (rad),
 #: joint speed (rad/s), motor current (A), gripper opening outside [−, stroke + ] (m).
 ANGLE_MARGIN, MAX_SPEED, MAX_CURRENT, OPENING_MARGIN = 0.5, 20.0, 30.0, 0.01
+#: Plausible driver voltage (V) and temperatures (°C); the highest status codes of 0x2A1.
+MAX_VOLTAGE, TEMPERATURES, MAX_CTRL_MODE, MAX_ARM_STATUS = 60.0, (-40.0, 150.0), 7, 15
 #: A frame timestamp this far from the host clock is on another clock (no age check), s.
 CLOCK_MISMATCH = 10.0
 
@@ -173,7 +177,11 @@ class FeedbackListener(can.Listener):
                 raise Garbled(f"gripper opening {gripper.opening:.3g} m")
             self._opening, self._effort = gripper.opening, gripper.effort
         elif identifier == codec.ARM_STATUS:
-            self._status = codec.decode_arm_status(data)
+            status = codec.decode_arm_status(data)
+            if status.ctrl_mode > MAX_CTRL_MODE or status.arm_status > MAX_ARM_STATUS:
+                raise Garbled(f"status with control mode {status.ctrl_mode}, arm status "
+                              f"{status.arm_status}")
+            self._status = status
             if self._status.error and not self._fault:
                 self._set_fault(f"the arm reports: {self._status.error} "
                                 f"(status {self._status.arm_status}, error code "
@@ -181,6 +189,12 @@ class FeedbackListener(can.Listener):
         elif identifier in codec.LOW_SPEED:
             low = codec.decode_low_speed(data)
             joint = codec.LOW_SPEED.index(identifier)
+            low_t, high_t = TEMPERATURES
+            if not (0.0 <= low.voltage <= MAX_VOLTAGE
+                    and low_t <= low.driver_temperature <= high_t
+                    and low_t <= low.motor_temperature <= high_t):
+                raise Garbled(f"J{joint + 1} driver at {low.voltage:.4g} V, "
+                              f"{low.driver_temperature:.4g} / {low.motor_temperature:.4g} °C")
             self._enabled[joint] = low.enabled
             for bit, what in ((4, "collision protection tripped"), (7, "stall protection "
                                                                        "tripped")):

@@ -64,7 +64,7 @@ class PiperCan:
     startup_timeout: float = 2.0
     # Watchdog: feedback older than this marks the outputs stale and stops motion, s.
     feedback_timeout: float = 0.05
-    # Watchdog: feedback frames lost over the last 20 cycles (0.1 s) above this fraction
+    # Watchdog: feedback frames lost over the last 16 cycles (80 ms) above this fraction
     # mark it stale.
     max_feedback_loss: float = 0.05
     # Stale for longer than this ends the episode with an error, s.
