@@ -77,6 +77,11 @@ class PiperLink:
         #: Start times of the last streaming cycles (monotonic s), for jitter figures.
         self.cycle_starts: collections.deque[float] = collections.deque(maxlen=20000)
 
+    @property
+    def bus(self) -> can.BusABC:
+        """The bus the link talks on (e.g. a FaultyBus, to inject faults)."""
+        return self._bus
+
     # Start-up ----------------------------------------------------------------------------
 
     def start(self) -> PiperLink:

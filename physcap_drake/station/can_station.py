@@ -8,8 +8,8 @@ that), runs the start-up sequence and returns a Diagram whose ports are exactly 
 
 from __future__ import annotations
 
+import atexit
 import dataclasses as dc
-import logging
 
 import can
 from pydrake.systems.framework import Diagram, DiagramBuilder
@@ -23,7 +23,6 @@ from physcap_drake.station.can_config import PiperCan
 from physcap_drake.station.can_interface import PiperCanInterface
 from physcap_drake.station.can_scene import SCENE_OUTPUTS, EmulatedScene, NoScene
 
-log = logging.getLogger("physcap_drake.can")
 INTERFACE, SCENE = "piper_can", "scene"
 EMULATED_FIRMWARE = "S-V1.8-2"
 
@@ -74,8 +73,7 @@ def MakeCanStation(scenario, meshcat=None) -> Diagram:
         link = PiperLink(bus, config).start()
     except Exception:
         if emulator is not None:
-            emulator.stop()
-            emulator.bus.shutdown()
+            _release_emulator(emulator)
         raise
     builder = DiagramBuilder()
     interface = builder.AddNamedSystem(INTERFACE, PiperCanInterface(link, config))
@@ -88,13 +86,24 @@ def MakeCanStation(scenario, meshcat=None) -> Diagram:
         builder.ExportOutput(scene.GetOutputPort(name), name)
     diagram = builder.Build()
     diagram.set_name("station")
+    # Threads must not outlive the interpreter (an emulator inside Drake's C++ would abort).
+    atexit.register(_release, link, emulator)
     return diagram
+
+
+def _release(link: PiperLink, emulator: PiperEmulator | None) -> None:
+    link.close()
+    if emulator is not None:
+        _release_emulator(emulator)
+
+
+def _release_emulator(emulator: PiperEmulator) -> None:
+    emulator.stop()
+    emulator.bus.shutdown()
 
 
 def close_can_station(station: Diagram) -> None:
     """Stops streaming and closes the bus (the arm holds), then stops an emulator."""
-    station.GetSubsystemByName(INTERFACE).link.close()
     scene = station.GetSubsystemByName(SCENE)
-    if isinstance(scene, EmulatedScene):
-        scene.emulator.stop()
-        scene.emulator.bus.shutdown()
+    _release(station.GetSubsystemByName(INTERFACE).link,
+             scene.emulator if isinstance(scene, EmulatedScene) else None)
