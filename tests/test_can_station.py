@@ -4,14 +4,18 @@ watchdog and the arm's errors through the simulator, and a whole agent episode."
 
 from __future__ import annotations
 
+import json
+import re
 import time
 
 import numpy as np
 import pytest
 from conftest import unique_channel
 from pydrake.systems.analysis import Simulator
+from typer.testing import CliRunner
 
 from physcap_drake.agent.episode_runner import run_agent_episode
+from physcap_drake.cli import app
 from physcap_drake.control.errors import ArmFault
 from physcap_drake.resources import stations_dir
 from physcap_drake.scenario import load_scenario
@@ -145,3 +149,14 @@ def test_the_agent_finds_the_empty_can_over_either_station(tmp_path, station):
         assert summary["wall_time_s"] >= summary["robot_time_s"]  # real time
         link = run.episode.robot.station.GetSubsystemByName("piper_can").link
         assert link.status().commands_sent > 150 * summary["robot_time_s"]
+
+
+def test_bench_can_loop_prints_the_period_percentiles(tmp_path):
+    out = tmp_path / "loop.json"
+    result = CliRunner().invoke(app, ["bench", "can-loop", "--seconds", "1", "--json",
+                                      str(out)])
+    assert result.exit_code == 0, result.output
+    assert re.search(r"p50_ms [\d.]+, p99_ms [\d.]+", result.output.replace("\n", " "))
+    figures = json.loads(out.read_text())
+    assert figures["cycles"] >= 150  # 200 Hz for about a second
+    assert 4.0 < figures["p50_ms"] < 6.0 and figures["p99_ms"] >= figures["p50_ms"]

@@ -9,6 +9,8 @@ task's success check reads (ground truth the real arm does not have).
 
 from __future__ import annotations
 
+import dataclasses as dc
+
 import numpy as np
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import Context
@@ -79,3 +81,16 @@ class SimulatedMotion:
 
     def _output(self, name: str) -> np.ndarray:
         return self.station.GetOutputPort(name).Eval(self._context)
+
+
+def simulated_motion(scenario) -> SimulatedMotion:
+    """The simulated station of `scenario` as an emulator backend: a PiperCan scenario's
+    `emulated` arm with its gripper effort scale, or a SimPiper scenario's arm with the
+    default scale."""
+    from physcap_drake.station.can_config import PiperCan
+
+    station = scenario.station
+    if isinstance(station, PiperCan):
+        return SimulatedMotion(dc.replace(scenario, station=station.emulated),
+                               gripper_max_effort=station.gripper_max_effort)
+    return SimulatedMotion(scenario, gripper_max_effort=PiperCan().gripper_max_effort)

@@ -15,6 +15,7 @@ from physcap_drake.agent.llm import LLMError, save_jsonl
 from physcap_drake.agent.llm.factory import VALID_SPECS
 from physcap_drake.agent.transcript import TranscriptEntry
 from physcap_drake.agent.variant import variant_names
+from physcap_drake.can.link import StartupError
 from physcap_drake.commands.common import console, error_console
 from physcap_drake.scenario_errors import ScenarioError
 from physcap_drake.tasks.registry import TASKS
@@ -51,6 +52,9 @@ def run(task: Annotated[str, typer.Option("--task", help=f"One of: {', '.join(TA
                               "segmenter) or vlm (the model points; needs an image model).")
                            ] = "offline",
         quiet: Annotated[bool, typer.Option("--quiet", help="Print only the summary.")] = False,
+        scenario: Annotated[Path | None, typer.Option(
+            "--scenario", help="Scenario file instead of the task's own, e.g. "
+                               "stations/identify_empty_can_piper_can.yaml (over CAN).")] = None,
         ) -> None:
     """Run one episode of a task with an agent and print success, OI, robot time and the
     transcript (thoughts, code blocks, measurements)."""
@@ -63,9 +67,10 @@ def run(task: Annotated[str, typer.Option("--task", help=f"One of: {', '.join(TA
         console.print(f"Meshcat is at {viewer.web_url()}")
     try:
         result = run_agent_episode(task, seed, agent=agent, llm=llm, model=model,
-                                   meshcat=viewer, pointer=pointer,
+                                   meshcat=viewer, pointer=pointer, scenario_file=scenario,
                                    on_entry=None if quiet else _print_entry)
-    except (ValueError, ScenarioError, LLMError, ImportError) as error:
+    except (ValueError, ScenarioError, LLMError, ImportError, ConnectionError,
+            StartupError) as error:
         error_console.print(f"[bold red]error:[/] {escape(str(error))}", soft_wrap=True)
         raise typer.Exit(code=2) from None
     summary = result.summary()

@@ -9,7 +9,6 @@ that), runs the start-up sequence and returns a Diagram whose ports are exactly 
 from __future__ import annotations
 
 import atexit
-import dataclasses as dc
 
 import can
 from pydrake.systems.framework import Diagram, DiagramBuilder
@@ -17,7 +16,7 @@ from pydrake.systems.framework import Diagram, DiagramBuilder
 from physcap_drake.can.emulator import PiperEmulator
 from physcap_drake.can.faults import FaultSettings, FaultyBus
 from physcap_drake.can.link import PiperLink
-from physcap_drake.can.simulated_motion import SimulatedMotion
+from physcap_drake.can.simulated_motion import SimulatedMotion, simulated_motion
 from physcap_drake.station import ports
 from physcap_drake.station.can_config import PiperCan
 from physcap_drake.station.can_interface import PiperCanInterface
@@ -40,8 +39,7 @@ def _open_bus(config: PiperCan) -> can.BusABC:
 
 def _start_emulator(scenario, config: PiperCan) -> tuple[PiperEmulator, SimulatedMotion]:
     """An emulator backed by `config.emulated` in the scenario's scene, running."""
-    motion = SimulatedMotion(dc.replace(scenario, station=config.emulated),
-                             gripper_max_effort=config.gripper_max_effort)
+    motion = simulated_motion(scenario)
     bus = can.Bus(interface="virtual", channel=config.channel)
     emulator = PiperEmulator(bus, firmware=config.firmware or EMULATED_FIRMWARE,
                              motion=motion, rate=200.0)
