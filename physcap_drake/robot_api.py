@@ -217,6 +217,10 @@ class RobotAPI:
 
     def _run(self, request: SkillRequest) -> SkillStatus:
         executor, context = self._robot.executor, self._executor_context
+        if self._simulator.get_target_realtime_rate() > 0:
+            # Pace from now on: the wall time spent between calls (a model thinking) must
+            # not be made up by running the next motion faster than real time.
+            self._simulator.ResetStatistics()
         executor.start(context, request)
         while executor.status(context).state == "running":
             self._simulator.AdvanceTo(context.get_time() + MONITOR_PERIOD)

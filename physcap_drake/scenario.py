@@ -149,8 +149,15 @@ def check_scenario(scenario: Scenario, filename: str = "<scenario>") -> None:
     scenario.physx.check(at.child("physx"))
     _check_directives(scenario, at)
     _check_cameras(scenario.cameras, at)
-    if isinstance(scenario.station, SimPiper):
-        _check_against_robot(scenario, at)
+    station = scenario.station
+    if isinstance(station, SimPiper):
+        _check_against_robot(scenario, station, at, at.child("station"))
+    elif isinstance(station, PiperCan):
+        at.child("simulator_config").choice(
+            "target_realtime_rate", scenario.simulator_config.target_realtime_rate, [1.0])
+        if station.emulate:
+            _check_against_robot(scenario, station.emulated, at,
+                                 at.child("station").child("emulated"))
 
 
 def _check_plant_config(config: MultibodyPlantConfig, at: ConfigChecker) -> None:
@@ -177,7 +184,7 @@ def _check_directives(scenario: Scenario, at: ConfigChecker) -> None:
             if not path.is_file():
                 here.fail("file", "an existing model file",
                           f"{item.file!r} resolves to {path}, which is not a file")
-    if isinstance(scenario.station, SimPiper):
+    if isinstance(scenario.station, SimPiper | PiperCan):
         flat = FlattenModelDirectives(ModelDirectives(directives=scenario.directives),
                                       package_map)
         names = [d.add_model.name for d in flat.directives if d.add_model is not None]
@@ -194,42 +201,44 @@ def _check_joints(at: ConfigChecker, key: str, q: list[float], lower, upper) -> 
                              why=f"joint J{i + 1}'s limits, rad")
 
 
-def _check_against_robot(scenario: Scenario, at: ConfigChecker) -> None:
-    """Checks the values that only make sense against the robot model the directives add."""
-    station = scenario.station
+def _check_against_robot(scenario: Scenario, station: SimPiper, at: ConfigChecker,
+                         station_at: ConfigChecker) -> None:
+    """Checks the values that only make sense against the robot model the directives add,
+    for the simulated arm `station` (the scenario's, or an emulator's) found at `station_at`."""
     plant = make_controller_plant(scenario.directives, station.arm_model, station.gripper_model)
     lower, upper = arm_joint_limits(plant, plant.GetModelInstanceByName(station.arm_model))
-    _check_joints(at.child("station"), "initial_arm_position", station.initial_arm_position,
+    _check_joints(station_at, "initial_arm_position", station.initial_arm_position,
                   lower, upper)
     _check_joints(at.child("skills"), "home_position", scenario.skills.home_position,
                   lower, upper)
     gripper = plant.GetModelInstanceByName(station.gripper_model)
     actuators = [plant.get_joint_actuator(i) for i in plant.GetJointActuatorIndices(gripper)]
     if len(actuators) != 1:
-        at.child("station").fail("gripper_model", "a gripper model with one actuated finger",
-                                 f"{station.gripper_model!r} has {len(actuators)} actuators")
+        station_at.fail("gripper_model", "a gripper model with one actuated finger",
+                        f"{station.gripper_model!r} has {len(actuators)} actuators")
     stroke = 2.0 * float(actuators[0].joint().position_upper_limits()[0])
-    at.child("station").number("initial_gripper_opening", station.initial_gripper_opening,
-                               minimum=0.0, maximum=stroke, why="the gripper's stroke, m")
+    station_at.number("initial_gripper_opening", station.initial_gripper_opening,
+                      minimum=0.0, maximum=stroke, why="the gripper's stroke, m")
     max_force = station.gripper_servo.max_force
-    at.child("station").child("gripper_servo").number(
+    station_at.child("gripper_servo").number(
         "max_force", max_force, minimum=0.0, maximum=0.5 * actuators[0].effort_limit(),
         open_minimum=True, why="half the finger actuator's limit: it drives both fingers")
     servo = station.joint_servo
     at.child("skills").number("max_joint_velocity", scenario.skills.max_joint_velocity,
                               minimum=0.0, maximum=servo.max_velocity, open_minimum=True,
-                              why="station.joint_servo.max_velocity, which the arm follows")
+                              why=f"{station_at.key_path}.joint_servo.max_velocity, which "
+                              "the arm follows")
     at.child("skills").number("max_joint_acceleration", scenario.skills.max_joint_acceleration,
                               minimum=0.0, maximum=servo.max_acceleration, open_minimum=True,
-                              why="station.joint_servo.max_acceleration")
+                              why=f"{station_at.key_path}.joint_servo.max_acceleration")
     at.child("skills").number("grasp_force", scenario.skills.grasp_force, minimum=0.0,
                               maximum=max_force, open_minimum=True,
-                              why="station.gripper_servo.max_force")
+                              why=f"{station_at.key_path}.gripper_servo.max_force")
     probe = scenario.physx.stiffness
     at.child("physx").child("stiffness").number(
         "force_limit", probe.force_limit, minimum=probe.target_effort * max_force,
-        maximum=max_force, why="from target_effort × station.gripper_servo.max_force (else "
-        "the target effort can never be reached) to station.gripper_servo.max_force")
+        maximum=max_force, why=f"from target_effort × {station_at.key_path}.gripper_servo."
+        "max_force (else the target effort can never be reached) to that force")
 
 
 def _check_cameras(cameras: list[CameraConfig], at: ConfigChecker) -> None:

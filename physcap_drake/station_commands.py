@@ -52,14 +52,16 @@ def build_commanded_station(scenario, *, meshcat=None, sweep: bool = False,
     `force_limit` (N) or sweeping too. Returns (diagram, station)."""
     builder = DiagramBuilder()
     station = builder.AddNamedSystem("station", MakeStation(scenario, meshcat))
-    home = np.asarray(scenario.station.initial_arm_position, dtype=float)
+    # Over CAN the arm starts where the emulated arm starts (the real arm: put it at home).
+    arm_config = getattr(scenario.station, "emulated", scenario.station)
+    home = np.asarray(arm_config.initial_arm_position, dtype=float)
     if sweep:
         arm = TrajectorySource(sweep_trajectory(home, duration))
     else:
         arm = ConstantVectorSource(home if arm_position is None else np.asarray(arm_position))
     builder.AddNamedSystem("arm_command", arm)
     builder.Connect(arm.get_output_port(), station.GetInputPort(ports.ARM_POSITION))
-    opening = scenario.station.initial_gripper_opening if gripper_opening is None else (
+    opening = arm_config.initial_gripper_opening if gripper_opening is None else (
         gripper_opening)
     if sweep:
         gripper = TrajectorySource(gripper_sweep_trajectory(duration))

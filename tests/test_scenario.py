@@ -29,7 +29,8 @@ def load_error(text: str) -> ScenarioError:
 @pytest.mark.parametrize("path", sorted(stations_dir().glob("*.yaml")), ids=lambda p: p.name)
 def test_every_shipped_scenario_loads(path: Path):
     scenario = load_scenario(path)
-    assert isinstance(scenario.station, SimPiper)
+    expected = PiperCan if path.stem.endswith("_piper_can") else SimPiper
+    assert isinstance(scenario.station, expected)
 
 
 def test_defaults_fill_what_a_file_leaves_out():
@@ -153,8 +154,30 @@ def test_yaml_syntax_error_names_the_file(tmp_path):
         load_scenario(path)
 
 
-def test_real_arm_station_parses_but_is_not_built_yet():
-    scenario = load_scenario_text(ROBOT + "station: !PiperCan {channel: can1}\n")
-    assert isinstance(scenario.station, PiperCan) and scenario.station.channel == "can1"
-    with pytest.raises(NotImplementedError, match="PiperCan"):
+REAL_TIME = "simulator_config: {target_realtime_rate: 1.0}\n"
+
+
+def test_a_real_arm_that_is_not_there_fails_naming_the_bus():
+    scenario = load_scenario_text(ROBOT + REAL_TIME + "station: !PiperCan {interface: "
+                                  "socketcan, channel: nocan7}\n")
+    assert isinstance(scenario.station, PiperCan) and scenario.station.channel == "nocan7"
+    with pytest.raises(ConnectionError, match="station.interface 'socketcan', "
+                                              "station.channel 'nocan7'"):
         MakeStation(scenario)
+
+
+@pytest.mark.parametrize(("snippet", "key_path", "needs"), [
+    ("station: !PiperCan {}\n", "simulator_config.target_realtime_rate", "1.0"),
+    (REAL_TIME + "station: !PiperCan {emulate: true}\n", "station.emulate", "virtual"),
+    (REAL_TIME + "station: !PiperCan {faults: {loss: 0.1}}\n", "station.faults",
+     "emulate is true"),
+    (REAL_TIME + "station: !PiperCan {firmware: V2}\n", "station.firmware", "S-V1.8-2"),
+    (REAL_TIME + "station: !PiperCan {interface: virtual, emulate: true, gripper_max_force: "
+     "20}\n", "station.gripper_max_force", "emulated.gripper_servo.max_force"),
+    (REAL_TIME + "station: !PiperCan {interface: virtual, emulate: true, emulated: "
+     "{initial_gripper_opening: 0.3}}\n", "station.emulated.initial_gripper_opening", "<= 0.1"),
+])
+def test_can_station_values_are_checked(snippet, key_path, needs):
+    error = load_error(ROBOT + snippet)
+    assert error.key_path == key_path
+    assert needs in error.expected

@@ -2,9 +2,12 @@
 
 from __future__ import annotations
 
+import pytest
+from conftest import unique_channel
 from pydrake.systems.framework import PortDataType
 
-from physcap_drake.station import MakeStation, ports
+from physcap_drake.station import MakeStation, close_station, ports
+from physcap_drake.station.can_config import PiperCan
 
 EXPECTED_INPUTS = {"piper.position": 6, "gripper.position": 1, "gripper.force_limit": 1}
 EXPECTED_VECTOR_OUTPUTS = {
@@ -17,8 +20,19 @@ EXPECTED_VECTOR_OUTPUTS = {
 EXPECTED_ABSTRACT_OUTPUTS = {"camera.rgb", "camera.depth", "camera.label", "body_poses"}
 
 
-def test_ports_are_exactly_the_contract(table_scenario):
+@pytest.fixture(params=["sim", "can"])
+def any_station(request, table_scenario):
+    """The sim station, and the CAN station over an emulator of the same scene."""
+    if request.param == "can":
+        table_scenario.station = PiperCan(interface="virtual", channel=unique_channel(),
+                                          emulate=True)
     station = MakeStation(table_scenario)
+    yield station
+    close_station(station)
+
+
+def test_ports_are_exactly_the_contract(any_station):
+    station = any_station
     inputs = {station.get_input_port(i).get_name(): station.get_input_port(i)
               for i in range(station.num_input_ports())}
     outputs = {station.get_output_port(i).get_name(): station.get_output_port(i)

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import dataclasses as dc
 from collections.abc import Callable
+from pathlib import Path
 
 from physcap_drake.agent.llm import make_llm
 from physcap_drake.agent.llm.base import CallRecord, LLMClient
@@ -59,7 +60,8 @@ def run_agent_episode(task: str, seed: int, *, agent: str = "physcap", llm: str 
                       limits: SandboxLimits | None = None, client: LLMClient | None = None,
                       on_entry: Callable[[TranscriptEntry], None] | None = None,
                       robot_time_limit: float = ROBOT_TIME_LIMIT,
-                      pointer: str = "offline", sink: McapSink | None = None) -> AgentRun:
+                      pointer: str = "offline", sink: McapSink | None = None,
+                      scenario_file: str | Path | None = None) -> AgentRun:
     """Runs one episode of `task` with layout `seed`. `llm` is a backend spec (see
     physcap_drake.agent.llm.factory); `client` overrides it with a ready client (it should
     be a RecordingClient for the calls to be reported). `on_entry` hears each transcript
@@ -67,12 +69,14 @@ def run_agent_episode(task: str, seed: int, *, agent: str = "physcap", llm: str 
     simulated perfect segmenter) or "vlm" (the language model points at them in the image;
     the model must take images). With a `sink`, the run is recorded to it (robot signals by
     an McapRecorder in the diagram, the agent's messages by an AgentRecording); the caller
-    closes the sink."""
+    closes the sink. `scenario_file` replaces the task's own scenario (e.g. the same scene
+    with `station: !PiperCan`); a CAN station is released when the episode ends."""
     if pointer not in ("offline", "vlm"):
         raise ValueError(f"pointer must be 'offline' or 'vlm', got {pointer!r}")
     variant = load_variant(agent)
     client = client or make_llm(llm, model, seed=seed)
-    episode = make_episode(task, seed, meshcat=meshcat, with_agent=True, sink=sink)
+    episode = make_episode(task, seed, meshcat=meshcat, with_agent=True, sink=sink,
+                           scenario_file=scenario_file)
     if pointer == "vlm":
         episode.api.use_locator(ObjectLocator(episode.api.locator.camera,
                                               VlmPointer(pointer_ask(client))))
@@ -108,7 +112,10 @@ def run_agent_episode(task: str, seed: int, *, agent: str = "physcap", llm: str 
                      observe=observe, check=episode.check, seed=seed, limits=limits,
                      robot_time_limit=robot_time_limit, transcript=transcript,
                      on_phase=on_phase)
-    outcome = loop.run()
+    try:
+        outcome = loop.run()
+    finally:
+        episode.close()
     run = AgentRun(task, variant.name, seed, getattr(client, "name", llm),
                    getattr(client, "model", model or ""), outcome, transcript,
                    list(getattr(client, "records", [])), episode)

@@ -37,7 +37,7 @@ from physcap_drake.agent.schemas import (
 from physcap_drake.agent.structured_call import AgentAnswerError, ask_structured
 from physcap_drake.agent.transcript import Transcript
 from physcap_drake.agent.variant import AgentVariant
-from physcap_drake.control.errors import SkillError
+from physcap_drake.control.errors import ArmFault, SkillError
 from physcap_drake.robot_api import RobotAPI
 
 #: How long the arm holds still after a code block stopped with an error, s.
@@ -131,6 +131,8 @@ class AgentLoop:
                 failure = f"step limit reached ({self.variant.max_steps} code blocks)"
         except (AgentAnswerError, LLMError) as error:
             failure = str(error)
+        except ArmFault as error:  # the arm's error state ends the episode; it holds
+            failure = f"arm fault: {error}"
         if failure:
             self._note("error", f"episode stopped: {failure}")
         self._phase("failed" if failure else "done")

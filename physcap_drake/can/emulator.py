@@ -8,8 +8,11 @@ cycle, low-speed feedback (0x261-0x266). It answers the firmware query (0x4AF) a
 queries (0x472), and obeys enable (0x471), mode (0x151), joint targets (0x155-0x157),
 gripper (0x159, 0x47D) and the emergency stop (0x150).
 
-This first version moves its joints kinematically; holding torques come from an optional
-`gravity_torque(q)` model (N·m), turned into motor currents with the firmware's scaling.
+How the arm moves is up to its motion backend: `KinematicMotion` (below) moves the joints
+straight towards their targets and takes holding torques from an optional `gravity_torque(q)`
+model; `physcap_drake.can.simulated_motion.SimulatedMotion` runs the simulated station (a
+MultibodyPlant scene with the task's objects), so joint torques and gripper effort come from
+its physics. Torques go on the bus as motor currents with the firmware's scaling.
 """
 
 from __future__ import annotations
@@ -34,7 +37,10 @@ ENABLED_BIT = 1 << 6
 
 @dc.dataclass
 class EmulatedArm:
-    """The emulator's arm; only the emulator thread changes it (under its lock)."""
+    """The emulator's arm; only the emulator thread changes it (under its lock).
+
+    Commands (targets, modes) come from the bus; q and gripper_opening are where the arm is.
+    """
 
     q: np.ndarray = dc.field(default_factory=lambda: np.zeros(6))
     target: np.ndarray = dc.field(default_factory=lambda: np.zeros(6))
@@ -43,29 +49,87 @@ class EmulatedArm:
     move_mode: int = 0
     speed_percent: int = 0
     arm_status: int = 0
+    err_code: int = 0
     gripper_opening: float = 0.0
     gripper_target: float = 0.0
-    gripper_effort: float = 0.0
+    gripper_effort: float = 0.0  # commanded effort limit, N·m
     gripper_enabled: bool = False
     gripper_stroke_mm: int = 0
+
+    @property
+    def moving(self) -> np.ndarray:
+        """Which joints follow their targets (enabled, and the arm reports no error)."""
+        return self.enabled & (self.arm_status == 0)
+
+
+@dc.dataclass(frozen=True)
+class MotionReading:
+    """What one motion step measured: joint speeds (rad/s), joint torques (N·m) and the
+    gripper motor's effort (N·m)."""
+
+    velocity: np.ndarray
+    torque: np.ndarray
+    gripper_effort: float
+
+
+class KinematicMotion:
+    """Joints move straight towards their targets at the firmware's speed limit (scaled by
+    the commanded speed percentage); holding torques from `gravity_torque(q)` (N·m)."""
+
+    def __init__(self, gravity_torque: Callable[[np.ndarray], np.ndarray] | None = None):
+        self._gravity = gravity_torque or (lambda q: np.zeros(6))
+
+    def initial_state(self, arm: EmulatedArm) -> None:
+        """Sets the arm's starting q and gripper opening (rest at zero)."""
+
+    def step(self, arm: EmulatedArm, dt: float) -> MotionReading:
+        moving = arm.moving
+        step = MAX_JOINT_SPEED * max(arm.speed_percent, 1) / 100.0 * dt
+        delta = np.clip(arm.target - arm.q, -step, step)
+        arm.q = np.where(moving, arm.q + delta, arm.q)
+        if arm.gripper_enabled and arm.gripper_stroke_mm > 0:
+            gap = arm.gripper_target - arm.gripper_opening
+            arm.gripper_opening += float(np.clip(gap, -GRIPPER_SPEED * dt, GRIPPER_SPEED * dt))
+        return MotionReading(np.where(moving, delta / dt, 0.0),
+                             np.asarray(self._gravity(arm.q), dtype=float),
+                             arm.gripper_effort if arm.gripper_enabled else 0.0)
 
 
 class PiperEmulator:
     """Speaks the PiPER protocol on `bus` (see module docstring)."""
 
     def __init__(self, bus: can.BusABC, *, firmware: str = "S-V1.8-2", rate: float = 200.0,
-                 gravity_torque: Callable[[np.ndarray], np.ndarray] | None = None):
+                 gravity_torque: Callable[[np.ndarray], np.ndarray] | None = None,
+                 motion=None):
+        """`motion`: the motion backend (default: KinematicMotion(gravity_torque))."""
         codec.parse_firmware(firmware)
+        if motion is not None and gravity_torque is not None:
+            raise ValueError("gravity_torque applies to the kinematic motion only; the "
+                             "given motion backend computes its own torques")
         self._bus = bus
         self._firmware = firmware
         self._period = 1.0 / rate
-        self._gravity = gravity_torque or (lambda q: np.zeros(6))
+        self.motion = motion or KinematicMotion(gravity_torque)
         self.arm = EmulatedArm()
-        self._lock = threading.Lock()
+        self.motion.initial_state(self.arm)
+        self.arm.target = self.arm.q.copy()
+        self.arm.gripper_target = self.arm.gripper_opening
+        #: Held while the arm (and the motion backend's world) changes; hold it to read both.
+        self.lock = threading.Lock()
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
         self._cycle = 0
-        self._velocity = np.zeros(6)  # joint speeds of the last cycle, rad/s
+        self._reading = MotionReading(np.zeros(6), np.zeros(6), 0.0)
+
+    @property
+    def bus(self) -> can.BusABC:
+        """The bus it answers on (the caller that opened it shuts it down)."""
+        return self._bus
+
+    @property
+    def period(self) -> float:
+        """Feedback period, s."""
+        return self._period
 
     def start(self) -> PiperEmulator:
         self._thread = threading.Thread(target=self._run, name="piper-emulator", daemon=True)
@@ -85,9 +149,17 @@ class PiperEmulator:
 
     def snapshot(self) -> EmulatedArm:
         """A copy of the arm's state (for tests and tools)."""
-        with self._lock:
+        with self.lock:
             return dc.replace(self.arm, q=self.arm.q.copy(), target=self.arm.target.copy(),
                               enabled=self.arm.enabled.copy())
+
+    def set_error(self, arm_status: int = 0, err_code: int = 0) -> None:
+        """Makes the arm report an error state from now on (a fault drill): `arm_status` as in
+        0x2A1 (1 e-stop, 5 joint communication error, 7 collision, ...), `err_code` bits
+        0-5 communication error of J1-J6, 8-13 angle limit. The arm holds where it is."""
+        with self.lock:
+            self.arm.arm_status, self.arm.err_code = int(arm_status), int(err_code)
+            self.arm.target = self.arm.q.copy()
 
     # The firmware loop ---------------------------------------------------------------------
 
@@ -95,10 +167,10 @@ class PiperEmulator:
         next_time = time.monotonic()
         while not self._stop.is_set():
             while (message := self._bus.recv(timeout=0.0)) is not None:
-                with self._lock:
+                with self.lock:
                     self._handle(message)
-            with self._lock:
-                self._move(self._period)
+            with self.lock:
+                self._reading = self.motion.step(self.arm, self._period)
                 frames = self._feedback()
             for identifier, data in frames:
                 self._send(identifier, data)
@@ -156,29 +228,18 @@ class PiperEmulator:
                 elif data[1] == 0x02:
                     self._send(*codec.encode_acceleration_limit(motor, 5.0))
 
-    def _move(self, dt: float) -> None:
-        arm = self.arm
-        moving = arm.enabled & (arm.arm_status == 0)
-        step = MAX_JOINT_SPEED * max(arm.speed_percent, 1) / 100.0 * dt
-        delta = np.clip(arm.target - arm.q, -step, step)
-        self._velocity = np.where(moving, delta / dt, 0.0)
-        arm.q = np.where(moving, arm.q + delta, arm.q)
-        if arm.gripper_enabled and arm.gripper_stroke_mm > 0:
-            gap = arm.gripper_target - arm.gripper_opening
-            arm.gripper_opening += float(np.clip(gap, -GRIPPER_SPEED * dt, GRIPPER_SPEED * dt))
-
     def _feedback(self) -> list[tuple[int, bytes]]:
         arm = self.arm
         reached = np.allclose(arm.q, arm.target, atol=1e-4)
         frames = [codec.encode_arm_status(codec.ArmStatus(
-            arm.ctrl_mode, arm.arm_status, arm.move_mode, 0, 0 if reached else 1, 0, 0))]
+            arm.ctrl_mode, arm.arm_status, arm.move_mode, 0, 0 if reached else 1, 0,
+            arm.err_code))]
         frames += codec.encode_joints(codec.JOINT_FEEDBACK, arm.q)
         status = (ENABLED_BIT if arm.gripper_enabled else 0) | (1 << 7)
         frames.append(codec.encode_gripper_feedback(codec.GripperFeedback(
-            arm.gripper_opening, arm.gripper_effort if arm.gripper_enabled else 0.0, status)))
-        torque = np.asarray(self._gravity(arm.q), dtype=float)
+            arm.gripper_opening, self._reading.gripper_effort, status)))
+        torque, velocity = self._reading.torque, self._reading.velocity
         scale = codec.torque_scale(self._firmware)
-        velocity = self._velocity
         for joint in range(6):
             current = torque[joint] / (codec.TORQUE_CONSTANT[joint] * scale[joint])
             frames.append(codec.encode_high_speed(joint, codec.HighSpeedFeedback(

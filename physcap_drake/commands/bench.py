@@ -10,6 +10,7 @@ from typing import Annotated
 import typer
 from rich.table import Table
 
+from physcap_drake.bench.can_loop_bench import run_can_loop
 from physcap_drake.bench.pick_place_bench import run_trial, summarize
 from physcap_drake.bench.station_bench import CASES, DURATION, run_station_case
 from physcap_drake.commands.common import console, sim_progress, trial_progress
@@ -63,4 +64,26 @@ def pick_place(
                   f"{summary['max_tcp_error_mm']:.2f} mm")
     if json_path is not None:
         json_path.write_text(json.dumps(summary, indent=2))
+        console.print(f"wrote {json_path}")
+
+
+@app.command("can-loop")
+def can_loop(
+    seconds: Annotated[float, typer.Option("--seconds", min=0.5, help="How long to stream "
+                                           "(wall-clock seconds).")] = 5.0,
+    rate: Annotated[float, typer.Option("--rate", min=1.0, max=500.0,
+                                        help="Control rate, Hz.")] = 200.0,
+    json_path: Annotated[Path | None, typer.Option(
+        "--json", help="Also write the results to this JSON file.")] = None,
+) -> None:
+    """Period jitter of the CAN station's command loop over the virtual bus, against the
+    emulator, while the arm sweeps in real time: p50_ms, p99_ms (target 1000 / rate)."""
+    with sim_progress("bench can-loop", seconds) as progress:
+        result = run_can_loop(seconds, rate, progress)
+    console.print(f"control loop at {result.control_rate_hz:g} Hz over {result.cycles} "
+                  f"cycles: p50_ms {result.p50_ms:.3f}, p99_ms {result.p99_ms:.3f}, max_ms "
+                  f"{result.max_ms:.3f}, mean rate {result.mean_rate_hz:.1f} Hz, "
+                  f"{result.commands_sent} commands sent")
+    if json_path is not None:
+        json_path.write_text(json.dumps(dataclasses.asdict(result), indent=2))
         console.print(f"wrote {json_path}")

@@ -3,13 +3,17 @@
 from __future__ import annotations
 
 import time
+from pathlib import Path
 from typing import Annotated
 
 import can
 import typer
 
 from physcap_drake.can.emulator import PiperEmulator
+from physcap_drake.can.simulated_motion import simulated_motion
 from physcap_drake.commands.common import console
+from physcap_drake.scenario import load_scenario
+from physcap_drake.scenario_errors import ScenarioError
 
 
 def emulate_piper(
@@ -20,11 +24,21 @@ def emulate_piper(
     firmware: Annotated[str, typer.Option("--firmware", help="Version it reports.")] = "S-V1.8-2",
     seconds: Annotated[float, typer.Option(
         "--seconds", min=0.0, help="Stop after this long (0: run until Ctrl-C).")] = 0.0,
+    scenario: Annotated[Path | None, typer.Option(
+        "--scenario", help="Back the arm by this scenario's simulated station (its scene and "
+                           "objects); without it the joints move kinematically.")] = None,
 ) -> None:
     """Answer on the bus like a PiPER arm (status, joints, gripper, driver feedback at
     200 Hz; enable, mode, joint and gripper commands, firmware and limit queries)."""
     if interface not in ("socketcan", "virtual"):
         raise typer.BadParameter(f"--interface must be socketcan or virtual, not {interface!r}")
+    motion = None
+    if scenario is not None:
+        try:
+            motion = simulated_motion(load_scenario(scenario))
+        except ScenarioError as error:
+            console.print(f"[bold red]error:[/] {error}")
+            raise typer.Exit(code=2) from None
     try:
         bus = can.Bus(interface=interface, channel=channel)
     except (OSError, can.CanError) as error:
@@ -33,7 +47,7 @@ def emulate_piper(
     console.print(f"emulating a PiPER (firmware {firmware}) on {interface}:{channel}; "
                   "Ctrl-C to stop")
     try:
-        with PiperEmulator(bus, firmware=firmware):
+        with PiperEmulator(bus, firmware=firmware, motion=motion):
             start = time.monotonic()
             while not seconds or time.monotonic() - start < seconds:
                 time.sleep(0.1)

@@ -15,6 +15,7 @@ from physcap_drake.agent.llm import LLMError, save_jsonl
 from physcap_drake.agent.llm.factory import VALID_SPECS
 from physcap_drake.agent.transcript import TranscriptEntry
 from physcap_drake.agent.variant import variant_names
+from physcap_drake.can.link import StartupError
 from physcap_drake.commands.common import console, error_console
 from physcap_drake.recording.episode_folder import MCAP_FILE, record_episode
 from physcap_drake.scenario_errors import ScenarioError
@@ -60,6 +61,9 @@ def run(task: Annotated[str, typer.Option("--task", help=f"One of: {', '.join(TA
                                    "for any browser.")] = False,
         overwrite: Annotated[bool, typer.Option(
             "--overwrite", help="With --out: replace a recording already there.")] = False,
+        scenario: Annotated[Path | None, typer.Option(
+            "--scenario", help="Scenario file instead of the task's own, e.g. "
+                               "stations/identify_empty_can_piper_can.yaml (over CAN).")] = None,
         ) -> None:
     """Run one episode of a task with an agent and print success, OI, robot time and the
     transcript (thoughts, code blocks, measurements)."""
@@ -74,14 +78,15 @@ def run(task: Annotated[str, typer.Option("--task", help=f"One of: {', '.join(TA
     if viewer is not None and meshcat:
         console.print(f"Meshcat is at {viewer.web_url()}")
     options = dict(agent=agent, llm=llm, model=model, meshcat=viewer, pointer=pointer,
-                   on_entry=None if quiet else _print_entry)
+                   scenario_file=scenario, on_entry=None if quiet else _print_entry)
     try:
         if out is None:
             result = run_agent_episode(task, seed, **options)
         else:
             result = record_episode(out, task, seed, meshcat_html=meshcat_html,
                                     overwrite=overwrite, **options)
-    except (ValueError, ScenarioError, LLMError, ImportError, FileExistsError) as error:
+    except (ValueError, ScenarioError, LLMError, ImportError, FileExistsError,
+            ConnectionError, StartupError) as error:
         error_console.print(f"[bold red]error:[/] {escape(str(error))}", soft_wrap=True)
         raise typer.Exit(code=2) from None
     except KeyboardInterrupt:

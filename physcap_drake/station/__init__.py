@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+from contextlib import contextmanager
+
 from pydrake.geometry import Meshcat
-from pydrake.systems.framework import Diagram
+from pydrake.systems.framework import Context, Diagram
 
 from physcap_drake.station.can_config import PiperCan
 from physcap_drake.station.sim_config import SimPiper
@@ -17,7 +19,8 @@ def MakeStation(scenario, meshcat: Meshcat | None = None) -> Diagram:
         meshcat: when given, the scene is drawn there (per `scenario.visualization`).
     Returns:
         A Diagram with inputs piper.position, gripper.position, gripper.force_limit and the
-        outputs listed in `physcap_drake.station.ports`.
+        outputs listed in `physcap_drake.station.ports`. A PiperCan station is connected
+        and streaming once built: release it with `close_station`.
     """
     station = scenario.station
     if isinstance(station, SimPiper):
@@ -25,8 +28,66 @@ def MakeStation(scenario, meshcat: Meshcat | None = None) -> Diagram:
 
         return MakeSimStation(scenario, meshcat)
     if isinstance(station, PiperCan):
-        raise NotImplementedError(
-            "station: !PiperCan (the real arm over CAN) is accepted by the scenario schema, "
-            "but its hardware interface is not part of this release yet; use station: "
-            "!SimPiper")
+        from physcap_drake.station.can_station import MakeCanStation
+
+        return MakeCanStation(scenario, meshcat)
     raise TypeError(f"unknown station type {type(station).__name__}")
+
+
+def close_station(station: Diagram) -> None:
+    """Releases what a station holds outside Drake (a CAN link, an emulator thread); the real
+    arm is left enabled and holding. Nothing to do for the sim station. Safe to call twice."""
+    from physcap_drake.station.can_station import INTERFACE, close_can_station
+
+    if station.HasSubsystemNamed(INTERFACE):
+        close_can_station(station)
+
+
+def scene_plant(station: Diagram):
+    """The plant of the simulated world behind `station` (see scene_ground_truth)."""
+    from physcap_drake.station.can_scene import EmulatedScene
+    from physcap_drake.station.can_station import SCENE
+
+    if station.HasSubsystemNamed("plant"):
+        return station.GetSubsystemByName("plant")
+    scene = station.GetSubsystemByName(SCENE) if station.HasSubsystemNamed(SCENE) else None
+    if not isinstance(scene, EmulatedScene):
+        raise RuntimeError(NO_WORLD)
+    return scene.motion.plant
+
+
+NO_WORLD = ("this station has no simulated world (the real arm over CAN): ground truth "
+            "such as body poses does not exist")
+
+
+@contextmanager
+def scene_ground_truth(station: Diagram, root_context: Context):
+    """Yields (plant, plant context) of the simulated world behind `station`: the sim
+    station's own plant, or an emulated CAN station's emulator scene (held still while the
+    block runs). Ground truth for success checks and task set-up only, never for agents.
+    Raises RuntimeError for the real arm, which has no simulated world."""
+    from physcap_drake.station.can_scene import EmulatedScene
+    from physcap_drake.station.can_station import SCENE
+
+    plant = scene_plant(station)
+    if station.HasSubsystemNamed("plant"):
+        yield plant, plant.GetMyMutableContextFromRoot(root_context)
+        return
+    scene: EmulatedScene = station.GetSubsystemByName(SCENE)
+    with scene.emulator.lock:
+        yield scene.motion.plant, scene.motion.plant_context
+
+
+def scene_snapshot(station: Diagram, root_context: Context):
+    """(plant, plant context) of the simulated world now, to read: the sim station's live
+    context (its time stands still between calls), or a copy of the emulator's (its thread
+    moves on). Raises RuntimeError for the real arm."""
+    from physcap_drake.station.can_station import SCENE
+
+    plant = scene_plant(station)
+    if station.HasSubsystemNamed("plant"):
+        return plant, plant.GetMyContextFromRoot(root_context)
+    motion = station.GetSubsystemByName(SCENE).motion
+    with station.GetSubsystemByName(SCENE).emulator.lock:
+        copy = motion.context.Clone()
+    return plant, plant.GetMyContextFromRoot(copy)

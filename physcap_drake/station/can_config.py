@@ -1,13 +1,40 @@
 """Configuration of the real PiPER over CAN (`station: !PiperCan` in a scenario file).
 
-The scenario schema accepts it so that scenario files for the real arm can be written and
-checked today; `MakeStation` refuses it with a clear error until the CAN station exists.
+With `emulate: true` (virtual bus only) the station starts a PiPER emulator in a thread on
+the same virtual channel, backed by the simulated station `emulated` (the scenario's own
+scene with its task objects): the whole stack then runs over CAN frames, and the emulator's
+simulated scene provides what a real arm cannot (camera images, and the ground truth
+`body_poses` / `camera.label` used only by success checks).
 """
 
 # No `from __future__ import annotations`: yaml_load_typed reads the field types at run time.
 import dataclasses as dc
 
 from physcap_drake.config_checks import ConfigChecker
+from physcap_drake.station.sim_config import SimPiper
+
+
+@dc.dataclass
+class CanFaults:
+    """Faults injected on the host's receiving side of an emulated bus (tests, drills).
+
+    All zero (the default) is a clean bus. Applies only with `emulate: true`.
+    """
+
+    # Probability that a feedback frame is lost, 0..1.
+    loss: float = 0.0
+    # Every feedback frame reaches the host this much later, s.
+    delay: float = 0.0
+    # Probability that a feedback frame arrives garbled (wrong length or out-of-range value).
+    garble: float = 0.0
+    # Seed of the fault draws (the run is reproducible for a given frame sequence).
+    seed: int = 0
+
+    def check(self, at: ConfigChecker) -> None:
+        at.number("loss", self.loss, minimum=0.0, maximum=1.0)
+        at.number("delay", self.delay, minimum=0.0, maximum=5.0)
+        at.number("garble", self.garble, minimum=0.0, maximum=1.0)
+        at.number("seed", self.seed, minimum=0)
 
 
 @dc.dataclass
@@ -21,9 +48,33 @@ class PiperCan:
     # Rate at which joint targets are streamed in joint mode, Hz.
     control_rate: float = 200.0
     # Firmware version string such as "S-V1.8-2"; empty: read it from the arm (0x4AF).
+    # Given, it overrides what the arm reports (it selects the torque scaling).
     firmware: str = ""
     # Gripper stroke set on start-up with 0x47D, mm: 70 (V1 gripper) or 100 (V2 gripper).
     gripper_stroke_mm: int = 100
+    # Squeeze force per finger that reads as effort 1.0 and caps `gripper.force_limit`, N
+    # (the same meaning as SimPiper's gripper_servo.max_force).
+    gripper_max_force: float = 25.0
+    # Gripper motor effort at that force, N·m (0x159 accepts 0..5; piper_control caps at 2).
+    gripper_max_effort: float = 2.0
+    # Names of the arm and gripper model instances in the directives (the controller's model).
+    arm_model: str = "piper"
+    gripper_model: str = "piper_gripper"
+    # Start-up: how long to wait for each answer (firmware, limits, enabled bits), s.
+    startup_timeout: float = 2.0
+    # Watchdog: feedback older than this marks the outputs stale and stops motion, s.
+    feedback_timeout: float = 0.05
+    # Watchdog: feedback frames lost over the last 16 cycles (80 ms) above this fraction
+    # mark it stale.
+    max_feedback_loss: float = 0.05
+    # Stale for longer than this ends the episode with an error, s.
+    stale_limit: float = 1.0
+    # Run a PiPER emulator on the virtual channel, backed by `emulated` (see module docstring).
+    emulate: bool = False
+    # The simulated arm behind the emulator (its models are the scenario's directives).
+    emulated: SimPiper = dc.field(default_factory=SimPiper)
+    # Faults on the emulated bus.
+    faults: CanFaults = dc.field(default_factory=CanFaults)
 
     def check(self, at: ConfigChecker) -> None:
         at.choice("interface", self.interface, ["socketcan", "virtual", "slcan", "gs_usb"])
@@ -32,3 +83,33 @@ class PiperCan:
         at.number("control_rate", self.control_rate, minimum=0.0, maximum=500.0,
                   open_minimum=True)
         at.choice("gripper_stroke_mm", self.gripper_stroke_mm, [70, 100])
+        at.number("gripper_max_force", self.gripper_max_force, minimum=0.0, open_minimum=True)
+        at.number("gripper_max_effort", self.gripper_max_effort, minimum=0.0, maximum=5.0,
+                  open_minimum=True, why="0x159 accepts 0..5 N·m")
+        at.number("startup_timeout", self.startup_timeout, minimum=0.0, open_minimum=True)
+        at.number("feedback_timeout", self.feedback_timeout, minimum=0.0, maximum=1.0,
+                  open_minimum=True)
+        at.number("max_feedback_loss", self.max_feedback_loss, minimum=0.0, maximum=1.0)
+        at.number("stale_limit", self.stale_limit, minimum=self.feedback_timeout)
+        if self.firmware:
+            from physcap_drake.can.codec import parse_firmware
+
+            try:
+                parse_firmware(self.firmware)
+            except ValueError as error:
+                at.fail("firmware", "a version like 'S-V1.8-2', or empty", str(error))
+        if self.emulate and self.interface != "virtual":
+            at.fail("emulate", "false unless interface is 'virtual' (run `physcap "
+                    "emulate-piper` separately for socketcan)",
+                    f"got emulate: true with interface {self.interface!r}")
+        if self.emulate:
+            self.emulated.check(at.child("emulated"))
+            if self.emulated.gripper_servo.max_force != self.gripper_max_force:
+                at.fail("gripper_max_force", "equal to emulated.gripper_servo.max_force "
+                        f"({self.emulated.gripper_servo.max_force} N)",
+                        f"got {self.gripper_max_force}")
+        active = any((self.faults.loss, self.faults.delay, self.faults.garble))
+        if active and not self.emulate:
+            at.fail("faults", "no faults unless emulate is true (faults are injected on the "
+                    "emulated bus only)", "faults set on a real bus")
+        self.faults.check(at.child("faults"))

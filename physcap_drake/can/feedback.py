@@ -1,0 +1,250 @@
+"""FeedbackListener: the host's view of the arm, filled from CAN frames by a python-can Notifier.
+
+Every frame is decoded with `codec` in the Notifier's thread and kept, under a lock, as the
+latest value of its kind. Frames that cannot be decoded (wrong length) or carry impossible
+values are rejected and remembered as garbled; the arm's error states (0x2A1 status, joint
+communication errors, angle limits, the drivers' collision and stall bits) are remembered as
+a fault. `health(now)` judges whether the feedback can be trusted right now.
+"""
+
+from __future__ import annotations
+
+import collections
+import dataclasses as dc
+import logging
+import threading
+import time
+
+import can
+import numpy as np
+
+from physcap_drake.can import codec
+from physcap_drake.kinematics.piper_dh import JOINT_LOWER, JOINT_UPPER
+
+log = logging.getLogger("physcap_drake.can")
+
+#: The arm sends these at its feedback rate; they are the heartbeat the watchdog counts.
+PERIODIC = (codec.ARM_STATUS, *codec.JOINT_FEEDBACK, codec.GRIPPER_FEEDBACK, *codec.HIGH_SPEED)
+#: Feedback cycles over which frame loss is counted (80 ms at 200 Hz): 160 frames, enough to
+#: tell 1 % from 10 % loss (means 1.6 and 16 lost) and to do so within 100 ms.
+LOSS_CYCLES = 16
+#: Values beyond these are not feedback but garbage: joint angle beyond its limit (rad),
+#: joint speed (rad/s), motor current (A), gripper opening outside [−, stroke + ] (m).
+ANGLE_MARGIN, MAX_SPEED, MAX_CURRENT, OPENING_MARGIN = 0.5, 20.0, 30.0, 0.01
+#: Plausible driver voltage (V) and temperatures (°C); the highest status codes of 0x2A1.
+MAX_VOLTAGE, TEMPERATURES, MAX_CTRL_MODE, MAX_ARM_STATUS = 60.0, (-40.0, 150.0), 7, 15
+#: A frame timestamp this far from the host clock is on another clock (no age check), s.
+CLOCK_MISMATCH = 10.0
+
+
+class Garbled(ValueError):
+    """A frame of the right length whose values cannot be the arm's."""
+
+
+@dc.dataclass(frozen=True)
+class ArmFeedback:
+    """The latest feedback: joint positions q (rad), speeds v (rad/s) and motor currents (A)
+    J1..J6, gripper opening (m, total gap) and motor effort (N·m), which drivers report
+    enabled, and the last 0x2A1 status (None before the first)."""
+
+    q: np.ndarray
+    v: np.ndarray
+    current: np.ndarray
+    gripper_opening: float
+    gripper_effort: float
+    enabled: np.ndarray
+    status: codec.ArmStatus | None
+
+
+@dc.dataclass(frozen=True)
+class Health:
+    """Whether the feedback can be trusted: `stale` with the `reason` (watchdog), and a
+    `fault` the arm reported ("" if none; an arm fault is permanent)."""
+
+    stale: bool
+    reason: str
+    fault: str
+
+
+class LossMonitor:
+    """Fraction of the periodic feedback frames lost over the last LOSS_CYCLES cycles.
+
+    The arm sends its periodic frames once per cycle, the status frame (0x2A1) first (as
+    the emulator does; to be confirmed on hardware). Each status frame closes a cycle: of
+    the other periodic identifiers, those that did not arrive since the previous status
+    frame were lost. Counting per cycle, not per second, keeps a slow or stalling sender
+    (fewer cycles, late bursts) from looking lossy; a lost status frame merges two cycles
+    and hides at most one cycle's losses.
+    """
+
+    def __init__(self):
+        self._others = frozenset(PERIODIC) - {codec.ARM_STATUS}
+        self._seen: set[int] = set()
+        self._cycles: collections.deque[int] = collections.deque(maxlen=LOSS_CYCLES)
+
+    def arrived(self, identifier: int) -> None:
+        if identifier == codec.ARM_STATUS:
+            self._cycles.append(len(self._others - self._seen))
+            self._seen = set()
+        else:
+            self._seen.add(identifier)
+
+    def loss(self) -> float:
+        if len(self._cycles) < 2:
+            return 0.0
+        # The first cycle may have begun mid-way (before we listened): leave it out.
+        cycles = list(self._cycles)[1:]
+        return sum(cycles) / (len(cycles) * len(self._others))
+
+
+class FeedbackListener(can.Listener):
+    """See module docstring. `stroke` is the gripper's stroke (m); `feedback_timeout` (s)
+    and `max_loss` (fraction) are the watchdog's limits."""
+
+    def __init__(self, *, stroke: float, feedback_timeout: float, max_loss: float):
+        self._lock = threading.Lock()
+        self._stroke = stroke
+        self._timeout = feedback_timeout
+        self._max_loss = max_loss
+        self._q = np.full(6, np.nan)
+        self._v = np.zeros(6)
+        self._current = np.zeros(6)
+        self._opening = np.nan
+        self._effort = 0.0
+        self._enabled = np.zeros(6, dtype=bool)
+        self._status: codec.ArmStatus | None = None
+        self._firmware_frames: list[bytes] = []
+        self.limits: dict[int, codec.JointLimits] = {}
+        self._last_heartbeat = -np.inf
+        self._age = 0.0  # how old the newest frame was when it arrived, s
+        self._clock_checked = False
+        self._check_age = True
+        self._garbled_at = -np.inf
+        self._garbled_what = ""
+        self.garbled_count = 0
+        self._fault = ""
+        self._loss = LossMonitor()
+
+    # The Notifier's side ----------------------------------------------------------------
+
+    def on_message_received(self, msg: can.Message) -> None:
+        now, data, identifier = time.monotonic(), bytes(msg.data), msg.arbitration_id
+        try:
+            with self._lock:
+                self._take(identifier, data)
+                if identifier in PERIODIC:
+                    self._last_heartbeat = now
+                    self._loss.arrived(identifier)
+                    self._note_age(msg.timestamp)
+        except (codec.FrameError, Garbled) as error:
+            with self._lock:
+                self._garbled_at, self._garbled_what = now, f"0x{identifier:03X}: {error}"
+                self.garbled_count += 1
+                first = self.garbled_count == 1
+            if first:
+                log.warning("garbled feedback frame rejected (%s)", error)
+
+    def _note_age(self, timestamp: float) -> None:
+        age = time.time() - timestamp
+        if not self._clock_checked:
+            self._clock_checked = True
+            self._check_age = abs(age) < CLOCK_MISMATCH
+            if not self._check_age:
+                log.warning("the CAN interface's timestamps are not on the host clock "
+                            "(%.0f s apart): the watchdog cannot see delayed frames", age)
+        if self._check_age:
+            self._age = age
+
+    def _take(self, identifier: int, data: bytes) -> None:
+        if identifier in codec.JOINT_FEEDBACK:
+            pair = codec.decode_joint_pair(data)
+            first = 2 * codec.JOINT_FEEDBACK.index(identifier)
+            for joint, angle in zip((first, first + 1), pair, strict=True):
+                if not (JOINT_LOWER[joint] - ANGLE_MARGIN <= angle
+                        <= JOINT_UPPER[joint] + ANGLE_MARGIN):
+                    raise Garbled(f"J{joint + 1} at {angle:.3g} rad, beyond its limits")
+            self._q[first:first + 2] = pair
+        elif identifier in codec.HIGH_SPEED:
+            high = codec.decode_high_speed(data)
+            joint = codec.HIGH_SPEED.index(identifier)
+            if abs(high.speed) > MAX_SPEED or abs(high.current) > MAX_CURRENT:
+                raise Garbled(f"J{joint + 1} speed {high.speed:.3g} rad/s, current "
+                              f"{high.current:.3g} A")
+            self._v[joint], self._current[joint] = high.speed, high.current
+        elif identifier == codec.GRIPPER_FEEDBACK:
+            gripper = codec.decode_gripper_feedback(data)
+            if not -OPENING_MARGIN <= gripper.opening <= self._stroke + OPENING_MARGIN:
+                raise Garbled(f"gripper opening {gripper.opening:.3g} m")
+            self._opening, self._effort = gripper.opening, gripper.effort
+        elif identifier == codec.ARM_STATUS:
+            status = codec.decode_arm_status(data)
+            if status.ctrl_mode > MAX_CTRL_MODE or status.arm_status > MAX_ARM_STATUS:
+                raise Garbled(f"status with control mode {status.ctrl_mode}, arm status "
+                              f"{status.arm_status}")
+            self._status = status
+            if self._status.error and not self._fault:
+                self._set_fault(f"the arm reports: {self._status.error} "
+                                f"(status {self._status.arm_status}, error code "
+                                f"0x{self._status.err_code:04X})")
+        elif identifier in codec.LOW_SPEED:
+            low = codec.decode_low_speed(data)
+            joint = codec.LOW_SPEED.index(identifier)
+            low_t, high_t = TEMPERATURES
+            if not (0.0 <= low.voltage <= MAX_VOLTAGE
+                    and low_t <= low.driver_temperature <= high_t
+                    and low_t <= low.motor_temperature <= high_t):
+                raise Garbled(f"J{joint + 1} driver at {low.voltage:.4g} V, "
+                              f"{low.driver_temperature:.4g} / {low.motor_temperature:.4g} °C")
+            self._enabled[joint] = low.enabled
+            for bit, what in ((4, "collision protection tripped"), (7, "stall protection "
+                                                                       "tripped")):
+                if low.status >> bit & 1 and not self._fault:
+                    self._set_fault(f"the arm reports: J{joint + 1} {what}")
+        elif identifier == codec.FIRMWARE:
+            self._firmware_frames.append(data)
+        elif identifier == codec.LIMITS_REPLY:
+            limits = codec.decode_joint_limits(data)
+            self.limits[limits.motor] = limits
+
+    def _set_fault(self, text: str) -> None:
+        self._fault = text
+        log.error("%s: motion commands stopped", text)
+
+    # The host's side ---------------------------------------------------------------------
+
+    def firmware(self) -> str | None:
+        """The firmware version once the 0x4AF reply has arrived, else None."""
+        with self._lock:
+            frames = list(self._firmware_frames)
+        try:
+            return codec.decode_firmware(frames) if frames else None
+        except codec.FrameError:
+            return None
+
+    def snapshot(self) -> ArmFeedback:
+        with self._lock:
+            return ArmFeedback(self._q.copy(), self._v.copy(), self._current.copy(),
+                               float(self._opening), float(self._effort),
+                               self._enabled.copy(), self._status)
+
+    def complete(self) -> bool:
+        """Whether every joint angle and the gripper have been reported at least once."""
+        with self._lock:
+            return bool(np.all(np.isfinite(self._q)) and np.isfinite(self._opening))
+
+    def health(self, now: float) -> Health:
+        """The watchdog's verdict at monotonic time `now` (see Health)."""
+        with self._lock:
+            silence = now - self._last_heartbeat
+            loss = self._loss.loss()
+            reasons = []
+            if silence > self._timeout:
+                reasons.append(f"no feedback for {silence * 1000:.0f} ms")
+            elif self._age > self._timeout:
+                reasons.append(f"feedback arrives {self._age * 1000:.0f} ms late")
+            if loss > self._max_loss:
+                reasons.append(f"{loss:.0%} of the feedback frames lost over the last "
+                               f"{LOSS_CYCLES} cycles")
+            if now - self._garbled_at <= self._timeout:
+                reasons.append(f"garbled feedback ({self._garbled_what})")
+            return Health(bool(reasons), "; ".join(reasons), self._fault)

@@ -1,0 +1,233 @@
+"""PiperLink: the host's connection to a PiPER over CAN, with its own real-time thread.
+
+Start-up (`start`): read the firmware version (0x4AF; it picks the torque scaling) and the
+joint limits (0x472), switch to CAN control in joint mode (0x151), enable the motors (0x471)
+until every driver reports its enabled bit, set the gripper stroke (0x47D). Then a streaming
+thread sends, every 1/control_rate s, the latest joint targets (0x155-0x157) and gripper
+command (0x159) that `command()` left, while a python-can Notifier fills a FeedbackListener.
+
+The streaming thread is independent of whoever calls `command()`: a Drake simulator that
+stops while a language model thinks leaves the last target in place, and the arm keeps
+receiving it. Before sending, every cycle asks the watchdog: while the feedback is stale
+(see FeedbackListener.health) or the arm reports a fault, no motion command is sent and
+the arm holds its last target. Targets are clamped to the joint limits and their change per
+cycle to the firmware's speed limit before they are encoded. `close()` stops streaming and
+leaves the arm enabled and holding; the motor-power-cutting reset (0x150 = 2) is never sent.
+"""
+
+from __future__ import annotations
+
+import collections
+import dataclasses as dc
+import logging
+import threading
+import time
+
+import can
+import numpy as np
+
+from physcap_drake.can import codec
+from physcap_drake.can.feedback import FeedbackListener, Health
+from physcap_drake.kinematics.piper_dh import JOINT_LOWER, JOINT_UPPER
+
+log = logging.getLogger("physcap_drake.can")
+
+MAX_JOINT_SPEED = 3.0  # rad/s, the firmware's largest joint speed (0x474)
+ENABLE_RETRY = 0.05  # s between enable commands during start-up
+
+
+class StartupError(RuntimeError):
+    """The arm did not answer or did not enable during start-up."""
+
+
+@dc.dataclass(frozen=True)
+class LinkStatus:
+    """The streaming thread's view: health now, since when it is stale (monotonic s, None
+    if not stale), and how many motion commands were sent so far."""
+
+    health: Health
+    stale_since: float | None
+    commands_sent: int
+
+
+class PiperLink:
+    """See module docstring. `config` is a `PiperCan` station config; `bus` an open
+    python-can bus (the link owns it from now on and shuts it down in `close`)."""
+
+    def __init__(self, bus: can.BusABC, config):
+        self.config = config
+        self._bus = bus
+        self._period = 1.0 / config.control_rate
+        self._stroke = config.gripper_stroke_mm / 1000.0
+        self.listener = FeedbackListener(stroke=self._stroke,
+                                         feedback_timeout=config.feedback_timeout,
+                                         max_loss=config.max_feedback_loss)
+        self._notifier: can.Notifier | None = None
+        self._thread: threading.Thread | None = None
+        self._stop = threading.Event()
+        self._lock = threading.Lock()
+        self._target_q: np.ndarray | None = None
+        self._sent_q: np.ndarray | None = None
+        self._gripper = codec.GripperCommand(0.0, 0.0)
+        self._lower, self._upper = JOINT_LOWER.copy(), JOINT_UPPER.copy()
+        self._stale_since: float | None = None
+        self._commands_sent = 0
+        self.firmware = ""
+        self.torque_scale = (1.0,) * 6
+        #: Start times of the last streaming cycles (monotonic s), for jitter figures.
+        self.cycle_starts: collections.deque[float] = collections.deque(maxlen=20000)
+
+    @property
+    def bus(self) -> can.BusABC:
+        """The bus the link talks on (e.g. a FaultyBus, to inject faults)."""
+        return self._bus
+
+    # Start-up ----------------------------------------------------------------------------
+
+    def start(self) -> PiperLink:
+        """Runs the start-up sequence (module docstring) and starts streaming.
+        Raises StartupError naming what did not answer."""
+        self._notifier = can.Notifier(self._bus, [self.listener], timeout=0.01)
+        # From here on close() shuts the bus down; before, the caller still owns it.
+        where = f"{self.config.interface}:{self.config.channel}"
+        self._send(*codec.encode_firmware_request())
+        reported = self._wait_for(self.listener.firmware, "the firmware version (0x4AF)", where)
+        self.firmware = self.config.firmware or reported
+        if self.config.firmware and self.config.firmware != reported:
+            log.warning("firmware override %s (the arm reports %s)", self.config.firmware,
+                        reported)
+        self.torque_scale = codec.torque_scale(self.firmware)
+        for motor in range(1, 7):
+            self._send(*codec.encode_limit_query(motor))
+        self._wait_for(lambda: len(self.listener.limits) == 6 or None,
+                       "the joint limits (0x472 -> 0x473)", where)
+        for motor, limits in self.listener.limits.items():  # keep the tighter of the two
+            self._lower[motor - 1] = max(self._lower[motor - 1], limits.min_angle)
+            self._upper[motor - 1] = min(self._upper[motor - 1], limits.max_angle)
+        self._wait_for(lambda: self.listener.complete() or None,
+                       "joint and gripper feedback (0x2A5-0x2A8)", where)
+        self._send(*codec.encode_mode_control(ctrl_mode=1, move_mode=1, speed_percent=100))
+        self._enable(where)
+        self._send(*codec.encode_gripper_parameters(self.config.gripper_stroke_mm))
+        feedback = self.listener.snapshot()
+        fault = self.listener.health(time.monotonic()).fault
+        if fault:
+            raise StartupError(f"{where}: {fault}; clear it on the arm before starting")
+        self.command(feedback.q, feedback.gripper_opening, 0.0)
+        self._thread = threading.Thread(target=self._stream, name="piper-can-stream",
+                                        daemon=True)
+        self._thread.start()
+        log.info("PiPER on %s: firmware %s, streaming at %.0f Hz", where, self.firmware,
+                 self.config.control_rate)
+        return self
+
+    def _wait_for(self, probe, what: str, where: str):
+        deadline = time.monotonic() + self.config.startup_timeout
+        while (value := probe()) is None:
+            if time.monotonic() > deadline:
+                self.close()
+                raise StartupError(f"no answer from the arm on {where}: {what} did not arrive "
+                                   f"within station.startup_timeout = "
+                                   f"{self.config.startup_timeout} s (is the arm powered and "
+                                   "the bus up at 1 Mbit/s?)")
+            time.sleep(0.002)
+        return value
+
+    def _enable(self, where: str) -> None:
+        deadline = time.monotonic() + self.config.startup_timeout
+        while not self.listener.snapshot().enabled.all():
+            if time.monotonic() > deadline:
+                missing = [f"J{j + 1}" for j, on in enumerate(self.listener.snapshot().enabled)
+                           if not on]
+                self.close()
+                raise StartupError(f"{where}: the motors of {', '.join(missing)} did not "
+                                   f"report enabled (0x261-0x266 bit 6) within "
+                                   f"station.startup_timeout = {self.config.startup_timeout} s")
+            self._send(*codec.encode_motor_enable(True))
+            time.sleep(ENABLE_RETRY)
+
+    # Commands and feedback ---------------------------------------------------------------
+
+    def command(self, q, opening: float, effort: float) -> None:
+        """Sets the targets the streaming thread sends from now on: joint positions q
+        (rad, J1..J6), gripper opening (m, total gap) and effort limit (N·m)."""
+        q = np.clip(np.asarray(q, dtype=float), self._lower, self._upper)
+        gripper = codec.GripperCommand(min(max(float(opening), 0.0), self._stroke),
+                                       min(max(float(effort), 0.0), 5.0))
+        with self._lock:
+            self._target_q, self._gripper = q, gripper
+
+    def torques(self, current: np.ndarray) -> np.ndarray:
+        """Joint torques (N·m) from motor currents (A) with this arm's firmware scaling."""
+        return np.asarray(current) * np.asarray(codec.TORQUE_CONSTANT) * self.torque_scale
+
+    def status(self) -> LinkStatus:
+        with self._lock:
+            return LinkStatus(self.listener.health(time.monotonic()), self._stale_since,
+                              self._commands_sent)
+
+    # The streaming thread ----------------------------------------------------------------
+
+    def _stream(self) -> None:
+        next_time = time.monotonic()
+        while not self._stop.is_set():
+            now = time.monotonic()
+            self.cycle_starts.append(now)
+            health = self.listener.health(now)
+            self._track_staleness(health, now)
+            if not (health.stale or health.fault):
+                self._send_targets()
+            next_time += self._period
+            if next_time < now:  # fell behind (a stall): start afresh, do not burst
+                next_time = now + self._period
+            self._stop.wait(max(0.0, next_time - time.monotonic()))
+
+    def _track_staleness(self, health: Health, now: float) -> None:
+        with self._lock:
+            was_stale = self._stale_since is not None
+            if health.stale and not was_stale:
+                self._stale_since = now
+                log.warning("arm feedback stale (%s): motion commands stopped, the arm "
+                            "holds", health.reason)
+            elif not health.stale and was_stale:
+                log.warning("arm feedback healthy again after %.0f ms: streaming resumes",
+                            (now - self._stale_since) * 1000)
+                self._stale_since = None
+                self._sent_q = None  # restart the rate limit from the measured position
+
+    def _send_targets(self) -> None:
+        with self._lock:
+            target, gripper = self._target_q, self._gripper
+            previous = self._sent_q
+        if target is None:
+            return
+        if previous is None:
+            previous = self.listener.snapshot().q
+        step = MAX_JOINT_SPEED * self._period
+        q = previous + np.clip(target - previous, -step, step)
+        for frame in codec.encode_joints(codec.JOINT_COMMAND, q):
+            self._send(*frame)
+        self._send(*codec.encode_gripper_command(gripper, stroke=self._stroke))
+        with self._lock:
+            self._sent_q = q
+            self._commands_sent += 1
+
+    def _send(self, identifier: int, data: bytes) -> None:
+        try:
+            self._bus.send(can.Message(arbitration_id=identifier, data=data,
+                                       is_extended_id=False))
+        except can.CanError as error:
+            log.warning("CAN send of 0x%03X failed: %s", identifier, error)
+
+    # Shutdown ----------------------------------------------------------------------------
+
+    def close(self) -> None:
+        """Stops streaming (the arm holds its last target, motors stay enabled) and closes
+        the bus. Safe to call twice."""
+        self._stop.set()
+        if self._thread is not None and self._thread is not threading.current_thread():
+            self._thread.join(timeout=1.0)
+        if self._notifier is not None:
+            self._notifier.stop(timeout=1.0)
+            self._notifier = None
+            self._bus.shutdown()

@@ -1,0 +1,108 @@
+"""PiperLink against the kinematic emulator: start-up, streaming, clamping, shutdown."""
+
+from __future__ import annotations
+
+import time
+
+import can
+import numpy as np
+import pytest
+from conftest import unique_channel
+
+from physcap_drake.can import codec
+from physcap_drake.can.emulator import PiperEmulator, wait_until
+from physcap_drake.can.link import PiperLink, StartupError
+from physcap_drake.station.can_config import PiperCan
+
+
+def test_start_up_reads_firmware_enables_and_sets_the_gripper_stroke(can_rig):
+    assert wait_until(lambda: can_rig.emulator.snapshot().gripper_stroke_mm == 100)
+    arm = can_rig.emulator.snapshot()
+    assert can_rig.link.firmware == "S-V1.8-2"
+    assert can_rig.link.torque_scale == (4.0, 4.0, 4.0, 1.0, 1.0, 1.0)
+    assert arm.enabled.all() and arm.ctrl_mode == 1 and arm.move_mode == 1
+    ids = [m.arbitration_id for m in can_rig.sent]
+    # The order of the start-up sequence: limits, then mode, enable, stroke, then streaming.
+    assert ids.index(0x472) < ids.index(0x151) < ids.index(0x471) < ids.index(0x47D) \
+        < ids.index(0x155)
+
+
+def test_streams_targets_at_the_control_rate_without_anyone_calling(can_rig):
+    target = np.array([0.4, 0.6, -0.5, 0.2, -0.3, 0.5])
+    can_rig.link.command(target, 0.06, 1.0)
+    start = can_rig.link.status().commands_sent
+    time.sleep(0.5)  # nothing calls the link: its own thread keeps streaming
+    sent = can_rig.link.status().commands_sent - start
+    assert 90 <= sent <= 105  # 200 Hz for 0.5 s
+    assert wait_until(lambda: np.allclose(can_rig.emulator.snapshot().q, target, atol=1e-4)
+                      and abs(can_rig.emulator.snapshot().gripper_opening - 0.06) < 1e-6)
+    time.sleep(0.02)  # one more feedback cycle
+    feedback = can_rig.link.listener.snapshot()
+    np.testing.assert_allclose(feedback.q, target, atol=1e-4)
+    assert feedback.gripper_opening == pytest.approx(0.06, abs=1e-5)
+
+
+def test_targets_are_clamped_to_the_limits_before_encoding(can_rig):
+    can_rig.link.command([9.0, -9.0, 9.0, 9.0, -9.0, 9.0], 0.5, 50.0)
+    time.sleep(1.5)  # the rate limit lets each joint move at most 3 rad/s
+    frames = {m.arbitration_id: bytes(m.data) for m in can_rig.sent}
+    q = [a for i in codec.JOINT_COMMAND for a in codec.decode_joint_pair(frames[i])]
+    np.testing.assert_allclose(q, np.radians([150, 0, 0, 100, -70, 120]), atol=1e-4)
+    gripper = codec.decode_gripper_command(frames[codec.GRIPPER_COMMAND])
+    assert gripper.opening == pytest.approx(0.1) and gripper.effort == pytest.approx(5.0)
+
+
+def test_command_steps_are_limited_to_the_firmware_speed(can_rig):
+    can_rig.sent.clear()
+    can_rig.link.command([1.0, 0, 0, 0, 0, 0], 0.0, 0.0)
+    time.sleep(0.1)
+    j1 = [codec.decode_joint_pair(bytes(m.data))[0] for m in list(can_rig.sent)
+          if m.arbitration_id == codec.JOINT_COMMAND[0]]
+    assert len(j1) >= 10
+    assert np.max(np.abs(np.diff(j1))) <= 3.0 / 200 + 1e-5  # rad per 5 ms cycle
+
+
+def test_close_leaves_the_arm_enabled_and_never_sends_the_reset(can_rig):
+    can_rig.link.command([0.3, 0.3, -0.3, 0, 0, 0], 0.02, 1.0)
+    time.sleep(0.3)
+    can_rig.link.close()
+    held = can_rig.emulator.snapshot()
+    time.sleep(0.2)
+    after = can_rig.emulator.snapshot()
+    assert after.enabled.all() and after.arm_status == 0
+    np.testing.assert_allclose(after.q, held.q, atol=1e-9)  # holding its last target
+    resets = [m for m in can_rig.sent if m.arbitration_id == codec.MOTION_CONTROL]
+    disables = [m for m in can_rig.sent if m.arbitration_id == codec.MOTOR_ENABLE
+                and m.data[1] == 0x01]
+    assert resets == [] and disables == []
+
+
+def test_no_arm_on_the_bus_fails_start_up_naming_what_did_not_answer():
+    channel = unique_channel()
+    config = PiperCan(interface="virtual", channel=channel, startup_timeout=0.2)
+    started = time.monotonic()
+    with pytest.raises(StartupError, match=rf"virtual:{channel}.*firmware version \(0x4AF\)"
+                                           r".*startup_timeout = 0.2"):
+        PiperLink(can.Bus(interface="virtual", channel=channel), config).start()
+    assert time.monotonic() - started < 1.0
+
+
+def test_motors_that_never_enable_fail_start_up_naming_the_joints():
+    """A peer that answers like an arm whose J3 driver stays disabled."""
+    channel = unique_channel()
+    peer = can.Bus(interface="virtual", channel=channel)
+
+    class StuckJ3(PiperEmulator):
+        def _handle(self, message):
+            super()._handle(message)
+            self.arm.enabled[2] = False
+
+    emulator = StuckJ3(peer).start()
+    try:
+        with pytest.raises(StartupError, match=r"J3 did not report enabled.*bit 6"):
+            PiperLink(can.Bus(interface="virtual", channel=channel),
+                      PiperCan(interface="virtual", channel=channel,
+                               startup_timeout=0.3)).start()
+    finally:
+        emulator.stop()
+        peer.shutdown()

@@ -1,0 +1,162 @@
+"""The CAN station over an emulator backed by the simulated station, in a Drake diagram:
+the same readings as the sim station, streaming while the simulator stands still, the
+watchdog and the arm's errors through the simulator, and a whole agent episode."""
+
+from __future__ import annotations
+
+import json
+import re
+import time
+
+import numpy as np
+import pytest
+from conftest import unique_channel
+from pydrake.systems.analysis import Simulator
+from typer.testing import CliRunner
+
+from physcap_drake.agent.episode_runner import run_agent_episode
+from physcap_drake.cli import app
+from physcap_drake.control.errors import ArmFault
+from physcap_drake.resources import stations_dir
+from physcap_drake.scenario import load_scenario
+from physcap_drake.station import MakeStation, close_station, ports, scene_snapshot
+from physcap_drake.station.can_config import PiperCan
+from physcap_drake.station.can_scene import NoScene
+
+TARGET = np.array([0.3, 0.6, -0.7, 0.2, 0.4, -0.3])
+
+
+def run_to_target(station, duration: float, realtime: bool) -> tuple[Simulator, object]:
+    simulator = Simulator(station)
+    context = simulator.get_mutable_context()
+    station.GetInputPort(ports.ARM_POSITION).FixValue(context, TARGET)
+    station.GetInputPort(ports.GRIPPER_POSITION).FixValue(context, [0.06])
+    station.GetInputPort(ports.GRIPPER_FORCE_LIMIT).FixValue(context, [10.0])
+    simulator.set_target_realtime_rate(1.0 if realtime else 0.0)
+    simulator.Initialize()
+    simulator.AdvanceTo(duration)
+    return simulator, context
+
+
+@pytest.fixture
+def can_station(table_scenario):
+    table_scenario.station = PiperCan(interface="virtual", channel=unique_channel(),
+                                      emulate=True, stale_limit=0.3)
+    station = MakeStation(table_scenario)
+    yield station
+    close_station(station)
+
+
+def outputs(station, context) -> dict[str, np.ndarray]:
+    return {name: station.GetOutputPort(name).Eval(context).copy()
+            for name in ports.VECTOR_OUTPUTS}
+
+
+def test_the_can_station_reads_what_the_sim_station_reads(can_station):
+    sim = MakeStation(load_scenario(stations_dir() / "piper_table.yaml"))
+    _, sim_context = run_to_target(sim, 1.5, realtime=False)
+    _, can_context = run_to_target(can_station, 1.5, realtime=True)
+    expected, got = outputs(sim, sim_context), outputs(can_station, can_context)
+    np.testing.assert_allclose(got[ports.ARM_POSITION_MEASURED], TARGET, atol=2e-3)
+    np.testing.assert_allclose(got[ports.ARM_POSITION_MEASURED],
+                               expected[ports.ARM_POSITION_MEASURED], atol=2e-3)
+    # Holding torques (J2, J3 carry the arm's weight: several N·m) through motor currents,
+    # ×4 scaled on J1-J3 for firmware S-V1.8-2; both include the sensor noise (≈0.05 N·m).
+    np.testing.assert_allclose(got[ports.ARM_TORQUE_MEASURED],
+                               expected[ports.ARM_TORQUE_MEASURED], atol=0.25)
+    assert abs(expected[ports.ARM_TORQUE_MEASURED][2]) > 2.0
+    assert got[ports.GRIPPER_POSITION_MEASURED][0] == pytest.approx(0.06, abs=1e-4)
+    assert 0.0 <= got[ports.GRIPPER_EFFORT_MEASURED][0] <= 1.0
+    np.testing.assert_allclose(got[ports.ARM_VELOCITY_ESTIMATED], 0.0, atol=0.01)
+
+
+def test_streaming_goes_on_while_the_simulator_stands_still(can_station):
+    simulator, context = run_to_target(can_station, 0.02, realtime=True)
+    link = can_station.GetSubsystemByName("piper_can").link
+    sent = link.status().commands_sent
+    time.sleep(1.0)  # a language model thinking: no AdvanceTo
+    assert link.status().commands_sent - sent >= 180  # 200 Hz went on
+    np.testing.assert_allclose(link.listener.snapshot().q, TARGET, atol=2e-3)
+    simulator.AdvanceTo(context.get_time() + 0.01)
+    np.testing.assert_allclose(
+        can_station.GetOutputPort(ports.ARM_POSITION_MEASURED).Eval(context), TARGET,
+        atol=2e-3)
+
+
+def test_an_arm_error_state_ends_the_run_naming_it(can_station):
+    simulator, context = run_to_target(can_station, 0.1, realtime=True)
+    can_station.GetSubsystemByName("scene").emulator.set_error(arm_status=7)
+    with pytest.raises(ArmFault, match="the arm reports: collision"):
+        simulator.AdvanceTo(context.get_time() + 0.1)
+
+
+def test_stale_feedback_holds_the_outputs_then_ends_the_run(can_station):
+    simulator, context = run_to_target(can_station, 0.3, realtime=True)
+    interface = can_station.GetSubsystemByName("piper_can")
+    interface.link.bus.set(silent=True)
+    before = can_station.GetOutputPort(ports.ARM_POSITION_MEASURED).Eval(context).copy()
+    simulator.AdvanceTo(context.get_time() + 0.1)
+    assert interface.is_stale(interface.GetMyContextFromRoot(context))
+    np.testing.assert_array_equal(
+        can_station.GetOutputPort(ports.ARM_POSITION_MEASURED).Eval(context), before)
+    with pytest.raises(ArmFault, match=r"stale for 0\.\d s .*stale_limit = 0.3 s.*no feedback"):
+        simulator.AdvanceTo(context.get_time() + 0.5)
+
+
+def test_the_scene_ports_show_the_emulated_world(can_station):
+    simulator, context = run_to_target(can_station, 0.05, realtime=True)
+    rgb = can_station.GetOutputPort(ports.CAMERA_RGB).Eval(context)
+    assert rgb.data.shape == (360, 640, 4) and rgb.data[..., :3].std() > 5.0
+    poses = can_station.GetOutputPort(ports.BODY_POSES).Eval(context)
+    plant, plant_context = scene_snapshot(can_station, context)
+    can_body = plant.GetBodyByName("soda_can")
+    np.testing.assert_allclose(poses[int(can_body.index())].translation(),
+                               plant.EvalBodyPoseInWorld(plant_context, can_body).translation(),
+                               atol=1e-6)
+
+
+def test_without_an_emulator_the_scene_ports_refuse_naming_themselves():
+    scene = NoScene(64, 48)
+    context = scene.CreateDefaultContext()
+    for name in (ports.CAMERA_RGB, ports.BODY_POSES):
+        with pytest.raises(RuntimeError, match=rf"{name} is .*no emulator.*no camera driver"):
+            scene.GetOutputPort(name).Eval(context)
+
+
+def can_scenario(tmp_path, faults: str = "") -> str:
+    """stations/identify_empty_can_piper_can.yaml on a channel of its own (and faults)."""
+    text = (stations_dir() / "identify_empty_can_piper_can.yaml").read_text()
+    text = text.replace("channel: piper_emulated", f"channel: {unique_channel()}" + (
+        f"\n  faults: {faults}" if faults else ""))
+    path = tmp_path / "scenario.yaml"
+    path.write_text(text)
+    return str(path)
+
+
+@pytest.mark.parametrize("station", ["sim", "can", "can with 1% frame loss"])
+def test_the_agent_finds_the_empty_can_over_either_station(tmp_path, station):
+    """Runs in real time over CAN (about 25 s each)."""
+    scenario_file = None
+    if station != "sim":
+        faults = "{loss: 0.01, seed: 3}" if "loss" in station else ""
+        scenario_file = can_scenario(tmp_path, faults)
+    run = run_agent_episode("identify_empty_can", 0, agent="physcap", llm="reference",
+                            scenario_file=scenario_file)
+    summary = run.summary()
+    assert summary["success"] is True, (summary["reason"], summary["failure"])
+    assert summary["oi"] == 1 and summary["failure"] == ""
+    if station != "sim":
+        assert summary["wall_time_s"] >= summary["robot_time_s"]  # real time
+        link = run.episode.robot.station.GetSubsystemByName("piper_can").link
+        assert link.status().commands_sent > 150 * summary["robot_time_s"]
+
+
+def test_bench_can_loop_prints_the_period_percentiles(tmp_path):
+    out = tmp_path / "loop.json"
+    result = CliRunner().invoke(app, ["bench", "can-loop", "--seconds", "1", "--json",
+                                      str(out)])
+    assert result.exit_code == 0, result.output
+    assert re.search(r"p50_ms [\d.]+, p99_ms [\d.]+", result.output.replace("\n", " "))
+    figures = json.loads(out.read_text())
+    assert figures["cycles"] >= 150  # 200 Hz for about a second
+    assert 4.0 < figures["p50_ms"] < 6.0 and figures["p99_ms"] >= figures["p50_ms"]
