@@ -4,6 +4,9 @@ resume, the three result files) and determinism of a replayed run."""
 from __future__ import annotations
 
 import json
+import os
+import subprocess
+import sys
 
 import pytest
 from typer.testing import CliRunner
@@ -57,13 +60,20 @@ def test_grid_names_are_checked():
         make_grid(["empty_cup"], ["cap"], 0)
 
 
+def _physcap(*args: str) -> subprocess.CompletedProcess:
+    """The command line in a process of its own (its worker pool and multiprocessing's
+    resource tracker end with it, not with the test process)."""
+    return subprocess.run([sys.executable, "-m", "physcap_drake.cli", *args],
+                          capture_output=True, text=True, timeout=600, check=False,
+                          env={**os.environ, "COLUMNS": "200"})
+
+
 def test_eval_runs_the_grid_in_parallel_and_resumes(tmp_path):
-    runner = CliRunner()
     args = ["eval", "--tasks", "identify_empty_can", "--agents", "physcap,cap",
             "--trials", "2", "--workers", "2", "--out", str(tmp_path)]
-    first = runner.invoke(app, args)
-    assert first.exit_code == 0, first.output
-    assert "4 to run with 2 worker(s)" in first.output
+    first = _physcap(*args)
+    assert first.returncode == 0, first.stdout + first.stderr
+    assert "4 to run with 2 worker(s)" in first.stdout
     for name in ("results.md", "results.csv", "results.json"):
         assert (tmp_path / name).is_file()
     results = json.loads((tmp_path / "results.json").read_text())
@@ -72,9 +82,9 @@ def test_eval_runs_the_grid_in_parallel_and_resumes(tmp_path):
     summary = tmp_path / "identify_empty_can" / "physcap" / "seed_001" / "summary.json"
     stamp = summary.stat().st_mtime_ns
     (tmp_path / "identify_empty_can" / "cap" / "seed_000" / "summary.json").unlink()
-    second = runner.invoke(app, args)
-    assert second.exit_code == 0, second.output
-    assert "3 already finished" in second.output and "1 to run" in second.output
+    second = _physcap(*args)
+    assert second.returncode == 0, second.stdout + second.stderr
+    assert "3 already finished" in second.stdout and "1 to run" in second.stdout
     assert summary.stat().st_mtime_ns == stamp  # a finished episode is not run again
     csv_rows = (tmp_path / "results.csv").read_text().splitlines()
     assert csv_rows[0].startswith("task,agent,trials,successes") and len(csv_rows) == 3
