@@ -23,12 +23,12 @@ from physcap_drake.resources import agents_dir
 
 MODEL = "reference-reasoner-1"
 #: Where lifted objects are set down, relative to the destination's centre (x, y), m: the
-#: two ends of the tray for the first two objects that are not small, and its middle for a
-#: small one. The tray (288 x 208 mm inside) holds two large cups (Ø 98 mm) at the ends; in
-#: the middle, a large one would stand on the wall and against both of them, a small one
-#: (Ø 56 mm) keeps 15 mm from each and inside the wall.
-SLOTS = ((-0.06, 0.0), (0.06, 0.0))
-SMALL_SLOT = (0.0, 0.07)
+#: two near corners of the tray for the first two objects that are not small, the middle of
+#: its far half for a small one. The tray (288 x 208 mm inside) holds two large cups
+#: (Ø 98 mm) 10 mm from its walls; a small cup (Ø 56 mm) between them keeps 50 mm from
+#: each, room for the open fingers (100 mm apart) to reach down around it.
+SLOTS = ((-0.085, -0.045), (0.085, -0.045))
+SMALL_SLOT = (0.0, 0.05)
 #: How a lifting block announces itself in its printed output.
 LIFT_PRINTED = re.compile(r"ACTION: lift the (.+?) and look under it")
 #: Lifted covers are gripped this much above their located grasp point, m (gripping higher
