@@ -106,3 +106,17 @@ def test_the_vision_only_coder_guesses_among_the_opened_cans():
         code = json.loads(ReferenceReasoner(seed=seed).complete(request).text)["code"]
         guesses |= {c["name"] for c in CANS if f'get_object_pose("{c["name"]}")' in code}
     assert guesses == {"red can", "green can"}
+
+
+def test_lifted_cups_get_their_own_spots_on_the_tray_whatever_the_order():
+    """Two large cups go to the tray's two ends, the small cup to its middle, in any order
+    of lifting (a large cup in the middle would stand on the tray's wall)."""
+    from itertools import permutations
+
+    from physcap_drake.agent.reference.reasoner import SLOTS, SMALL_SLOT, _slot
+    in_view = [{"name": n, "size": n.split()[0]} for n in ("large cup 1", "small cup",
+                                                          "large cup 2")]
+    for order in permutations([o["name"] for o in in_view]):
+        spots = {name: _slot(in_view, list(order[:i]), name) for i, name in enumerate(order)}
+        assert spots["small cup"] == SMALL_SLOT
+        assert {spots["large cup 1"], spots["large cup 2"]} == set(SLOTS)

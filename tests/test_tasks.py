@@ -10,6 +10,7 @@ import pytest
 from pydrake.math import RigidTransform, RollPitchYaw
 
 from physcap_drake.resources import models_dir
+from physcap_drake.tasks.empty_cup import FULL_WITH_STRAW
 from physcap_drake.tasks.episode import make_episode
 from physcap_drake.tasks.registry import TASKS, get_task
 
@@ -71,6 +72,35 @@ def test_exactly_one_libero_cup_is_empty_and_the_spawns_keep_apart():
         assert [o.hidden["mass_kg"] for o in instance.objects].count(0.035) == 1
         xys = [np.array(o.xy) for o in instance.objects]
         assert min(np.linalg.norm(a - b) for i, a in enumerate(xys) for b in xys[i + 1:]) >= 0.1
+
+
+def test_the_empty_libero_cup_and_one_full_cup_carry_straws():
+    """Straws are a cue, not the answer: the empty cup always has one, and so does one full
+    cup, drawn per seed; the model file shows the straw the camera is said to see."""
+    task = get_task("empty_cup")
+    answers, companions = set(), set()
+    for seed in range(30):
+        instance = task.instance(seed)
+        with_straw = [o for o in instance.objects if o.visible.straw]
+        assert len(with_straw) == 1 + FULL_WITH_STRAW
+        assert instance.object(instance.answer).visible.straw
+        answers.add(instance.answer)
+        companions |= {o.visible.name for o in with_straw if o.visible.name != instance.answer}
+        for obj in instance.objects:
+            assert obj.model.endswith("_straw" if obj.visible.straw else "_plain")
+    assert len(answers) >= 3 and len(companions) >= 3
+
+
+def test_the_empty_cup_can_be_pinned_only_to_a_straw_cup():
+    task = get_task("empty_cup")
+    instance = task.instance(4)
+    straw, plain = (next(o.visible.name for o in instance.objects if o.visible.straw == s)
+                    for s in (True, False))
+    pinned = task.instance(4, straw)
+    assert pinned.answer == straw
+    assert [o.visible for o in pinned.objects] == [o.visible for o in instance.objects]
+    with pytest.raises(ValueError, match="not a possible answer"):
+        task.instance(4, plain)
 
 
 @pytest.mark.parametrize("name", ["identify_empty_can", "find_blue_cube", "empty_cup"])

@@ -21,13 +21,15 @@ Objects:
   the can top. Lid, opening and straw are visual only: the can's single collision
   geometry is the cylinder, so the straw never touches the gripper.
 - Paper cups standing upside down (mouth on the table), hollow: a ring of 16 thin boxes
-  along the tapered wall plus a disk for the closed top (walls 5 mm thick, so finger pads
-  cannot push through them). The large one (mouth Ø 98 mm,
+  along the tapered wall plus a disk for the closed top (walls 5 mm thick), lined inside
+  by a collision-only grip band that makes the wall 15 mm thick where the fingers hold it
+  (above 54 mm in the large cup, clear of a cube), so the pads cannot sink through it. The large one (mouth Ø 98 mm,
   top Ø 78 mm, 100 mm high) covers a 5 cm cube with a few mm to spare; the small one
   (mouth Ø 56 mm, top Ø 44 mm, 66 mm high) cannot.
 - A wicker basket, 0.24 x 0.18 x 0.07 m outer, 4 mm floor and walls, 0.5 kg.
-- LIBERO-style closed cups with a lid: solid cylinder Ø 56 mm x 82.7 mm, 0.35 kg, mu 0.8, and
-  a vertical visual-only straw 12 mm off the axis reaching 107.4 mm above the table.
+- LIBERO-style closed cups with a lid, 4 colours x {straw, plain}: solid cylinder Ø 56 mm x
+  82.7 mm, 0.35 kg, mu 0.8; the straw variant has a vertical visual-only straw 12 mm off the
+  axis reaching 107.4 mm above the table, the plain one only the lid.
 - Avocados in two skin colours x two ripeness states: the calibration avocados' compliant
   hydroelastic ellipsoid (84 x 84 x 72 mm, 200 g); the hydroelastic modulus sets the
   ripeness (1.5e5 Pa ripe, 4e6 Pa firm), the colour is what a camera sees, so a task can put
@@ -71,9 +73,16 @@ STRAW_STRIPE = 0.010  # nominal stripe length
 STRAW_INSERTION = 0.020  # straw length hidden inside the container
 
 CUP_WALL, CUP_SEGMENTS, CUP_RGB, CUP_MU = 0.005, 16, "0.95 0.95 0.92", 0.6
-PAPER_CUPS = {  # name: (mouth (bottom) diameter, closed top diameter, height, mass)
-    "paper_cup_large": (0.098, 0.078, 0.100, 0.015),
-    "paper_cup_small": (0.056, 0.044, 0.066, 0.008),
+# Collision-only grip band lining the upper wall inside: the finger pads sink a few mm into
+# point contacts under the grasp force (measured: 5 mm into the 5 mm wall of the large
+# cup), so through a bare wall a pad ends up straddled by it and the released cup hangs on
+# the finger. The band makes the wall CUP_BAND thick from its start above the mouth up to
+# the closed top: in the large cup from 54 mm (clear of a 5 cm cube under it), in the small
+# one (too small to cover anything) from 5 mm.
+CUP_BAND = 0.010
+PAPER_CUPS = {  # name: (mouth (bottom) diameter, closed top diameter, height, mass, band start)
+    "paper_cup_large": (0.098, 0.078, 0.100, 0.015, 0.054),
+    "paper_cup_small": (0.056, 0.044, 0.066, 0.008, 0.005),
 }
 
 BASKET_SIZE, BASKET_WALL, BASKET_MASS, BASKET_MU = (0.24, 0.18, 0.07), 0.004, 0.5, 0.6
@@ -249,13 +258,15 @@ def soda_can(colour: str, rgb: str, is_open: bool) -> None:
                       elements))
 
 
-def paper_cup(name: str, mouth_d: float, top_d: float, height: float, mass: float) -> None:
+def paper_cup(name: str, mouth_d: float, top_d: float, height: float, mass: float,
+              band_from: float) -> None:
     """An upside-down paper cup. Each wall box is tilted by the taper angle alpha so that
     its outer face lies on the cone through the nominal mouth and top circles (the
     nominal radii are the 16-gon's apothems, so the inside clearance does not depend on
     the cup's yaw); its lowest edge (inner, bottom) touches z = 0 and its highest edge
     (outer, top) reaches z = height. The boxes are as wide as the 16-gon's side at the mouth,
-    so neighbours overlap a little towards the top (the outer ridges stick out < 1 mm)."""
+    so neighbours overlap a little towards the top (the outer ridges stick out < 1 mm).
+    Inside the upper wall, the grip band (collision only, see grip_band)."""
     t, n = CUP_WALL, CUP_SEGMENTS
     r_mouth, r_top = mouth_d / 2, top_d / 2
     alpha = math.atan2(r_mouth - r_top, height)
@@ -270,6 +281,7 @@ def paper_cup(name: str, mouth_d: float, top_d: float, height: float, mass: floa
         at = pose(rho * math.cos(yaw), rho * math.sin(yaw), height / 2, 0.0, -alpha, yaw)
         elements += collision(f"wall_collision_{k:02d}", at, box(t, width, length), CUP_MU)
         elements += visual(f"wall_visual_{k:02d}", at, box(t, width, length), CUP_RGB)
+    elements += grip_band(rho, alpha, length, height, band_from)
     elements += collision("top_collision", pose(z=top_z), cylinder(r_top, t), CUP_MU)
     elements += visual("top_visual", pose(z=top_z), cylinder(r_top, t), CUP_RGB)
     r_mean = (r_mouth + r_top) / 2
@@ -284,6 +296,9 @@ def paper_cup(name: str, mouth_d: float, top_d: float, height: float, mass: floa
         "  which are the 16-gon's apothems), plus a disk of the top's diameter and the wall's\n"
         f"  thickness as the closed top. Inside: {inner_mouth * 2000:.1f} mm across at the"
         f" mouth, {(height - t) * 1000:g} mm high.\n"
+        f"  Collision only: a grip band of {n} boxes {CUP_BAND * 1000:g} mm thick lining the wall"
+        f" inside from\n  {band_from * 1000:g} mm up, so finger pads (which sink a few mm"
+        " into point contacts) cannot\n  pass through the wall and hang the cup on a finger.\n"
         f"  Mass {mass:g} kg; inertia of a thin conical shell approximated by a thin-walled open\n"
         f"  cylinder of the mean radius r = {r_mean * 1000:g} mm and height h:"
         " Izz = m r^2,\n"
@@ -292,6 +307,26 @@ def paper_cup(name: str, mouth_d: float, top_d: float, height: float, mass: floa
     write(name, model(name, comment,
                       inertial(mass, (0, 0, height / 2), thin_tube_inertia(mass, r_mean, height)),
                       elements))
+
+
+def grip_band(rho: float, alpha: float, length: float, height: float, band_from: float) -> str:
+    """Collision boxes (no visuals) of the grip band: one per wall box, CUP_BAND thick,
+    against the wall box's inner face, reaching from band_from (m) above the mouth to the
+    top end of the wall box. Wall-box frame: x out of the wall (normal), z up along it."""
+    t, b, n = CUP_WALL, CUP_BAND, CUP_SEGMENTS
+    s_low = (band_from - height / 2) / math.cos(alpha)  # along the wall from its centre
+    band_length = length / 2 - s_low
+    s_mid = s_low + band_length / 2
+    x_mid = -(t + b) / 2  # inward of the wall's centre plane
+    radial = rho + x_mid * math.cos(alpha) - s_mid * math.sin(alpha)
+    z = height / 2 + x_mid * math.sin(alpha) + s_mid * math.cos(alpha)
+    width = 2 * (rho - t / 2) * math.tan(math.pi / n)  # the inner side of the 16-gon
+    out = ""
+    for k in range(n):
+        yaw = 2 * math.pi * k / n
+        at = pose(radial * math.cos(yaw), radial * math.sin(yaw), z, 0.0, -alpha, yaw)
+        out += collision(f"band_collision_{k:02d}", at, box(b, width, band_length), CUP_MU)
+    return out
 
 
 def basket() -> None:
@@ -330,27 +365,31 @@ def basket() -> None:
     write(name, model(name, comment, inertial(m, com, moments), elements))
 
 
-def libero_cup(colour: str, rgb: str) -> None:
-    name = f"libero_cup_{colour}"
+def libero_cup(colour: str, rgb: str, has_straw: bool) -> None:
+    name = f"libero_cup_{colour}_{'straw' if has_straw else 'plain'}"
     r, h, m = LIBERO_RADIUS, LIBERO_HEIGHT, LIBERO_MASS
     lid_rgb = " ".join(f"{float(c) * LIBERO_LID_SHADE:.2f}" for c in rgb.split())
     body_h = h - LIBERO_LID_THICKNESS
     elements = (collision("cup_collision", pose(z=h / 2), cylinder(r, h), LIBERO_MU)
                 + visual("cup_visual", pose(z=body_h / 2), cylinder(r, body_h), rgb)
                 + visual("lid_visual", pose(z=body_h + LIBERO_LID_THICKNESS / 2),
-                         cylinder(r, LIBERO_LID_THICKNESS), lid_rgb)
-                + straw((LIBERO_STRAW_OFFSET, 0.0, h), 0.0, 0.0, LIBERO_STRAW_TOP - h))
+                         cylinder(r, LIBERO_LID_THICKNESS), lid_rgb))
+    if has_straw:
+        elements += straw((LIBERO_STRAW_OFFSET, 0.0, h), 0.0, 0.0, LIBERO_STRAW_TOP - h)
+        look = (f"  Visual: the body, a {LIBERO_LID_THICKNESS * 1000:g} mm lid in a darker shade,"
+                " and a vertical striped\n"
+                f"  Ø 6 mm straw {LIBERO_STRAW_OFFSET * 1000:g} mm off the axis (+x) reaching"
+                f" {LIBERO_STRAW_TOP * 1000:g} mm above the table;\n"
+                "  the straw is visual only, so it never touches the gripper.\n")
+    else:
+        look = (f"  Visual: the body and a {LIBERO_LID_THICKNESS * 1000:g} mm lid in a darker"
+                " shade; no straw.\n")
     comment = (
         f"  LIBERO-style closed cup with a lid, {colour}. Collision: one solid cylinder\n"
         f"  Ø {r * 2000:g} mm x {h * 1000:g} mm, mu {LIBERO_MU:g}; default mass {m:g} kg"
         " (uniform cylinder:\n"
         "  Izz = m r^2 / 2, Ixx = Iyy = m (3 r^2 + h^2) / 12), COM at mid-height.\n"
-        f"  Visual: the body, a {LIBERO_LID_THICKNESS * 1000:g} mm lid in a darker shade, and a"
-        " vertical striped\n"
-        f"  Ø 6 mm straw {LIBERO_STRAW_OFFSET * 1000:g} mm off the axis (+x) reaching"
-        f" {LIBERO_STRAW_TOP * 1000:g} mm above the table;\n"
-        "  the straw is visual only, so it never touches the gripper.\n"
-        "  Body frame at the centre of the bottom face, +z up.")
+        + look + "  Body frame at the centre of the bottom face, +z up.")
     write(name, model(name, comment, inertial(m, (0, 0, h / 2), cylinder_inertia(m, r, h)),
                       elements))
 
@@ -381,7 +420,8 @@ def main() -> None:
         paper_cup(name, *dims)
     basket()
     for colour, rgb in LIBERO_COLOURS.items():
-        libero_cup(colour, rgb)
+        for has_straw in (False, True):
+            libero_cup(colour, rgb, has_straw)
     for name, (modulus, rgb) in AVOCADOS.items():
         avocado(name, modulus, rgb)
 

@@ -1,4 +1,15 @@
-"""empty_cup: the LIBERO replica — four lidded cups, one empty; put it in the basket."""
+"""empty_cup: the LIBERO replica — four lidded cups, one empty; put it in the basket.
+
+Straws: the paper's replica is built "to match the visual semantics of the real-world task"
+(its cups are 8.27 cm tall, "approximately 10.74 cm when an inserted straw is present"), and
+its prompt calls a straw "a weak task-specific exploration cue: a cup with a straw may have
+been used/opened". In the real can task two of the four cans are opened (the empty one and a
+half-full one) and two are sealed. So here two of the four cups carry a straw: the empty one
+and one of the three full ones, drawn per seed (the answer can only be pinned to a straw
+cup). Weighing the straw cups first takes 1.5 probes on average, a blind search 2.25. The
+empty cup's colour is drawn per seed too (the paper always empties the white cup; a fixed
+answer would let an agent learn it instead of exploring).
+"""
 
 from __future__ import annotations
 
@@ -12,6 +23,8 @@ from physcap_drake.tasks.task_instance import SceneObject, TaskInstance
 from physcap_drake.tasks.tray_tasks import _choose_answer, _near_tray
 
 COLORS = ("red", "yellow", "blue", "white")
+#: How many of the full cups carry a straw besides the empty one (see the module docstring).
+FULL_WITH_STRAW = 1
 EMPTY_KG, FULL_KG = 0.035, 0.350
 #: Spawn region of the cups (world frame, m) and the least distance between two of them.
 REGION_LOWER, REGION_UPPER = np.array([0.30, 0.0]), np.array([0.44, 0.32])
@@ -43,7 +56,8 @@ def _spawn(rng: np.random.Generator, count: int) -> list[np.ndarray]:
 class EmptyCup:
     name: str = "empty_cup"
     scenario_file: str = "empty_cup.yaml"
-    prompt: str = ("Four cups with lids stand on the table. Exactly one of them is empty; a cup "
+    prompt: str = ("Four cups with lids stand on the table; some have a straw in the lid. "
+                   "Exactly one of them is empty; a cup "
                    "that weighs less than 100 g counts as empty. Put the empty cup in the "
                    "basket, within "
                    f"{TIME_LIMIT:.0f} s of robot time. Leave the other cups where they are.")
@@ -52,10 +66,15 @@ class EmptyCup:
         rng = np.random.default_rng((seed, 19))
         spots = _spawn(rng, len(COLORS))
         names = [f"{color} cup" for color in COLORS]
-        answer = _choose_answer(rng, names, answer, self.name)
+        # The straw cups first, then the empty one among them: which of them is empty
+        # changes nothing in view (pinning another straw cup keeps the same scene).
+        straws = sorted(rng.choice(len(names), 1 + FULL_WITH_STRAW, replace=False))
+        straws = [names[i] for i in straws]
+        answer = _choose_answer(rng, straws, answer, self.name)
         objects = tuple(SceneObject(
-            f"{color}_cup", f"objects/libero_cup_{color}",
-            VisibleObject(name, "cup", color, straw=True), (float(xy[0]), float(xy[1])),
+            f"{color}_cup", f"objects/libero_cup_{color}_{'straw' if name in straws else 'plain'}",
+            VisibleObject(name, "cup", color, straw=name in straws),
+            (float(xy[0]), float(xy[1])),
             hidden={"mass_kg": EMPTY_KG if name == answer else FULL_KG})
             for color, name, xy in zip(COLORS, names, spots, strict=True))
         return TaskInstance(self.name, seed, self.prompt, objects, answer)
@@ -82,8 +101,10 @@ class EmptyCup:
         return PlaceCheck(True, f"the empty {instance.answer} is in the basket")
 
     def solve(self, instance: TaskInstance, api, wrong: bool = False) -> None:
-        target = instance.answer if not wrong else next(
-            o.visible.name for o in instance.objects if o.visible.name != instance.answer)
+        """Scripted solution that knows the answer; with `wrong`, it moves the most tempting
+        full cup instead (one with a straw, like the empty one)."""
+        decoys = [o.visible for o in instance.objects if o.visible.name != instance.answer]
+        target = instance.answer if not wrong else max(decoys, key=lambda v: v.straw).name
         obj = instance.object(target)
         move_to_tray(api, np.array([*obj.xy, CUP_GRASP_HEIGHT]), CUP_GRASP_HEIGHT,
                      BASKET_BOTTOM, floor=BASKET_FLOOR)

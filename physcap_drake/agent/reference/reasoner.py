@@ -23,8 +23,12 @@ from physcap_drake.resources import agents_dir
 
 MODEL = "reference-reasoner-1"
 #: Where lifted objects are set down, relative to the destination's centre (x, y), m: the
-#: two ends of the tray first, then its middle, so each lifted object has its own spot.
-SLOTS = ((-0.06, 0.0), (0.06, 0.0), (0.0, 0.07))
+#: two near corners of the tray for the first two objects that are not small, the middle of
+#: its far half for a small one. The tray (288 x 208 mm inside) holds two large cups
+#: (Ø 98 mm) 10 mm from its walls; a small cup (Ø 56 mm) between them keeps 50 mm from
+#: each, room for the open fingers (100 mm apart) to reach down around it.
+SLOTS = ((-0.085, -0.045), (0.085, -0.045))
+SMALL_SLOT = (0.0, 0.05)
 #: How a lifting block announces itself in its printed output.
 LIFT_PRINTED = re.compile(r"ACTION: lift the (.+?) and look under it")
 #: Lifted covers are gripped this much above their located grasp point, m (gripping higher
@@ -172,7 +176,7 @@ class ReferenceReasoner:
         name, action = candidate["name"], candidate["action"]
         thought = f"{candidate['description']} This reveals {candidate['expected_info']}."
         if action == "lift_and_look":
-            slot = SLOTS[len(self._explored(context, goal)) % len(SLOTS)]
+            slot = _slot(context["objects_in_view"], self._explored(context, goal), name)
             code = _code("move_to_destination", name=name, thought=thought,
                          destination=goal.destination, dx=slot[0], dy=slot[1],
                          action_text=f"lift the {name} and look under it",
@@ -216,7 +220,7 @@ class ReferenceReasoner:
                 return {"thought": "nothing is left to lift", "code": _code(
                     "report", thought="nothing is left to lift"), "task_complete": True}
             target = remaining[0]["name"]
-            slot = SLOTS[len(lifted) % len(SLOTS)]
+            slot = _slot(in_view, lifted, target)
             thought = f"a {goal.sought} may be under the {target}; lift it"
             return {"thought": thought, "task_complete": False, "code": _code(
                 "move_to_destination", name=target, thought=thought,
@@ -239,6 +243,18 @@ class ReferenceReasoner:
         """What earlier vision-only blocks lifted, read from what they printed."""
         return [m.group(1) for step in context["history"]
                 for m in [LIFT_PRINTED.search(step["stdout"])] if m]
+
+
+def _slot(in_view: list[dict], lifted: list[str], name: str) -> tuple[float, float]:
+    """Where on the destination the object `name` goes (see SLOTS), given the objects
+    `lifted` before it."""
+    def small(n: str) -> bool:
+        obj = _find(in_view, n)
+        return obj is not None and obj["size"] == "small"
+
+    if small(name):
+        return SMALL_SLOT
+    return SLOTS[sum(not small(n) for n in lifted) % len(SLOTS)]
 
 
 def _find(in_view: list[dict], name: str) -> dict | None:
