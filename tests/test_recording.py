@@ -238,3 +238,53 @@ def test_ctrl_c_closes_the_recording_and_says_why(tmp_path):
     assert error["error"].startswith("KeyboardInterrupt")
     assert "(stopped)" in (tmp_path / "transcript.md").read_text()
     assert not (tmp_path / "summary.json").exists()
+
+
+def _record_a_reach(path: Path, monkeypatch=None, kinematic: bool = False):
+    """Records the arm reaching above the red can, with the recorder's frames from the
+    simulator (`body_poses`) or from forward kinematics of the measured joints."""
+    from physcap_drake.control.planning_model import PlanningModel
+    from physcap_drake.recording import mcap_recorder
+    from physcap_drake.recording.mcap_sink import McapSink
+    from physcap_drake.tasks import episode as episode_module
+
+    if kinematic:
+        def kinematic_recorder(sink, station, scenario):
+            config = scenario.station
+            model = PlanningModel(scenario.directives, config.arm_model, config.gripper_model)
+            tcp = model.tcp_frame
+            return mcap_recorder.McapRecorder(
+                sink, [f"joint{i}" for i in range(1, 7)], kinematics=model,
+                fingertip=(tcp.body(), tcp.GetFixedPoseInBodyFrame()))
+        monkeypatch.setattr(episode_module, "make_mcap_recorder", kinematic_recorder)
+    sink = McapSink(path)
+    episode = episode_module.make_episode(TASK, SEED, sink=sink)
+    position = episode.api.get_object_pose("red can")
+    episode.api.goto_pose(position + np.array([0.0, 0.0, 0.15]))
+    sink.close()
+    return {m.log_time_ns: {t.child_frame_id: t for t in m.value.transforms}
+            for m in read_recording(path).on(topics.TRANSFORMS)}
+
+
+def test_frames_from_the_joints_match_the_simulated_world(tmp_path, monkeypatch):
+    """On a station without a simulated world (the real arm) the recorder poses the robot by
+    forward kinematics; on the simulated arm that gives the simulator's poses."""
+    world = _record_a_reach(tmp_path / "world.mcap")
+    joints = _record_a_reach(tmp_path / "joints.mcap", monkeypatch, kinematic=True)
+    assert world.keys() == joints.keys() and len(world) > 20
+    compared = 0
+    for time_ns, frames in joints.items():
+        for name, frame in frames.items():
+            if name not in world[time_ns]:
+                continue  # the robot model's names for fixed scenery may differ
+            truth, ours = world[time_ns][name], frame
+            assert np.allclose(
+                [ours.translation.x, ours.translation.y, ours.translation.z,
+                 ours.rotation.w, ours.rotation.x, ours.rotation.y, ours.rotation.z],
+                [truth.translation.x, truth.translation.y, truth.translation.z,
+                 truth.rotation.w, truth.rotation.x, truth.rotation.y, truth.rotation.z],
+                atol=1e-6), (name, time_ns)
+            compared += 1
+    names = set(next(iter(joints.values())))
+    assert topics.FINGERTIP_FRAME in names and "piper::link6" in names
+    assert compared >= len(joints) * 8  # arm links, gripper and fingertip, every sample

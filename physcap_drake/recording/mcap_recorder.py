@@ -2,8 +2,10 @@
 
 It reads only station outputs, through input ports named like them: the arm's measured joint
 positions, velocities and torques, the gripper's opening and effort, the camera image and,
-where the station has it (simulation), `body_poses` for the frames of every body. From these it
-writes, by periodic publish events (so the simulation's state is untouched):
+where the station has it (simulation), `body_poses` for the frames of every body. A station
+without a simulated world (the real arm) gets its frames from the robot's own model instead:
+forward kinematics of the measured joints, for the arm, the gripper and the fixed scenery.
+From these it writes, by periodic publish events (so the simulation's state is untouched):
 
 - every `state_period` s: joint states (J1..J6 and the gripper) and the frame transforms
   (every body in the world frame, plus the fingertip frame);
@@ -19,6 +21,7 @@ import numpy as np
 from pydrake.common.value import AbstractValue
 from pydrake.math import RigidTransform
 from pydrake.multibody.plant import MultibodyPlant
+from pydrake.multibody.tree import BodyIndex
 from pydrake.systems.framework import Context, EventStatus, LeafSystem
 from pydrake.systems.sensors import ImageRgba8U
 
@@ -38,8 +41,11 @@ class McapRecorder(LeafSystem):
     Args:
         sink: where messages go (the recorder does not close it).
         joint_names: names of J1..J6 in the recording.
-        plant, scene_graph: the simulated world, for body names and geometry; None on a
-            station without `body_poses` (then only joint states and images are recorded).
+        plant, scene_graph: the simulated world, for body names and geometry; its poses come
+            from the `body_poses` input.
+        kinematics: instead of plant and scene_graph, the robot's model (a PlanningModel):
+            its bodies are posed by forward kinematics of the measured joints.
+        With neither, only joint states and images are recorded.
         fingertip: (body, X_BF), the fingertip frame F fixed in a body of the plant.
         camera_frame: frame id written with the camera images.
         state_period, image_period, flush_period: s of simulated time (image_period 0: no
@@ -47,7 +53,7 @@ class McapRecorder(LeafSystem):
     """
 
     def __init__(self, sink: McapSink, joint_names: list[str], *,
-                 plant: MultibodyPlant | None = None, scene_graph=None,
+                 plant: MultibodyPlant | None = None, scene_graph=None, kinematics=None,
                  fingertip: tuple | None = None, camera_frame: str = "camera",
                  state_period: float = 0.05, image_period: float = 2.0,
                  flush_period: float = 1.0):
@@ -60,8 +66,16 @@ class McapRecorder(LeafSystem):
                 raise ValueError(f"{name} must be > 0 s, got {value}")
         if image_period < 0.0:
             raise ValueError(f"image_period must be >= 0 s, got {image_period}")
+        if kinematics is not None and plant is not None:
+            raise ValueError("give either plant (poses from body_poses) or kinematics "
+                             "(poses from the joints), not both")
         self._sink = sink
         self._joint_names = [*joint_names, GRIPPER_JOINT]
+        self._kinematics = kinematics
+        if kinematics is not None:
+            plant, scene_graph = kinematics.plant, kinematics.scene_graph
+            # A workspace for forward kinematics (set fully before every use), not state.
+            self._fk_context = plant.CreateDefaultContext()
         self._plant, self._scene_graph = plant, scene_graph
         self._camera_frame = camera_frame
         self._vectors = {name: self.DeclareVectorInputPort(name, size)
@@ -70,8 +84,9 @@ class McapRecorder(LeafSystem):
                                                   AbstractValue.Make(ImageRgba8U()))
         self._body_poses = None
         if plant is not None:
-            self._body_poses = self.DeclareAbstractInputPort(
-                ports.BODY_POSES, AbstractValue.Make([RigidTransform()]))
+            if kinematics is None:
+                self._body_poses = self.DeclareAbstractInputPort(
+                    ports.BODY_POSES, AbstractValue.Make([RigidTransform()]))
             self._frames = [(int(b), body_frame_name(plant, plant.get_body(b)))
                             for b in _body_indices(plant)]
             self._fingertip = None if fingertip is None else (int(fingertip[0].index()),
@@ -107,8 +122,8 @@ class McapRecorder(LeafSystem):
         effort = np.append(value[ports.ARM_TORQUE_MEASURED],
                            value[ports.GRIPPER_EFFORT_MEASURED])
         self._sink.joint_states(time_s, self._joint_names, position, velocity, effort)
-        if self._body_poses is not None:
-            poses = self._body_poses.Eval(context)
+        poses = self._poses(context, value)
+        if poses is not None:
             transforms = [frame_transform(time_s, name, poses[index])
                           for index, name in self._frames]
             if self._fingertip is not None:
@@ -117,6 +132,18 @@ class McapRecorder(LeafSystem):
                                                   poses[body] @ X_BF))
             self._sink.transforms(time_s, transforms)
         return EventStatus.Succeeded()
+
+    def _poses(self, context: Context, joints: dict) -> list | None:
+        """World poses of the plant's bodies, by BodyIndex (None: no plant)."""
+        if self._body_poses is not None:
+            return self._body_poses.Eval(context)
+        if self._kinematics is None:
+            return None
+        plant = self._plant
+        plant.SetPositions(self._fk_context, self._kinematics.full_positions(
+            joints[ports.ARM_POSITION_MEASURED], joints[ports.GRIPPER_POSITION_MEASURED][0]))
+        return [plant.EvalBodyPoseInWorld(self._fk_context, plant.get_body(index))
+                for index in (BodyIndex(i) for i in range(plant.num_bodies()))]
 
     def _write_image(self, context: Context) -> EventStatus:
         rgb = self._rgb.Eval(context).data
@@ -130,30 +157,31 @@ class McapRecorder(LeafSystem):
 
 def _body_indices(plant: MultibodyPlant) -> list:
     """Every body except the world body (its frame is the root of the transforms)."""
-    from pydrake.multibody.tree import BodyIndex
-
     return [BodyIndex(i) for i in range(1, plant.num_bodies())]
 
 
 def make_mcap_recorder(sink: McapSink, station, scenario, *, image_period: float = 2.0
                        ) -> McapRecorder:
-    """The recorder for a built station: joint names from the arm model, and, when the
-    station has a simulated world (subsystems "plant" and "scene_graph"), its bodies, geometry
-    and the gripper's TCP frame as the fingertip."""
-    from physcap_drake.control.planning_model import TCP_FRAME
+    """The recorder for a built station: joint names from the arm model; the bodies, geometry
+    and the gripper's TCP frame (as the fingertip) of the station's simulated world
+    (subsystems "plant" and "scene_graph") when it has one, else of the robot's model."""
+    from physcap_drake.control.planning_model import TCP_FRAME, PlanningModel
     from physcap_drake.station.robot_model import moving_joints
 
-    plant = station.GetSubsystemByName("plant") if station.HasSubsystemNamed("plant") else None
-    scene_graph = (station.GetSubsystemByName("scene_graph")
-                   if station.HasSubsystemNamed("scene_graph") else None)
     config = scenario.station
-    if plant is not None:
-        arm = plant.GetModelInstanceByName(config.arm_model)
-        joint_names = [joint.name() for joint in moving_joints(plant, arm)]
-        tcp = plant.GetFrameByName(TCP_FRAME, plant.GetModelInstanceByName(config.gripper_model))
-        fingertip = (tcp.body(), tcp.GetFixedPoseInBodyFrame())
+    if station.HasSubsystemNamed("plant") and station.HasSubsystemNamed("scene_graph"):
+        kinematics = None
+        plant = station.GetSubsystemByName("plant")
+        scene_graph = station.GetSubsystemByName("scene_graph")
     else:
-        joint_names = [f"joint{i}" for i in range(1, ports.NUM_ARM_JOINTS + 1)]
-        fingertip = None
+        kinematics = PlanningModel(scenario.directives, config.arm_model, config.gripper_model)
+        plant, scene_graph = kinematics.plant, kinematics.scene_graph
+    arm = plant.GetModelInstanceByName(config.arm_model)
+    joint_names = [joint.name() for joint in moving_joints(plant, arm)]
+    tcp = plant.GetFrameByName(TCP_FRAME, plant.GetModelInstanceByName(config.gripper_model))
+    fingertip = (tcp.body(), tcp.GetFixedPoseInBodyFrame())
+    if kinematics is not None:
+        return McapRecorder(sink, joint_names, kinematics=kinematics, fingertip=fingertip,
+                            image_period=image_period)
     return McapRecorder(sink, joint_names, plant=plant, scene_graph=scene_graph,
                         fingertip=fingertip, image_period=image_period)
