@@ -76,7 +76,7 @@ def test_joint_states_and_frames_carry_the_robot_signals(recording):
     names = [joint.name for joint in states[0].value.joints]
     assert len(names) == 7 and names[-1] == "gripper"
     times = np.array([m.time_s for m in states])
-    assert np.allclose(np.diff(times), 0.05, atol=1e-6)  # 20 Hz of simulated time
+    assert np.allclose(np.diff(times), 0.04, atol=1e-6)  # 25 Hz of simulated time
     summary = recording.on(topics.EPISODE_SUMMARY)[0].value
     assert summary["robot_time_s"] <= times[-1] <= summary["robot_time_s"] + 1.0
     moving = np.array([[j.position for j in m.value.joints[:6]] for m in states])

@@ -1,67 +1,102 @@
-"""AgentSystem: the agent's place in the diagram.
+"""AgentSystem: the agent in the diagram, deciding at its discrete events.
 
 Its input ports take the camera's images (`camera.rgb`, and `camera.label` for the simulated
 perception module), so what the agent sees is exactly what is wired to it: no plant, no
-poses, no masses. Its state, the agent's progress (phase, code blocks run, exploratory
-interactions, whether it is done), lives in the Context and is published on `agent.progress`
-for viewers and recorders.
+poses, no masses. Its state is the agent's mind (`AgentMind`: phase, code blocks run, the code
+block waiting to run, ...) in the Context, published as a summary on `agent.progress`.
 
-The agent loop (`AgentLoop`) drives it: at each decision it reads the observation through
-these ports and writes its progress into the state. Decisions happen between robot calls,
-while simulated time stands still (see DESIGN.md, "Time").
+Every `period` s a periodic unrestricted-update event runs; when the mind is "deciding", the
+event looks through the camera ports and lets the policy (`AgentLoop.think`) decide and write
+the next code block. Model calls happen inside the event, so simulated time stands still while
+models answer. The code block itself moves the robot, so it runs between events (the episode
+runner hands it to `AgentLoop.execute`, whose robot calls advance the simulation; events do
+nothing meanwhile), and the mind goes back to "deciding" for the next event.
 """
 
 from __future__ import annotations
 
 import dataclasses as dc
+from collections.abc import Callable
 
 from pydrake.common.value import AbstractValue
-from pydrake.systems.framework import Context, LeafSystem
+from pydrake.systems.framework import Context, LeafSystem, State
 from pydrake.systems.sensors import ImageLabel16I, ImageRgba8U
 
+from physcap_drake.agent.loop import AgentLoop, AgentMind
 from physcap_drake.agent.observation import Observation, observe
 from physcap_drake.perception.offline_pointer import OfflinePointer
 from physcap_drake.station import ports
 
 PROGRESS_PORT = "agent.progress"
+#: Period of the agent's events, s of simulated time (a multiple of the plant's 4 ms step, so
+#: the events add no steps).
+AGENT_PERIOD = 0.02
 
 
 @dc.dataclass(frozen=True)
 class AgentProgress:
-    """phase: "idle", "observing", "planning", "prioritizing", "coding", "executing",
-    "done" or "failed". steps: code blocks run. oi: exploratory interactions. note: the
-    latest decision or event, one line."""
+    """phase: "idle", "deciding", "executing", "done" or "failed". steps: code blocks run.
+    oi: exploratory interactions. failure: why the agent stopped early ("" if it did not)."""
 
     phase: str = "idle"
     steps: int = 0
     oi: int = 0
-    note: str = ""
+    failure: str = ""
 
 
 class AgentSystem(LeafSystem):
-    """See the module docstring."""
+    """See the module docstring. `pointer` is the simulated perception module; the policy is
+    attached with `attach` before the episode starts (it needs the robot API, which needs
+    the built diagram); `on_observe()` hears each look at the scene."""
 
-    def __init__(self, pointer: OfflinePointer):
+    def __init__(self, pointer: OfflinePointer, period: float = AGENT_PERIOD):
         super().__init__()
         self._pointer = pointer
+        self._policy: AgentLoop | None = None
+        self._robot_time: Callable[[], float] = lambda: 0.0
+        self._on_observe: Callable[[], None] | None = None
         self._rgb = self.DeclareAbstractInputPort(ports.CAMERA_RGB,
                                                   AbstractValue.Make(ImageRgba8U()))
         self._label = self.DeclareAbstractInputPort(ports.CAMERA_LABEL,
                                                     AbstractValue.Make(ImageLabel16I()))
-        self._progress = self.DeclareAbstractState(AbstractValue.Make(AgentProgress()))
-        self.DeclareStateOutputPort(PROGRESS_PORT, self._progress)
+        self._mind = self.DeclareAbstractState(AbstractValue.Make(AgentMind()))
+        self.DeclareAbstractOutputPort(PROGRESS_PORT, lambda: AbstractValue.Make(
+            AgentProgress()), self._output_progress, {self.abstract_state_ticket(self._mind)})
+        self.DeclarePeriodicUnrestrictedUpdateEvent(period, 0.0, self._decide)
 
-    def observation(self, context: Context, robot_time_s: float) -> Observation:
+    def attach(self, policy: AgentLoop, robot_time: Callable[[], float],
+               on_observe: Callable[[], None] | None = None) -> None:
+        """The policy the events run, and the robot's execution time (s) for observations."""
+        self._policy, self._robot_time, self._on_observe = policy, robot_time, on_observe
+
+    def observation(self, context: Context) -> Observation:
         """What the camera shows now (renders the images if they are stale)."""
-        rgb = self._rgb.Eval(context).data
-        label = self._label.Eval(context).data
-        return observe(rgb, label, self._pointer, robot_time_s)
+        if self._on_observe is not None:
+            self._on_observe()
+        return observe(self._rgb.Eval(context).data, self._label.Eval(context).data,
+                       self._pointer, self._robot_time())
+
+    def mind(self, context: Context) -> AgentMind:
+        return context.get_abstract_state(self._mind).get_value()
+
+    def set_mind(self, context: Context, mind: AgentMind) -> None:
+        """Replaces the mind (between events: to start the episode, or after a code block
+        ran)."""
+        context.get_mutable_abstract_state(self._mind).set_value(mind)
 
     def progress(self, context: Context) -> AgentProgress:
-        return context.get_abstract_state(self._progress).get_value()
+        return _progress_of(self.mind(context))
 
-    def set_progress(self, context: Context, **changes) -> None:
-        """Updates fields of the agent's progress in the Context."""
-        current = self.progress(context)
-        context.get_mutable_abstract_state(self._progress).set_value(
-            dc.replace(current, **changes))
+    def _output_progress(self, context: Context, output: AbstractValue) -> None:
+        output.set_value(_progress_of(self.mind(context)))
+
+    def _decide(self, context: Context, state: State) -> None:
+        mind = self.mind(context)
+        if mind.phase != "deciding" or self._policy is None:
+            return
+        mind = self._policy.think(mind, self.observation(context))
+        state.get_mutable_abstract_state(self._mind).set_value(mind)
+
+
+def _progress_of(mind: AgentMind) -> AgentProgress:
+    return AgentProgress(mind.phase, len(mind.steps), mind.oi, mind.failure)

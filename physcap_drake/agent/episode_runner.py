@@ -4,16 +4,19 @@ loop with the chosen variant and language model, and report the paper's metrics.
 from __future__ import annotations
 
 import dataclasses as dc
+import time
 from collections.abc import Callable
 from pathlib import Path
 
+from physcap_drake.agent.agent_system import AGENT_PERIOD, AgentSystem
 from physcap_drake.agent.llm import make_llm
 from physcap_drake.agent.llm.base import CallRecord, LLMClient
 from physcap_drake.agent.llm.pointer_ask import pointer_ask
-from physcap_drake.agent.loop import AgentLoop, EpisodeOutcome
+from physcap_drake.agent.loop import AgentLoop, AgentMind, EpisodeOutcome
 from physcap_drake.agent.sandbox import SandboxLimits
 from physcap_drake.agent.transcript import Transcript, TranscriptEntry
 from physcap_drake.agent.variant import load_variant
+from physcap_drake.control.errors import ArmFault
 from physcap_drake.perception.object_locator import ObjectLocator
 from physcap_drake.perception.vlm_pointer import VlmPointer
 from physcap_drake.recording.agent_recording import AgentRecording
@@ -55,6 +58,23 @@ class AgentRun:
         }
 
 
+def drive_agent(simulator, system: AgentSystem, context, loop: AgentLoop) -> AgentMind:
+    """Runs the episode to its end: the simulator advances one agent period at a time, so the
+    AgentSystem's events decide; a code block they wrote runs between events (its robot calls
+    advance the simulator). An arm fault raised while time advances ends the episode."""
+    system.set_mind(context, AgentMind(phase="deciding"))
+    root = simulator.get_mutable_context()
+    while not (mind := system.mind(context)).over:
+        if mind.phase == "executing":
+            system.set_mind(context, loop.execute(mind))
+            continue
+        try:
+            simulator.AdvanceTo(root.get_time() + AGENT_PERIOD)
+        except ArmFault as fault:
+            system.set_mind(context, loop.fault(system.mind(context), fault))
+    return mind
+
+
 def run_agent_episode(task: str, seed: int, *, agent: str = "physcap", llm: str = "reference",
                       model: str | None = None, meshcat=None,
                       limits: SandboxLimits | None = None, client: LLMClient | None = None,
@@ -91,13 +111,7 @@ def run_agent_episode(task: str, seed: int, *, agent: str = "physcap", llm: str 
                          "llm": getattr(client, "name", llm),
                          "model": getattr(client, "model", model or ""), **git_state()})
 
-    def observe():
-        if recording is not None:
-            recording.on_observe()
-        return system.observation(agent_context, episode.api.robot_time)
-
     def on_phase(phase: str, steps: int, oi: int) -> None:
-        system.set_progress(agent_context, phase=phase, steps=steps, oi=oi)
         if recording is not None:
             recording.on_phase(phase, steps, oi)
 
@@ -109,13 +123,17 @@ def run_agent_episode(task: str, seed: int, *, agent: str = "physcap", llm: str 
 
     transcript = Transcript(on_any_entry)
     loop = AgentLoop(task=episode.instance.prompt, variant=variant, llm=client, api=episode.api,
-                     observe=observe, check=episode.check, seed=seed, limits=limits,
+                     check=episode.check, seed=seed, limits=limits,
                      robot_time_limit=robot_time_limit, transcript=transcript,
                      on_phase=on_phase)
+    system.attach(loop, lambda: episode.api.robot_time,
+                  recording.on_observe if recording is not None else None)
+    start = time.monotonic()
     try:
-        outcome = loop.run()
+        mind = drive_agent(simulator, system, agent_context, loop)
     finally:
         episode.close()
+    outcome = loop.outcome(mind, time.monotonic() - start)
     run = AgentRun(task, variant.name, seed, getattr(client, "name", llm),
                    getattr(client, "model", model or ""), outcome, transcript,
                    list(getattr(client, "records", [])), episode)

@@ -1,21 +1,27 @@
-"""The agent loop of one episode: observe, decide, write code, run it, learn, repeat.
+"""The agent's policy for one episode: observe, decide, write code, run it, learn, repeat.
 
-Each step looks at the scene, lets the variant's decider choose between exploring one
-candidate and finishing the task, has the coder write one code block, runs it in the
-sandbox (its robot calls go to the RobotAPI, which advances the simulation) and records what
-happened. Simulated time passes only inside robot calls: while models answer and while
-generated code computes, the simulation stands still.
+The AgentSystem calls it at its discrete events; its state between them is an `AgentMind`
+kept in the AgentSystem's Context:
 
-The loop ends after the final code block, when the success check passes (the check is
-ground truth and is never shown to the agents; it only stops the episode), at the step limit,
-the robot-time limit, or when an agent gives no usable answer.
+- at an event in phase "deciding", `think(mind, observation)` finishes the code block just
+  run (what appeared or disappeared in view), checks whether the episode is over and, if not,
+  lets the variant's decider choose between exploring one candidate and finishing the task
+  and has the coder write one code block: the mind goes to phase "executing" holding it;
+- between events, `execute(mind)` runs that block in the sandbox (its robot calls go to the
+  RobotAPI, which advances the simulation; the AgentSystem's events do nothing meanwhile) and
+  takes in what it printed and measured: the mind goes back to "deciding".
+
+Model calls happen inside an event, so simulated time stands still while models answer (and
+while generated code computes between robot calls). The episode ends after the final code
+block, when the success check passes (the check is ground truth and is never shown to the
+agents; it only stops the episode), at the step limit, the robot-time limit, or when an agent
+gives no usable answer: the mind is then "done" or "failed".
 """
 
 from __future__ import annotations
 
 import dataclasses as dc
 import json
-import time
 from collections.abc import Callable
 
 import numpy as np
@@ -54,6 +60,53 @@ class Decision:
     reason: str = ""
 
 
+@dc.dataclass(frozen=True)
+class PendingBlock:
+    """A code block written at an event, to run before the next one."""
+
+    decision: Decision
+    answer: CoderAnswer
+
+
+@dc.dataclass(frozen=True)
+class RanBlock:
+    """A code block that ran, waiting for the next look at the scene to become a StepRecord."""
+
+    decision: Decision
+    answer: CoderAnswer
+    outcome: CodeOutcome
+    robot_time_s: float
+
+
+@dc.dataclass(frozen=True)
+class AgentMind:
+    """The agent's state between events (held in the AgentSystem's Context).
+
+    phase: "idle" (not started), "deciding" (the next event decides), "executing" (`pending`
+    waits to run), "done" or "failed". steps: the code blocks run so far. queue: the
+    enumerator's remaining candidates (None until it has listed them). known: knowledge
+    entries already in the transcript. observation: the last look at the scene.
+    """
+
+    phase: str = "idle"
+    steps: tuple[StepRecord, ...] = ()
+    queue: tuple[Candidate, ...] | None = None
+    known: int = 0
+    observation: Observation | None = None
+    pending: PendingBlock | None = None
+    ran: RanBlock | None = None
+    failure: str = ""
+
+    @property
+    def oi(self) -> int:
+        """Exploratory object interactions: code blocks run to explore."""
+        return sum(step.kind == "explore" for step in self.steps)
+
+    @property
+    def over(self) -> bool:
+        return self.phase in ("done", "failed")
+
+
 @dc.dataclass
 class EpisodeOutcome:
     """How the episode went. success: the task's check (None if no check was given).
@@ -70,151 +123,209 @@ class EpisodeOutcome:
 
 
 class AgentLoop:
-    """Runs one episode with one agent variant (see the module docstring).
+    """The policy of one episode (see the module docstring); it keeps no episode state of
+    its own: that is the AgentMind it is handed and returns.
 
-    observe(): the current Observation. check(): the task's ground-truth check (an object
-    with .success and .reason), used only to stop the episode. robot_time_limit: s.
-    on_step(step_record): hears every finished code block. on_phase(phase, steps, oi): hears
-    each change of phase ("observing", "planning", "prioritizing", "coding", "executing",
-    "done", "failed").
+    check(): the task's ground-truth check (an object with .success and .reason), used only
+    to stop the episode. robot_time_limit: s. on_phase(phase, steps, oi): hears each change
+    of phase ("observing", "planning", "prioritizing", "coding", "executing", "done",
+    "failed").
     """
 
     def __init__(self, *, task: str, variant: AgentVariant, llm: LLMClient, api: RobotAPI,
-                 observe: Callable[[], Observation], check: Callable | None = None,
-                 seed: int = 0, limits: SandboxLimits | None = None,
-                 prompts: PromptBook | None = None, robot_time_limit: float = 900.0,
-                 transcript: Transcript | None = None,
-                 on_step: Callable[[StepRecord], None] | None = None,
+                 check: Callable | None = None, seed: int = 0,
+                 limits: SandboxLimits | None = None, prompts: PromptBook | None = None,
+                 robot_time_limit: float = 900.0, transcript: Transcript | None = None,
                  on_phase: Callable[[str, int, int], None] | None = None):
         self.task, self.variant, self.llm, self.api = task, variant, llm, api
-        self._observe, self._check = observe, check
-        self._rng = np.random.default_rng((seed, 29))
+        self._check = check
+        self._seed = seed
         self._limits = limits or SandboxLimits()
         self._prompts = prompts or PromptBook()
         self._robot_time_limit = robot_time_limit
         self.transcript = transcript or Transcript()
-        self._on_step = on_step
         self._on_phase = on_phase
         self._code_api = CodeAPI(api, physx=variant.physx_api)
-        self._queue: list[Candidate] | None = None
-        self._known = 0  # knowledge entries already copied into the transcript
-        self.steps: list[StepRecord] = []
 
-    # --- the loop ------------------------------------------------------------------------
+    # --- at an event ---------------------------------------------------------------------
 
-    def run(self) -> EpisodeOutcome:
-        start = time.monotonic()
-        failure, finished = "", False
-        observation = self._look()
+    def think(self, mind: AgentMind, observation: Observation) -> AgentMind:
+        """One decision (see the module docstring); `mind` must be "deciding"."""
+        if mind.phase != "deciding":
+            raise ValueError(f"the agent thinks only while deciding, not {mind.phase!r}")
+        self._phase("observing", mind)
+        self._note(mind, "observation", "objects in view:\n" + observation.as_text(),
+                   {"objects": [dc.asdict(o) for o in observation.objects]})
+        if mind.ran is not None:
+            mind = self._learn(mind, observation)
+        mind = dc.replace(mind, observation=observation)
+        stop = self._stop_reason(mind)
+        if stop is not None:
+            return self._end(mind, stop)
         try:
-            while not finished and len(self.steps) < self.variant.max_steps:
-                context = AgentContext(self.task, observation, tuple(self.api.knowledge.entries),
-                                       tuple(self.steps))
-                decision = self._decide(context)
-                self._note("decision", _describe(decision), {
-                    "kind": decision.kind, "reason": decision.reason,
-                    "candidate": decision.candidate.model_dump() if decision.candidate
-                    else None})
-                answer = self._write_code(context, decision)
-                step, observation = self._execute(decision, answer, observation)
-                finished = decision.kind == "final" or (decision.kind == "task"
-                                                        and answer.task_complete)
-                if (not finished and self.variant.stop_on_success and self._check is not None
-                        and self._check().success):
-                    self._note("result", "the task's success check passed: episode over")
-                    finished = True
-                if self.api.robot_time > self._robot_time_limit:
-                    failure = (f"robot-time limit reached ({self.api.robot_time:.0f} s > "
-                               f"{self._robot_time_limit:.0f} s)")
-                    break
-            if not finished and not failure:
-                failure = f"step limit reached ({self.variant.max_steps} code blocks)"
+            context = AgentContext(self.task, observation, tuple(self.api.knowledge.entries),
+                                   mind.steps)
+            decision, mind = self._decide(context, mind)
+            self._note(mind, "decision", _describe(decision), {
+                "kind": decision.kind, "reason": decision.reason,
+                "candidate": decision.candidate.model_dump() if decision.candidate else None})
+            answer = self._write_code(context, decision, mind)
         except (AgentAnswerError, LLMError) as error:
-            failure = str(error)
-        except ArmFault as error:  # the arm's error state ends the episode; it holds
-            failure = f"arm fault: {error}"
-        if failure:
-            self._note("error", f"episode stopped: {failure}")
-        self._phase("failed" if failure else "done")
+            return self._end(mind, str(error))
+        self._note(mind, "code", answer.code, {
+            "thought": answer.thought, "code": answer.code, "decision": decision.kind,
+            "target": decision.candidate.name if decision.candidate else ""})
+        self._phase("executing", mind)
+        return dc.replace(mind, phase="executing", pending=PendingBlock(decision, answer))
+
+    # --- between events ------------------------------------------------------------------
+
+    def execute(self, mind: AgentMind) -> AgentMind:
+        """Runs the pending code block in the sandbox (this advances the simulation)."""
+        if mind.phase != "executing" or mind.pending is None:
+            raise ValueError(f"no code block to run (phase {mind.phase!r})")
+        try:
+            return self._run_block(mind)
+        except ArmFault as fault:  # the arm's error state ends the episode; it holds
+            return self.fault(mind, fault)
+
+    def fault(self, mind: AgentMind, fault: ArmFault) -> AgentMind:
+        """Ends the episode on an arm fault (raised by the station while time advanced)."""
+        return self._end(dc.replace(mind, pending=None), f"arm fault: {fault}")
+
+    def _run_block(self, mind: AgentMind) -> AgentMind:
+        pending = mind.pending
+        outcome: CodeOutcome = run_sandboxed(pending.answer.code, self._code_api.functions(),
+                                             self._limits)
+        if outcome.stdout.strip():
+            self._note(mind, "output", outcome.stdout, {"stdout": outcome.stdout})
+        if not outcome.ok:
+            self._note(mind, "error", f"{outcome.kind}: {outcome.error}",
+                       {"kind": outcome.kind, "error": outcome.error})
+            self._make_safe(mind)
+        entries = self.api.knowledge.entries
+        for entry in entries[mind.known:]:
+            self._note(mind, "measurement", entry.describe(), dc.asdict(entry))
+        return dc.replace(mind, phase="deciding", pending=None, known=len(entries),
+                          ran=RanBlock(pending.decision, pending.answer, outcome,
+                                       self.api.robot_time))
+
+    def outcome(self, mind: AgentMind, wall_time_s: float) -> EpisodeOutcome:
+        """The episode's result once the mind is done or failed (or interrupted)."""
         check = self._check() if self._check is not None else None
-        if check is not None:
-            self._note("result", f"success: {check.success} ({check.reason})")
         return EpisodeOutcome(
             success=None if check is None else bool(check.success),
-            reason="" if check is None else check.reason,
-            oi=self._oi(),
-            robot_time_s=self.api.robot_time, wall_time_s=time.monotonic() - start,
-            steps=list(self.steps), failure=failure)
+            reason="" if check is None else check.reason, oi=mind.oi,
+            robot_time_s=self.api.robot_time, wall_time_s=wall_time_s,
+            steps=list(mind.steps), failure=mind.failure)
 
-    def _phase(self, phase: str) -> None:
+    # --- the steps of thinking -----------------------------------------------------------
+
+    def _learn(self, mind: AgentMind, after: Observation) -> AgentMind:
+        """Turns the block just run into a StepRecord, with what the new look shows."""
+        ran, before = mind.ran, mind.observation
+        decision, answer, outcome = ran.decision, ran.answer, ran.outcome
+        kind = "final" if decision.kind == "final" or (
+            decision.kind == "task" and answer.task_complete) else "explore"
+        candidate = decision.candidate
+        step = StepRecord(
+            index=len(mind.steps), kind=kind, target=candidate.name if candidate else "",
+            action=candidate.action if candidate else "", thought=answer.thought,
+            code=answer.code, ok=outcome.ok, error="" if outcome.ok else
+            f"{outcome.kind}: {outcome.error}", stdout=outcome.stdout,
+            appeared=tuple(n for n in after.names() if n not in before.names()),
+            disappeared=tuple(n for n in before.names() if n not in after.names()),
+            robot_time_s=ran.robot_time_s)
+        return dc.replace(mind, steps=(*mind.steps, step), ran=None)
+
+    def _stop_reason(self, mind: AgentMind) -> tuple[str, str] | None:
+        """(how, why) the episode ends now, or None: how is "done" or "failed"."""
+        if mind.steps:
+            last = mind.steps[-1]
+            if last.kind == "final":
+                return "done", ""
+            if (self.variant.stop_on_success and self._check is not None
+                    and self._check().success):
+                self._note(mind, "result", "the task's success check passed: episode over")
+                return "done", ""
+        if self.api.robot_time > self._robot_time_limit:
+            return "failed", (f"robot-time limit reached ({self.api.robot_time:.0f} s > "
+                              f"{self._robot_time_limit:.0f} s)")
+        if len(mind.steps) >= self.variant.max_steps:
+            return "failed", f"step limit reached ({self.variant.max_steps} code blocks)"
+        return None
+
+    def _end(self, mind: AgentMind, stop) -> AgentMind:
+        how, failure = stop if isinstance(stop, tuple) else ("failed", stop)
+        if failure:
+            self._note(mind, "error", f"episode stopped: {failure}")
+        check = self._check() if self._check is not None else None
+        if check is not None:
+            self._note(mind, "result", f"success: {check.success} ({check.reason})")
+        mind = dc.replace(mind, phase="failed" if failure else how, failure=failure)
+        self._phase(mind.phase, mind)
+        return mind
+
+    def _phase(self, phase: str, mind: AgentMind) -> None:
         if self._on_phase is not None:
-            self._on_phase(phase, len(self.steps), self._oi())
+            self._on_phase(phase, len(mind.steps), mind.oi)
 
-    def _oi(self) -> int:
-        return sum(step.kind == "explore" for step in self.steps)
+    def _note(self, mind: AgentMind, kind: str, text: str, data: dict | None = None) -> None:
+        self.transcript.add(kind, len(mind.steps), self.api.robot_time, text, data)
 
-    def _look(self) -> Observation:
-        self._phase("observing")
-        observation = self._observe()
-        self._note("observation", "objects in view:\n" + observation.as_text(),
-                   {"objects": [dc.asdict(o) for o in observation.objects]})
-        return observation
-
-    def _note(self, kind: str, text: str, data: dict | None = None) -> None:
-        self.transcript.add(kind, len(self.steps), self.api.robot_time, text, data)
-
-    # --- deciding ------------------------------------------------------------------------
-
-    def _decide(self, context: AgentContext) -> Decision:
-        self._phase("planning")
+    def _decide(self, context: AgentContext, mind: AgentMind) -> tuple[Decision, AgentMind]:
+        self._phase("planning", mind)
         decider = self.variant.decider
         if decider == "coder":
-            return Decision("task")
+            return Decision("task"), mind
         if decider == "enumerator":
-            if self._queue is None:
-                plan = self._plan(context, "enumerator", PlannerAnswer)
-                self._queue = [] if plan.sufficient else self._order(
-                    context, plan.exploration_candidates)
-            if self._queue:
-                return Decision("explore", self._queue.pop(0))
-            return Decision("final", reason="every candidate has been explored")
+            if mind.queue is None:
+                plan = self._plan(context, "enumerator", PlannerAnswer, mind)
+                mind = dc.replace(mind, queue=() if plan.sufficient else tuple(
+                    self._order(context, plan.exploration_candidates, mind)))
+            if mind.queue:
+                return Decision("explore", mind.queue[0]), dc.replace(mind,
+                                                                      queue=mind.queue[1:])
+            return Decision("final", reason="every candidate has been explored"), mind
         mode, model = (("joint_planner", JointPlannerAnswer) if decider == "joint_planner"
                        else ("planner", PlannerAnswer))
-        plan = self._plan(context, mode, model)
+        plan = self._plan(context, mode, model, mind)
         if plan.sufficient:
-            return Decision("final", reason=plan.reason)
-        ordered = self._order(context, plan.exploration_candidates)
-        return Decision("explore", ordered[0], plan.reason)
+            return Decision("final", reason=plan.reason), mind
+        ordered = self._order(context, plan.exploration_candidates, mind)
+        return Decision("explore", ordered[0], plan.reason), mind
 
-    def _plan(self, context: AgentContext, mode: str, model):
+    def _plan(self, context: AgentContext, mode: str, model, mind: AgentMind):
         plan, _ = ask_structured(self.llm, self._prompts.planner(context, mode), model,
                                  repairs=self.variant.repair_attempts)
-        self._note("planner", json.dumps(plan.model_dump(), indent=1), plan.model_dump())
+        self._note(mind, "planner", json.dumps(plan.model_dump(), indent=1), plan.model_dump())
         return plan
 
-    def _order(self, context: AgentContext, candidates: list[Candidate]) -> list[Candidate]:
+    def _order(self, context: AgentContext, candidates: list[Candidate],
+               mind: AgentMind) -> list[Candidate]:
         order = self.variant.order
         if order == "as_given":
             return list(candidates)
         if order == "random":
-            return [candidates[i] for i in self._rng.permutation(len(candidates))]
+            # Drawn from (seed, decision index): the same run draws the same order.
+            rng = np.random.default_rng((self._seed, 29, len(mind.steps)))
+            return [candidates[i] for i in rng.permutation(len(candidates))]
         if order == "spatial":
             column = {o.name: o.image_x for o in context.observation.objects}
             return sorted(candidates, key=lambda c: column.get(c.name, float("inf")))
-        self._phase("prioritizing")
+        self._phase("prioritizing", mind)
         answer, ordered = ask_structured(
             self.llm, self._prompts.prioritizer(context, candidates), PrioritizerAnswer,
             repairs=self.variant.repair_attempts,
             check=lambda a: check_reordering(candidates, a))
-        self._note("prioritizer", "\n".join(
+        self._note(mind, "prioritizer", "\n".join(
             f"{s.priority_score:4.1f}  {s.name}: {s.reason}" for s in answer.scored_candidates),
             answer.model_dump())
         return ordered
 
-    # --- coding and running --------------------------------------------------------------
-
-    def _write_code(self, context: AgentContext, decision: Decision) -> CoderAnswer:
-        self._phase("coding")
+    def _write_code(self, context: AgentContext, decision: Decision,
+                    mind: AgentMind) -> CoderAnswer:
+        self._phase("coding", mind)
         request = self._prompts.coder(context, self._code_api.describe(),
                                       self._code_api.names(), decision.kind,
                                       decision.candidate, decision.reason)
@@ -222,47 +333,12 @@ class AgentLoop:
                                    repairs=self.variant.repair_attempts)
         return answer
 
-    def _execute(self, decision: Decision, answer: CoderAnswer,
-                 before: Observation) -> tuple[StepRecord, Observation]:
-        index = len(self.steps)
-        self._note("code", answer.code, {
-            "thought": answer.thought, "code": answer.code, "decision": decision.kind,
-            "target": decision.candidate.name if decision.candidate else ""})
-        self._phase("executing")
-        outcome: CodeOutcome = run_sandboxed(answer.code, self._code_api.functions(),
-                                             self._limits)
-        if outcome.stdout.strip():
-            self._note("output", outcome.stdout, {"stdout": outcome.stdout})
-        if not outcome.ok:
-            self._note("error", f"{outcome.kind}: {outcome.error}",
-                       {"kind": outcome.kind, "error": outcome.error})
-            self._make_safe()
-        for entry in self.api.knowledge.entries[self._known:]:
-            self._note("measurement", entry.describe(), dc.asdict(entry))
-        self._known = len(self.api.knowledge.entries)
-        after = self._look()
-        kind = "final" if decision.kind == "final" or (
-            decision.kind == "task" and answer.task_complete) else "explore"
-        candidate = decision.candidate
-        step = StepRecord(
-            index=index, kind=kind, target=candidate.name if candidate else "",
-            action=candidate.action if candidate else "", thought=answer.thought,
-            code=answer.code, ok=outcome.ok, error="" if outcome.ok else
-            f"{outcome.kind}: {outcome.error}", stdout=outcome.stdout,
-            appeared=tuple(n for n in after.names() if n not in before.names()),
-            disappeared=tuple(n for n in before.names() if n not in after.names()),
-            robot_time_s=self.api.robot_time)
-        self.steps.append(step)
-        if self._on_step is not None:
-            self._on_step(step)
-        return step, after
-
-    def _make_safe(self) -> None:
+    def _make_safe(self, mind: AgentMind) -> None:
         """After a code block stopped early: the arm holds where its last motion ended."""
         try:
             self.api.wait(SAFE_HOLD)
         except SkillError as error:
-            self._note("error", f"could not bring the arm to rest: {error}")
+            self._note(mind, "error", f"could not bring the arm to rest: {error}")
 
 
 def _describe(decision: Decision) -> str:

@@ -55,7 +55,7 @@ class McapRecorder(LeafSystem):
     def __init__(self, sink: McapSink, joint_names: list[str], *,
                  plant: MultibodyPlant | None = None, scene_graph=None, kinematics=None,
                  fingertip: tuple | None = None, camera_frame: str = "camera",
-                 state_period: float = 0.05, image_period: float = 2.0,
+                 state_period: float = 0.04, image_period: float = 2.0,
                  flush_period: float = 1.0):
         super().__init__()
         if len(joint_names) != ports.NUM_ARM_JOINTS:
