@@ -1,13 +1,12 @@
 """empty_cup: the LIBERO replica — four lidded cups, one empty; put it in the basket.
 
-Straws: the paper's replica is built "to match the visual semantics of the real-world task"
-(its cups are 8.27 cm tall, "approximately 10.74 cm when an inserted straw is present"), and
-its prompt calls a straw "a weak task-specific exploration cue: a cup with a straw may have
-been used/opened". In the real can task two of the four cans are opened (the empty one and a
-half-full one) and two are sealed. So here two of the four cups carry a straw: the empty one
-and one of the three full ones, drawn per seed (the answer can only be pinned to a straw
-cup). Weighing the straw cups first takes 1.5 probes on average, a blind search 2.25. The
-empty cup's colour is drawn per seed too (the paper always empties the white cup; a fixed
+Straws: the paper builds its simulated replica to look like the real can task (its cups are
+8.27 cm tall, about 10.74 cm with a straw in the lid) and its prompt treats a straw as a weak
+hint that a cup has been drunk from. In the real can task two of the four cans are opened (the
+empty one and a half-full one) and two are sealed. So here two of the four cups carry a straw:
+the empty one and one of the three full ones, drawn per seed (the answer can only be pinned to
+a straw cup). Weighing the straw cups first takes 1.5 probes on average, a blind search 2.25.
+The empty cup's colour is drawn per seed too (the paper always empties the white cup; a fixed
 answer would let an agent learn it instead of exploring).
 """
 
