@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import dataclasses
-import json
 from pathlib import Path
 from typing import Annotated
 
@@ -13,7 +12,7 @@ from rich.table import Table
 from physcap_drake.bench.can_loop_bench import run_can_loop
 from physcap_drake.bench.pick_place_bench import run_trial, summarize
 from physcap_drake.bench.station_bench import CASES, DURATION, run_station_case
-from physcap_drake.commands.common import console, sim_progress, trial_progress
+from physcap_drake.commands.common import console, save_json, sim_progress, trial_progress
 
 app = typer.Typer(help="Benchmarks that print figures.", no_args_is_help=True)
 
@@ -37,8 +36,7 @@ def station(json_path: Annotated[Path | None, typer.Option(
                       f"{r.time_step_s:g}", slip)
     console.print(table)
     if json_path is not None:
-        json_path.write_text(json.dumps([dataclasses.asdict(r) for r in results], indent=2))
-        console.print(f"wrote {json_path}")
+        save_json(json_path, [dataclasses.asdict(r) for r in results])
 
 
 @app.command("pick-place")
@@ -63,8 +61,7 @@ def pick_place(
                   f"{summary['mean_robot_time_s']:.2f} s, worst fingertip error "
                   f"{summary['max_tcp_error_mm']:.2f} mm")
     if json_path is not None:
-        json_path.write_text(json.dumps(summary, indent=2))
-        console.print(f"wrote {json_path}")
+        save_json(json_path, summary)
 
 
 @app.command("can-loop")
@@ -85,5 +82,4 @@ def can_loop(
                   f"{result.max_ms:.3f}, mean rate {result.mean_rate_hz:.1f} Hz, "
                   f"{result.commands_sent} commands sent")
     if json_path is not None:
-        json_path.write_text(json.dumps(dataclasses.asdict(result), indent=2))
-        console.print(f"wrote {json_path}")
+        save_json(json_path, dataclasses.asdict(result))

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 from concurrent.futures import ProcessPoolExecutor
 from datetime import date
 from pathlib import Path
@@ -13,7 +12,7 @@ import typer
 from pydrake.common.yaml import yaml_dump_typed
 from rich.table import Table
 
-from physcap_drake.commands.common import console, trial_progress
+from physcap_drake.commands.common import console, save_json, trial_progress
 from physcap_drake.physx import calibration as cal
 from physcap_drake.physx.stiffness_levels import StiffnessThresholds, load_thresholds
 from physcap_drake.resources import make_package_map, stations_dir
@@ -74,8 +73,7 @@ def mass(trials: Trials = 20, seed: Seed = 0, workers: Workers = 2, noise: Noise
     console.print("every mass within |mean error| ≤ 5 g, std ≤ 10 g, no failure, ≤ 20 s per "
                   f"measurement: {'yes' if within else 'NO'}")
     if json_path is not None:
-        json_path.write_text(json.dumps(rows, indent=2))
-        console.print(f"wrote {json_path}")
+        save_json(json_path, rows)
     if plot is not None:
         _plot_mass(rows, plot)
         console.print(f"saved {plot}")
@@ -175,7 +173,7 @@ def stiffness(trials: Annotated[int, typer.Option("--trials", min=1,
     if write:
         _write_thresholds(thresholds)
     if json_path is not None:
-        json_path.write_text(json.dumps({
+        save_json(json_path, {
             "accuracy": accuracy,
             "thresholds_mm": in_use.thresholds_mm,
             "fitted_thresholds_mm": fitted,
@@ -186,8 +184,7 @@ def stiffness(trials: Annotated[int, typer.Option("--trials", min=1,
                         "deformations_mm": [None if not np.isfinite(d) else d
                                             for d in r.deformations_mm],
                         "robot_time_s": r.robot_time_s} for r in results],
-        }, indent=2))
-        console.print(f"wrote {json_path}")
+        })
     if plot is not None:
         _plot_stiffness(by_specimen, fitted, plot)
         console.print(f"saved {plot}")

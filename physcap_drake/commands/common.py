@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+import json
 from contextlib import contextmanager
 from pathlib import Path
+from typing import Any
 
 import typer
 from pydrake.geometry import Meshcat
@@ -61,3 +63,11 @@ def trial_progress(description: str, total: int):
             progress.update(task, advance=1, ok=successes)
 
         yield advance
+
+
+def save_json(path: Path, data: Any) -> None:
+    """Writes a command's `--json` result (indented JSON; parent folders are created) and
+    says where."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(json.dumps(data, indent=2))
+    console.print(f"wrote {path}")

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 from typing import Annotated
 
@@ -16,7 +15,7 @@ from physcap_drake.agent.llm.factory import VALID_SPECS
 from physcap_drake.agent.transcript import TranscriptEntry
 from physcap_drake.agent.variant import variant_names
 from physcap_drake.can.link import StartupError
-from physcap_drake.commands.common import console, error_console
+from physcap_drake.commands.common import console, error_console, save_json
 from physcap_drake.recording.episode_folder import MCAP_FILE, record_episode
 from physcap_drake.scenario_errors import ScenarioError
 from physcap_drake.tasks.registry import TASKS
@@ -105,8 +104,7 @@ def run(task: Annotated[str, typer.Option("--task", help=f"One of: {', '.join(TA
                   f"{summary['code_blocks']} code blocks, {summary['llm_calls']} model calls, "
                   f"wall time {summary['wall_time_s']:.1f} s")
     if json_path is not None:
-        json_path.write_text(json.dumps(summary, indent=2))
-        console.print(f"summary written to {json_path}")
+        save_json(json_path, summary)
     if out is not None:
         console.print(f"episode folder: {out} (open {out / MCAP_FILE} in Foxglove)")
     if not summary["success"]:

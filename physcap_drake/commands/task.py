@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 from typing import Annotated
 
@@ -11,7 +10,7 @@ import numpy as np
 import typer
 from rich.table import Table
 
-from physcap_drake.commands.common import console, error_console, trial_progress
+from physcap_drake.commands.common import console, error_console, save_json, trial_progress
 from physcap_drake.control.errors import SkillError
 from physcap_drake.perception.offline_pointer import PointingError
 from physcap_drake.station import ports
@@ -109,4 +108,4 @@ def check(task: TaskName,
                   + (f" ({errors} ended in a skill error, not by the success check)"
                      if errors else ""))
     if json_path is not None:
-        json_path.write_text(json.dumps(rows, indent=2))
+        save_json(json_path, rows)
