@@ -21,11 +21,14 @@ import traceback
 from pathlib import Path
 from typing import Any
 
+from pydrake.geometry import Meshcat
+
 from physcap_drake.agent.episode_runner import AgentRun, run_agent_episode
 from physcap_drake.agent.llm import save_jsonl
 from physcap_drake.agent.transcript import Transcript
 from physcap_drake.recording.git_state import git_state
 from physcap_drake.recording.mcap_sink import McapSink
+from physcap_drake.sim_runner import save_meshcat_html
 
 MCAP_FILE = "episode.mcap"
 TRANSCRIPT_FILE = "transcript.md"
@@ -65,8 +68,6 @@ def record_episode(folder: str | Path, task: str, seed: int, *, meshcat_html: bo
         (folder / stale).unlink(missing_ok=True)
     meshcat = options.pop("meshcat", None)
     if meshcat_html and meshcat is None:
-        from pydrake.geometry import Meshcat
-
         meshcat = Meshcat()
     if meshcat is not None:
         meshcat.StartRecording(frames_per_second=32.0, set_visualizations_while_recording=True)
@@ -94,8 +95,6 @@ def record_episode(folder: str | Path, task: str, seed: int, *, meshcat_html: bo
     (folder / TRANSCRIPT_FILE).write_text(run.transcript.as_markdown(title))
     save_jsonl(run.calls, folder / CALLS_FILE)
     if meshcat_html and meshcat is not None:
-        from physcap_drake.sim_runner import save_meshcat_html
-
         save_meshcat_html(meshcat, folder / MESHCAT_FILE)
     write_json(folder / SUMMARY_FILE, {**run.summary(), **git_state()})
     return run

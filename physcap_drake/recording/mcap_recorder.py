@@ -25,11 +25,13 @@ from pydrake.multibody.tree import BodyIndex
 from pydrake.systems.framework import Context, EventStatus, LeafSystem
 from pydrake.systems.sensors import ImageRgba8U
 
+from physcap_drake.control.planning_model import TCP_FRAME, PlanningModel
 from physcap_drake.perception.jpeg import encode_jpeg
 from physcap_drake.recording import topics
 from physcap_drake.recording.mcap_sink import McapSink, frame_transform
 from physcap_drake.recording.scene_geometry import body_frame_name, scene_update
 from physcap_drake.station import ports
+from physcap_drake.station.robot_model import moving_joints
 
 #: The gripper's entry in the recorded joint states.
 GRIPPER_JOINT = "gripper"
@@ -165,9 +167,6 @@ def make_mcap_recorder(sink: McapSink, station, scenario, *, image_period: float
     """The recorder for a built station: joint names from the arm model; the bodies, geometry
     and the gripper's TCP frame (as the fingertip) of the station's simulated world
     (subsystems "plant" and "scene_graph") when it has one, else of the robot's model."""
-    from physcap_drake.control.planning_model import TCP_FRAME, PlanningModel
-    from physcap_drake.station.robot_model import moving_joints
-
     config = scenario.station
     if station.HasSubsystemNamed("plant") and station.HasSubsystemNamed("scene_graph"):
         kinematics = None

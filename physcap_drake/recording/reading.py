@@ -16,8 +16,9 @@ from typing import Any
 
 from mcap.decoder import DecoderFactory as McapDecoderFactory
 from mcap.exceptions import EndOfFile, McapError, RecordLengthLimitExceeded
-from mcap.reader import NonSeekingReader
-from mcap.records import Schema
+from mcap.reader import NonSeekingReader, make_reader
+from mcap.records import Metadata, Schema
+from mcap.stream_reader import StreamReader
 from mcap_protobuf.decoder import DecoderFactory as ProtobufDecoderFactory
 
 
@@ -93,8 +94,6 @@ def read_recording(path: str | Path) -> Recording:
 
 def _summary_metadata(path: Path) -> tuple[dict[str, dict[str, str]], bool]:
     """The metadata records, and whether the file is complete (has a footer and summary)."""
-    from mcap.reader import make_reader
-
     with path.open("rb") as stream:
         reader = make_reader(stream)
         try:
@@ -106,9 +105,6 @@ def _summary_metadata(path: Path) -> tuple[dict[str, dict[str, str]], bool]:
 
 
 def _metadata_front_to_back(path: Path) -> dict[str, dict[str, str]]:
-    from mcap.records import Metadata
-    from mcap.stream_reader import StreamReader
-
     found: dict[str, dict[str, str]] = {}
     with path.open("rb") as stream:
         try:

@@ -11,12 +11,17 @@ from __future__ import annotations
 import dataclasses as dc
 from pathlib import Path
 
+from pydrake.common.eigen_geometry import Quaternion
 from pydrake.geometry import Meshcat
+from pydrake.math import RigidTransform, RotationMatrix
 
+from physcap_drake.agent.transcript import Transcript, TranscriptEntry
 from physcap_drake.recording import topics
 from physcap_drake.recording.mcap_recorder import GRIPPER_JOINT
 from physcap_drake.recording.reading import Recording, read_recording
 from physcap_drake.recording.scene_geometry import body_frame_name
+from physcap_drake.station.robot_model import moving_joints
+from physcap_drake.tasks.episode import make_episode
 
 
 class ReplayError(ValueError):
@@ -47,8 +52,6 @@ def episode_particulars(recording: Recording) -> tuple[str, int]:
 def replay_in_meshcat(path: str | Path, meshcat: Meshcat) -> ReplayedEpisode:
     """Builds the recorded episode's scene in `meshcat` and loads its motion as an animation
     (see the module docstring). Raises ReplayError or FileNotFoundError."""
-    from physcap_drake.tasks.episode import make_episode
-
     recording = read_recording(path)
     task, seed = episode_particulars(recording)
     states = recording.on(topics.JOINT_STATES)
@@ -89,15 +92,10 @@ def replay_in_meshcat(path: str | Path, meshcat: Meshcat) -> ReplayedEpisode:
 
 
 def _finger_joints(plant, scenario) -> list:
-    from physcap_drake.station.robot_model import moving_joints
-
     return moving_joints(plant, plant.GetModelInstanceByName(scenario.station.gripper_model))
 
 
 def _rigid_transform(transform):
-    from pydrake.common.eigen_geometry import Quaternion
-    from pydrake.math import RigidTransform, RotationMatrix
-
     q, p = transform.rotation, transform.translation
     return RigidTransform(RotationMatrix(Quaternion(w=q.w, x=q.x, y=q.y, z=q.z)),
                           [p.x, p.y, p.z])
@@ -105,8 +103,6 @@ def _rigid_transform(transform):
 
 def transcript_markdown(recording: Recording) -> str:
     """The recorded transcript, rendered as in transcript.md."""
-    from physcap_drake.agent.transcript import Transcript, TranscriptEntry
-
     transcript = Transcript()
     transcript.entries = [TranscriptEntry(**m.value) for m in
                           recording.on(topics.AGENT_TRANSCRIPT)]
