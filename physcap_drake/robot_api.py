@@ -1,7 +1,9 @@
 """The blocking robot API: what generated code calls to move the PiPER.
 
-Each call plans a skill, then advances the simulation until the skill has finished (or
-failed, or timed out) and returns. Sim time does not pass between calls. The docstrings of
+A thin client of the robot stack's request path: each call puts one request (a skill, or a
+whole get_mass / get_stiffness) on the stack's exported `robot.request` port and asks the
+clock to run until `robot.status` reports that request finished (succeeded, failed or
+refused), then returns or raises. Sim time does not pass between calls. The docstrings of
 the public methods are the API text shown to the language model, so they state units and
 frames exactly.
 """
@@ -15,22 +17,31 @@ from contextlib import contextmanager
 import numpy as np
 from pydrake.systems.analysis import Simulator
 
-from physcap_drake.control.errors import SkillError, SkillFailed
+from physcap_drake.clock import Clock
+from physcap_drake.control.errors import SkillError, SkillFailed, SkillRefused
 from physcap_drake.control.requests import (
     MoveGripper,
     MoveToJoints,
     MoveToPose,
-    SkillRequest,
+    RobotRequest,
+    SkillState,
+    SkillStatus,
     Wait,
     as_vector,
 )
-from physcap_drake.control.skill_executor import MONITOR_PERIOD, SkillStatus
+from physcap_drake.control.skill_executor import STATUS_PORT
 from physcap_drake.knowledge import KnowledgeEntry, SceneKnowledge
 from physcap_drake.perception.object_locator import ObjectLocator
-from physcap_drake.physx.mass_probe import MassMeasurement, MassProbe
-from physcap_drake.physx.stiffness_probe import StiffnessMeasurement, StiffnessProbe
-from physcap_drake.robot_diagram import RobotDiagram
+from physcap_drake.physx.mass_probe import MassMeasurement, MeasureMass
+from physcap_drake.physx.stiffness_probe import MeasureStiffness, StiffnessMeasurement
+from physcap_drake.robot_stack import RobotStack
 from physcap_drake.station import ports
+
+#: This client's name on the request path.
+CLIENT = "robot_api"
+#: Longest a request may take, s of simulated time: every skill and probe ends well before
+#: (the longest, a 120 s wait); running out means a system on the path does not answer.
+REQUEST_TIMEOUT = 600.0
 
 
 class RobotAPI:
@@ -44,25 +55,24 @@ class RobotAPI:
     open and close, and x = y × z.
     """
 
-    def __init__(self, robot: RobotDiagram, simulator: Simulator,
+    def __init__(self, robot: RobotStack, clock: Clock,
                  on_skill_done: Callable[[SkillStatus], None] | None = None,
                  locator: ObjectLocator | None = None):
-        """`on_skill_done(status)` is called after every skill that ran (not after refusals),
-        before a failure is raised. `locator` finds objects named by phrases in the camera
-        images (get_object_pose); without one, get_object_pose is not available."""
+        """`clock` runs `robot`'s diagram. `on_skill_done(status)` is called after every
+        request that ran (not after refusals), before a failure is raised. `locator` finds
+        objects named by phrases in the camera images (get_object_pose); without one,
+        get_object_pose is not available."""
+        if robot.request_input is None:
+            raise ValueError("this robot stack's requests come from a system inside it (its "
+                             "agent), not from a RobotAPI")
         self._robot = robot
-        self._simulator = simulator
+        self._clock = clock
         self._locator = locator
         self._on_skill_done = on_skill_done
-        root = simulator.get_mutable_context()
-        self._executor_context = robot.executor.GetMyMutableContextFromRoot(root)
+        root = clock.context
         self._station_context = robot.station.GetMyContextFromRoot(root)
-        self._mass_probe = MassProbe(self, robot.mass_estimator,
-                                     robot.mass_estimator.GetMyMutableContextFromRoot(root),
-                                     robot.scenario.physx.mass)
-        self._stiffness_probe = StiffnessProbe(
-            self, robot.stiffness_estimator,
-            robot.stiffness_estimator.GetMyMutableContextFromRoot(root))
+        self._executor_status = robot.executor.GetOutputPort(STATUS_PORT)
+        self._executor_context = robot.executor.GetMyContextFromRoot(root)
         #: What has been measured in this episode (get_mass and get_stiffness add to it).
         self.knowledge = SceneKnowledge()
         #: The full outcome of the latest get_mass / get_stiffness (for tools and tests).
@@ -87,8 +97,14 @@ class RobotAPI:
         return self._locator.grasp_point(name, rgb, depth, label)
 
     @property
+    def clock(self) -> Clock:
+        """The clock that runs the robot's diagram."""
+        return self._clock
+
+    @property
     def simulator(self) -> Simulator:
-        return self._simulator
+        """The clock's simulator, for reading contexts (time moves only through `clock`)."""
+        return self._clock.simulator
 
     @property
     def locator(self) -> ObjectLocator | None:
@@ -118,7 +134,7 @@ class RobotAPI:
 
     def open_gripper(self) -> None:
         """Open the gripper fully: 0.10 m between the fingers (0.07 m with the small gripper)."""
-        self._run(MoveGripper(self._robot.executor.planner.gripper_stroke,
+        self._run(MoveGripper(self._robot.model.gripper_stroke,
                               self._robot.scenario.skills.grasp_force, "open_gripper"))
 
     def close_gripper(self) -> None:
@@ -155,7 +171,7 @@ class RobotAPI:
         """
         subject = _subject(position, name)
         with self._recording_failures(subject, "mass", "kg"):
-            result = self.last_mass = self._mass_probe.measure(position)
+            result = self.last_mass = self._run(MeasureMass(position)).result
         self.knowledge.add(KnowledgeEntry(subject, "mass", result.mass_kg, "kg", result.ok,
                                           result.reason, self.robot_time))
         return result.mass_kg
@@ -178,7 +194,7 @@ class RobotAPI:
         """
         subject = _subject(position, name)
         with self._recording_failures(subject, "stiffness", "level"):
-            measurement = self.last_stiffness = self._stiffness_probe.measure(position)
+            measurement = self.last_stiffness = self._run(MeasureStiffness(position)).result
         self.knowledge.add(KnowledgeEntry(subject, "stiffness", measurement.level, "level",
                                           measurement.level > 0, measurement.describe(),
                                           self.robot_time))
@@ -197,7 +213,7 @@ class RobotAPI:
     @property
     def joint_target(self) -> np.ndarray:
         """The arm's commanded joint positions J1..J6 (radians) once the last motion ended."""
-        return self._robot.executor.joint_target(self._executor_context)
+        return np.array(self._executor_status.Eval(self._executor_context).joint_target)
 
     @property
     def gripper_opening(self) -> float:
@@ -208,26 +224,30 @@ class RobotAPI:
     @property
     def robot_time(self) -> float:
         """Robot execution time so far: the simulated seconds spent executing skills."""
-        return self.status.robot_time
+        return self._executor_status.Eval(self._executor_context).robot_time
 
     @property
     def status(self) -> SkillStatus:
-        """How the last skill ended (state, label, message) and the robot time so far."""
-        return self._robot.executor.status(self._executor_context)
+        """How the last request ended (state, label, message) and the robot time then."""
+        return self._robot.status_output.Eval(self._clock.context)
 
-    def _run(self, request: SkillRequest) -> SkillStatus:
-        executor, context = self._robot.executor, self._executor_context
-        if self._simulator.get_target_realtime_rate() > 0:
-            # Pace from now on: the wall time spent between calls (a model thinking) must
-            # not be made up by running the next motion faster than real time.
-            self._simulator.ResetStatistics()
-        executor.start(context, request)
-        while executor.status(context).state == "running":
-            self._simulator.AdvanceTo(context.get_time() + MONITOR_PERIOD)
-        status = executor.status(context)
+    def _run(self, action) -> SkillStatus:
+        """Puts `action` on the request path, runs until it is answered, and returns the
+        answer; raises SkillRefused or SkillFailed with its message if it did not succeed."""
+        port, context = self._robot.request_input, self._clock.mutable_context
+        request = RobotRequest(CLIENT, port.Eval(context).sequence + 1, action)
+        port.FixValue(context, request)
+        status_port = self._robot.status_output
+        if not self._clock.run_until(lambda root: status_port.Eval(root).finished(request),
+                                     timeout=REQUEST_TIMEOUT):
+            raise SkillFailed(f"{request.label}: no answer within {REQUEST_TIMEOUT:g} s of "
+                              "simulated time")
+        status = status_port.Eval(self._clock.context)
+        if status.state is SkillState.REFUSED:
+            raise SkillRefused(status.message)
         if self._on_skill_done is not None:
             self._on_skill_done(status)
-        if status.state == "failed":
+        if status.state is SkillState.FAILED:
             raise SkillFailed(status.message)
         return status
 

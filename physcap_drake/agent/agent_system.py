@@ -24,6 +24,7 @@ from pydrake.systems.sensors import ImageLabel16I, ImageRgba8U
 
 from physcap_drake.agent.loop import AgentLoop, AgentMind
 from physcap_drake.agent.observation import Observation, observe
+from physcap_drake.immutable_state import Immutable
 from physcap_drake.perception.offline_pointer import OfflinePointer
 from physcap_drake.station import ports
 
@@ -59,7 +60,7 @@ class AgentSystem(LeafSystem):
                                                   AbstractValue.Make(ImageRgba8U()))
         self._label = self.DeclareAbstractInputPort(ports.CAMERA_LABEL,
                                                     AbstractValue.Make(ImageLabel16I()))
-        self._mind = self.DeclareAbstractState(AbstractValue.Make(AgentMind()))
+        self._mind = self.DeclareAbstractState(AbstractValue.Make(_MindCell(AgentMind())))
         self.DeclareAbstractOutputPort(PROGRESS_PORT, lambda: AbstractValue.Make(
             AgentProgress()), self._output_progress, {self.abstract_state_ticket(self._mind)})
         self.DeclarePeriodicUnrestrictedUpdateEvent(period, 0.0, self._decide)
@@ -77,12 +78,12 @@ class AgentSystem(LeafSystem):
                        self._pointer, self._robot_time())
 
     def mind(self, context: Context) -> AgentMind:
-        return context.get_abstract_state(self._mind).get_value()
+        return context.get_abstract_state(self._mind).get_value().mind
 
     def set_mind(self, context: Context, mind: AgentMind) -> None:
         """Replaces the mind (between events: to start the episode, or after a code block
         ran)."""
-        context.get_mutable_abstract_state(self._mind).set_value(mind)
+        context.get_mutable_abstract_state(self._mind).set_value(_MindCell(mind))
 
     def progress(self, context: Context) -> AgentProgress:
         return _progress_of(self.mind(context))
@@ -95,7 +96,17 @@ class AgentSystem(LeafSystem):
         if mind.phase != "deciding" or self._policy is None:
             return
         mind = self._policy.think(mind, self.observation(context))
-        state.get_mutable_abstract_state(self._mind).set_value(mind)
+        state.get_mutable_abstract_state(self._mind).set_value(_MindCell(mind))
+
+
+@dc.dataclass(frozen=True)
+class _MindCell(Immutable):
+    """The mind as the Context holds it. Drake copies a system's abstract state twice at
+    every unrestricted update (every 20 ms here), deep-copying Python values: for a mind with
+    a history of steps and model answers that dominated the run time. The mind is replaced
+    at each decision and never changed in place, so the copies may share it."""
+
+    mind: AgentMind
 
 
 def _progress_of(mind: AgentMind) -> AgentProgress:

@@ -16,6 +16,7 @@ from physcap_drake.agent.loop import AgentLoop, AgentMind, EpisodeOutcome
 from physcap_drake.agent.sandbox import SandboxLimits
 from physcap_drake.agent.transcript import Transcript, TranscriptEntry
 from physcap_drake.agent.variant import load_variant
+from physcap_drake.clock import Clock
 from physcap_drake.control.errors import ArmFault
 from physcap_drake.perception.object_locator import ObjectLocator
 from physcap_drake.perception.vlm_pointer import VlmPointer
@@ -58,18 +59,17 @@ class AgentRun:
         }
 
 
-def drive_agent(simulator, system: AgentSystem, context, loop: AgentLoop) -> AgentMind:
-    """Runs the episode to its end: the simulator advances one agent period at a time, so the
+def drive_agent(clock: Clock, system: AgentSystem, context, loop: AgentLoop) -> AgentMind:
+    """Runs the episode to its end: the clock runs one agent period at a time, so the
     AgentSystem's events decide; a code block they wrote runs between events (its robot calls
-    advance the simulator). An arm fault raised while time advances ends the episode."""
+    run the clock). An arm fault raised while time advances ends the episode."""
     system.set_mind(context, AgentMind(phase="deciding"))
-    root = simulator.get_mutable_context()
     while not (mind := system.mind(context)).over:
         if mind.phase == "executing":
             system.set_mind(context, loop.execute(mind))
             continue
         try:
-            simulator.AdvanceTo(root.get_time() + AGENT_PERIOD)
+            clock.run_for(AGENT_PERIOD)
         except ArmFault as fault:
             system.set_mind(context, loop.fault(system.mind(context), fault))
     return mind
@@ -100,8 +100,8 @@ def run_agent_episode(task: str, seed: int, *, agent: str = "physcap", llm: str 
     if pointer == "vlm":
         episode.api.use_locator(ObjectLocator(episode.api.locator.camera,
                                               VlmPointer(pointer_ask(client))))
-    simulator, system = episode.api.simulator, episode.robot.agent
-    root = simulator.get_mutable_context()
+    clock, system = episode.api.clock, episode.robot.agent
+    root = clock.mutable_context
     agent_context = system.GetMyMutableContextFromRoot(root)
     recording = None if sink is None else AgentRecording(
         sink, root.get_time, client=client, recorder=episode.robot.recorder,
@@ -130,7 +130,7 @@ def run_agent_episode(task: str, seed: int, *, agent: str = "physcap", llm: str 
                   recording.on_observe if recording is not None else None)
     start = time.monotonic()
     try:
-        mind = drive_agent(simulator, system, agent_context, loop)
+        mind = drive_agent(clock, system, agent_context, loop)
     finally:
         episode.close()
     outcome = loop.outcome(mind, time.monotonic() - start)

@@ -9,9 +9,9 @@ import itertools
 
 import numpy as np
 
+from physcap_drake.clock import Clock
 from physcap_drake.resources import stations_dir
 from physcap_drake.scenario import load_scenario
-from physcap_drake.sim_runner import advance, make_simulator
 from physcap_drake.station import close_station
 from physcap_drake.station.can_config import PiperCan
 from physcap_drake.station_commands import build_commanded_station
@@ -43,10 +43,10 @@ def run_can_loop(duration: float = 5.0, control_rate: float = 200.0,
     scenario.simulator_config.target_realtime_rate = 1.0
     diagram, station = build_commanded_station(scenario, sweep=True, duration=duration)
     try:
-        simulator = make_simulator(diagram, scenario)
+        clock = Clock(diagram, scenario.simulator_config)
         link = station.GetSubsystemByName("piper_can").link
         first = len(link.cycle_starts)
-        timing = advance(simulator, duration, on_progress=on_progress)
+        timing = clock.run_for(duration, on_progress)
         starts = np.array(list(link.cycle_starts)[first:])
         sent = link.status().commands_sent
     finally:

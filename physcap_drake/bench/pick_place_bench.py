@@ -11,7 +11,7 @@ from physcap_drake.demos.pick_place import check_can_in_tray, pick_and_place
 from physcap_drake.demos.scene_layout import object_position, set_object_position
 from physcap_drake.resources import stations_dir
 from physcap_drake.robot_api import RobotAPI
-from physcap_drake.robot_diagram import build_robot_diagram
+from physcap_drake.robot_stack import build_robot_stack
 from physcap_drake.scenario import load_scenario
 
 SCENARIO = "piper_table.yaml"
@@ -52,11 +52,11 @@ def run_trial(seed: int, trial: int) -> PickPlaceTrial:
     can = object_position(scenario, "soda_can")
     can[:2] = random_can_xy(scenario, rng)
     set_object_position(scenario, "soda_can", can)
-    robot = build_robot_diagram(scenario)
-    simulator = robot.make_simulator()
-    api = RobotAPI(robot, simulator)
+    robot = build_robot_stack(scenario)
+    clock = robot.make_clock()
+    api = RobotAPI(robot, clock)
     plant = robot.station.GetSubsystemByName("plant")
-    plant_context = plant.GetMyContextFromRoot(simulator.get_context())
+    plant_context = plant.GetMyContextFromRoot(clock.context)
     tcp = plant.GetFrameByName("tcp")
     errors = []
 

@@ -5,9 +5,9 @@ from __future__ import annotations
 import dataclasses as dc
 from collections.abc import Callable
 
+from physcap_drake.clock import Clock
 from physcap_drake.resources import stations_dir
 from physcap_drake.scenario import Scenario, load_scenario
-from physcap_drake.sim_runner import advance, make_simulator
 from physcap_drake.station import ports
 from physcap_drake.station_commands import build_commanded_station
 
@@ -43,11 +43,11 @@ def _run_case(case: str, scenario: Scenario, *, sweep: bool, gripper_opening: fl
               on_progress: Callable[[float], None] | None) -> StationBenchResult:
     diagram, station = build_commanded_station(
         scenario, sweep=sweep, duration=DURATION + WARMUP, gripper_opening=gripper_opening)
-    simulator = make_simulator(diagram, scenario)
-    context = simulator.get_context()
-    advance(simulator, WARMUP)
+    clock = Clock(diagram, scenario.simulator_config)
+    context = clock.context
+    clock.run_for(WARMUP)
     held_at = _can_height(diagram, station, context) if case == "hold_can" else None
-    timing = advance(simulator, DURATION, on_progress=on_progress)
+    timing = clock.run_for(DURATION, on_progress)
     # Evaluating an output proves the station is whole (and keeps the case honest).
     station.GetOutputPort(ports.ARM_TORQUE_MEASURED).Eval(station.GetMyContextFromRoot(context))
     slip = None if held_at is None else held_at - _can_height(diagram, station, context)

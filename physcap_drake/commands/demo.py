@@ -12,7 +12,7 @@ from physcap_drake.control.errors import SkillError
 from physcap_drake.demos.pick_place import check_can_in_tray, pick_and_place
 from physcap_drake.demos.scene_layout import object_position
 from physcap_drake.robot_api import RobotAPI
-from physcap_drake.robot_diagram import build_robot_diagram
+from physcap_drake.robot_stack import build_robot_stack
 from physcap_drake.sim_runner import save_meshcat_html
 
 app = typer.Typer(help="Scripted demonstrations of the robot skills.", no_args_is_help=True)
@@ -33,9 +33,9 @@ def pick_place(
     if meshcat:
         loaded.simulator_config.target_realtime_rate = 1.0
     viewer = make_meshcat(loaded) if (meshcat or html) else None
-    robot = build_robot_diagram(loaded, viewer)
-    simulator = robot.make_simulator()
-    api = RobotAPI(robot, simulator, on_skill_done=lambda status: console.print(
+    robot = build_robot_stack(loaded, viewer)
+    clock = robot.make_clock()
+    api = RobotAPI(robot, clock, on_skill_done=lambda status: console.print(
         f"  {status.finished_at:6.2f} s  {status.state}: {status.message}", highlight=False))
     if viewer is not None:
         viewer.StartRecording(frames_per_second=32.0, set_visualizations_while_recording=True)
@@ -50,7 +50,7 @@ def pick_place(
             save_meshcat_html(viewer, html)
             console.print(f"Saved the Meshcat replay to {html}")
     plant = robot.station.GetSubsystemByName("plant")
-    check = check_can_in_tray(plant, plant.GetMyContextFromRoot(simulator.get_context()))
+    check = check_can_in_tray(plant, plant.GetMyContextFromRoot(clock.context))
     console.print(f"robot execution time {api.robot_time:.2f} s; "
                   f"{'success' if check.success else 'failure'}: {check.reason}")
     if not check.success:

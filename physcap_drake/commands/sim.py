@@ -8,13 +8,14 @@ from typing import Annotated
 
 import typer
 
+from physcap_drake.clock import Clock
 from physcap_drake.commands.common import (
     console,
     load_scenario_or_exit,
     make_meshcat,
     sim_progress,
 )
-from physcap_drake.sim_runner import advance, make_simulator, save_meshcat_html
+from physcap_drake.sim_runner import save_meshcat_html
 from physcap_drake.station_commands import build_commanded_station
 
 
@@ -44,12 +45,12 @@ def sim(
         loaded.simulator_config.target_realtime_rate = realtime_rate
     viewer = make_meshcat(loaded) if (meshcat or html) else None
     diagram, _ = build_commanded_station(loaded, meshcat=viewer, sweep=wiggle, duration=seconds)
-    simulator = make_simulator(diagram, loaded)
+    clock = Clock(diagram, loaded.simulator_config)
     if viewer is not None:
         viewer.StartRecording(frames_per_second=32.0, set_visualizations_while_recording=True)
     with sim_progress("Simulating" + (" (joint sweep)" if wiggle else " (holding)"),
                       seconds) as progress:
-        timing = advance(simulator, seconds, on_progress=progress)
+        timing = clock.run_for(seconds, progress)
     console.print(f"sim time {timing.sim_time:.3f} s, wall time {timing.wall_time:.3f} s, "
                   f"real-time factor {timing.realtime_factor:.2f}")
     if viewer is None:

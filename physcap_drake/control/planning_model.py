@@ -10,16 +10,9 @@ from __future__ import annotations
 import numpy as np
 from pydrake.geometry import SceneGraph
 from pydrake.math import RigidTransform
-from pydrake.multibody.plant import AddMultibodyPlantSceneGraph, MultibodyPlant
-from pydrake.systems.framework import DiagramBuilder
+from pydrake.multibody.plant import MultibodyPlant
 
-from physcap_drake.station.robot_model import (
-    add_directives,
-    make_model_plant,
-    moving_joints,
-    robot_directives,
-    world_welded_models,
-)
+from physcap_drake.station.robot_model import RobotModel, moving_joints, robot_model
 
 #: Name of the fingertip frame in the gripper model (0.1358 m beyond the flange).
 TCP_FRAME = "tcp"
@@ -28,7 +21,11 @@ TCP_FRAME = "tcp"
 class PlanningModel:
     """The robot and its fixed environment, with a scene graph for distance queries.
 
+    Built on the shared RobotModel of the set-up (no parsing of its own): pass the
+    scenario's directives and model names, or `robot=` a RobotModel.
+
     Attributes:
+        robot: the RobotModel it is built on.
         plant: continuous-time plant of arm, gripper and fixed environment.
         arm_plant: the arm alone (6 positions), for time-parameterizing joint paths.
         tcp_frame: the fingertip frame of `plant`.
@@ -36,20 +33,17 @@ class PlanningModel:
         finger_position_indices: the two finger joints (each at half the opening).
     """
 
-    def __init__(self, directives: list, arm_model: str, gripper_model: str):
-        environment = [m for m in world_welded_models(directives)
-                       if m not in (arm_model, gripper_model)]
-        builder = DiagramBuilder()
-        plant, scene_graph = AddMultibodyPlantSceneGraph(builder, time_step=0.0)
-        add_directives(plant, robot_directives(
-            directives, (arm_model, gripper_model, *environment)))
-        plant.Finalize()
-        self.diagram = builder.Build()
+    def __init__(self, directives: list | None = None, arm_model: str = "",
+                 gripper_model: str = "", *, robot: RobotModel | None = None):
+        if robot is None:
+            robot = robot_model(directives, arm_model, gripper_model)
+        self.robot = robot
+        self.diagram, plant, scene_graph = robot.workcell
         self.plant: MultibodyPlant = plant
         self.scene_graph: SceneGraph = scene_graph
-        self.arm_plant = make_model_plant(directives, (arm_model,))
-        arm = plant.GetModelInstanceByName(arm_model)
-        gripper = plant.GetModelInstanceByName(gripper_model)
+        self.arm_plant = robot.arm_plant
+        arm = plant.GetModelInstanceByName(robot.arm_model)
+        gripper = plant.GetModelInstanceByName(robot.gripper_model)
         self.arm_position_indices = [j.position_start() for j in moving_joints(plant, arm)]
         self.finger_position_indices = [j.position_start()
                                         for j in moving_joints(plant, gripper)]

@@ -8,6 +8,7 @@ contact with the table or itself is refused with a SkillRefused that says why.
 from __future__ import annotations
 
 import dataclasses as dc
+import enum
 
 import numpy as np
 from pydrake.common.eigen_geometry import Quaternion
@@ -43,15 +44,23 @@ PATH_CHECK_ANGLE = 0.01
 MAX_WAIT = 120.0
 
 
+class SkillKind(enum.Enum):
+    """What a planned skill moves, which decides when it has finished."""
+
+    ARM = "arm"  # when the joints have arrived
+    GRIPPER = "gripper"  # when the fingers reached the opening, or stopped on an object
+    WAIT = "wait"  # when the time is up
+
+
 @dc.dataclass(frozen=True)
 class PlannedSkill:
     """A skill ready to run: what the arm and gripper are commanded from `start_time` on.
 
-    kind: "arm", "gripper" or "wait". arm_plan: the joint plan (arm skills) or the hold.
+    arm_plan: the joint plan (arm skills) or the hold.
     """
 
     label: str
-    kind: str
+    kind: SkillKind
     start_time: float
     arm_plan: JointPlan
     gripper_opening: float
@@ -85,8 +94,8 @@ class SkillPlanner:
             if duration > MAX_WAIT:
                 raise SkillRefused(f"wait duration {duration:g} s is longer than the "
                                    f"{MAX_WAIT:g} s a single wait may take")
-            return PlannedSkill(f"wait {duration:g} s", "wait", now, JointPlan.hold(q_now, now),
-                                *gripper_command, now + duration)
+            return PlannedSkill(f"wait {duration:g} s", SkillKind.WAIT, now,
+                                JointPlan.hold(q_now, now), *gripper_command, now + duration)
         raise SkillRefused(f"unknown skill request {request!r}")
 
     # Arm motions (`opening` is the measured finger gap, m, for the collision checks) -------
@@ -118,7 +127,7 @@ class SkillPlanner:
     def _arm_skill(self, label: str, segments: tuple, now: float, q_now: np.ndarray,
                    gripper_command: tuple[float, float], note="") -> PlannedSkill:
         plan = JointPlan(now, q_now.copy(), segments)
-        return PlannedSkill(label, "arm", now, plan, *gripper_command,
+        return PlannedSkill(label, SkillKind.ARM, now, plan, *gripper_command,
                             plan.end_time + self.config.motion_timeout, note)
 
     def _plan_joints(self, request: MoveToJoints, now, q_now, opening,
@@ -220,6 +229,6 @@ class SkillPlanner:
             raise SkillRefused(f"gripper opening {opening:.4f} m exceeds the stroke "
                                f"{self.gripper_stroke:.3f} m")
         force = as_number(request.force, "gripper force (N)", minimum=0.0)
-        return PlannedSkill(f"{request.label} to {1000 * opening:.0f} mm", "gripper", now,
-                            JointPlan.hold(q_now, now), opening, force,
+        return PlannedSkill(f"{request.label} to {1000 * opening:.0f} mm", SkillKind.GRIPPER,
+                            now, JointPlan.hold(q_now, now), opening, force,
                             now + self.config.gripper_timeout)

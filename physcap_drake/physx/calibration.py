@@ -18,7 +18,7 @@ from physcap_drake.control.errors import SkillError
 from physcap_drake.physx.stiffness_levels import level_from_deformation, majority_level
 from physcap_drake.resources import stations_dir
 from physcap_drake.robot_api import RobotAPI
-from physcap_drake.robot_diagram import build_robot_diagram
+from physcap_drake.robot_stack import build_robot_stack
 from physcap_drake.scenario import Scenario, load_scenario
 from physcap_drake.station.sim_config import SensorNoise
 
@@ -55,8 +55,8 @@ def _scenario_with(specimen: str, seed: int, trial: int,
 
 
 def _api(scenario: Scenario) -> RobotAPI:
-    robot = build_robot_diagram(scenario)
-    return RobotAPI(robot, robot.make_simulator())
+    robot = build_robot_stack(scenario)
+    return RobotAPI(robot, robot.make_clock())
 
 
 @dc.dataclass(frozen=True)

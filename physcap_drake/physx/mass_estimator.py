@@ -4,12 +4,16 @@ the mass of what the gripper holds."""
 from __future__ import annotations
 
 import dataclasses as dc
+import enum
+import math
 
 import numpy as np
+from pydrake.common.value import AbstractValue
 from pydrake.multibody.plant import MultibodyPlant
 from pydrake.multibody.tree import JacobianWrtVariable
-from pydrake.systems.framework import Context, DiscreteValues, LeafSystem
+from pydrake.systems.framework import Context, LeafSystem, State
 
+from physcap_drake.immutable_state import Immutable
 from physcap_drake.station import ports
 
 #: Standard gravity, m/s².
@@ -17,6 +21,9 @@ GRAVITY = 9.81
 #: Largest horizontal offset of the held object's centre of mass from the fingertip point
 #: that the estimate accepts, m: anything further is not between the fingers (and is noise).
 MAX_GRASP_OFFSET = 0.02
+#: The estimator's ports besides the station's signals.
+WINDOW_PORT = "window"
+ESTIMATE_PORT = "estimate"
 
 
 def horizontal_load_offset(jacobian_z: np.ndarray, jacobian_wx: np.ndarray,
@@ -54,8 +61,26 @@ def mass_from_torque_change(jacobian_z: np.ndarray, delta_tau: np.ndarray,
     return float(jacobian_z @ np.asarray(delta_tau, dtype=float)) / (gravity * norm2)
 
 
+class WindowKind(enum.Enum):
+    """Which of a mass measurement's two windows: before or after grasping."""
+
+    EMPTY = "empty"
+    LOADED = "loaded"
+
+
 @dc.dataclass(frozen=True)
-class TorqueWindow:
+class WindowRequest(Immutable):
+    """A request on the MassEstimator's `window` port: average the arm's joint positions and
+    torques for `duration` s as the `kind` window. `sequence` numbers the requests (1, 2, ...);
+    a new number starts a new window."""
+
+    sequence: int = 0
+    kind: WindowKind = WindowKind.EMPTY
+    duration: float = 0.0
+
+
+@dc.dataclass(frozen=True)
+class TorqueWindow(Immutable):
     """Mean joint positions (rad) and measured torques (N·m) over `count` samples."""
 
     position: np.ndarray
@@ -63,21 +88,56 @@ class TorqueWindow:
     count: int
 
 
+@dc.dataclass(frozen=True)
+class MassEstimate(Immutable):
+    """The MassEstimator's `estimate` output.
+
+    sequence: the last window request that has finished (0: none yet). empty, loaded: the
+    latest window of each kind. mass_kg: the mass the latest loaded window shows against the
+    empty one before it (NaN until then, or if they cannot show a weight: `reason` says why).
+    """
+
+    sequence: int = 0
+    empty: TorqueWindow | None = None
+    loaded: TorqueWindow | None = None
+    mass_kg: float = math.nan
+    reason: str = "no loaded window has been averaged yet"
+
+
+@dc.dataclass(frozen=True)
+class _Averaging(Immutable):
+    """The estimator's state: the window being averaged (sums over `count` samples of the
+    `request`, which wants `wanted` of them) and the published estimate."""
+
+    request: WindowRequest = WindowRequest()
+    wanted: int = 0
+    count: int = 0
+    sum_q: np.ndarray = dc.field(default_factory=lambda: np.zeros(ports.NUM_ARM_JOINTS))
+    sum_tau: np.ndarray = dc.field(default_factory=lambda: np.zeros(ports.NUM_ARM_JOINTS))
+    estimate: MassEstimate = MassEstimate()
+
+
 class MassEstimator(LeafSystem):
-    """Averages `piper.torque_measured` and `piper.position_measured` over a window, and
-    computes a held mass from two windows (empty, then loaded) with the robot's own model.
+    """Averages `piper.torque_measured` and `piper.position_measured` over windows requested on
+    its `window` input, and publishes the held mass they show on its `estimate` output, with
+    the robot's own model.
 
-    It reads nothing else: no simulator state, no object properties. `begin_window(context)`
-    starts averaging (every 1/sample_rate s), `end_window(context)` returns the mean.
+    It reads nothing else: no simulator state, no object properties. A new request (a new
+    sequence number) starts a window at the next sample (every 1/sample_rate s); after
+    round(duration · sample_rate) samples (at least one) the window's means are published as
+    its kind's window, and a LOADED window is turned into a mass against the EMPTY one before
+    it (`estimate_mass`).
 
-    Input ports: piper.position_measured (6, rad), piper.torque_measured (6, N·m).
-    Discrete state: [averaging (0/1), sample count, Σq (6), Στ (6)].
+    Input ports: piper.position_measured (6, rad), piper.torque_measured (6, N·m),
+        window (WindowRequest).
+    Output port: estimate (MassEstimate).
     """
 
     def __init__(self, controller_plant: MultibodyPlant, arm_joints: list, tcp_frame_name: str,
                  *, sample_rate: float):
         super().__init__()
         self._plant = controller_plant
+        self._rate = float(sample_rate)
         # Scratch context of our model: set from the arguments of each computation.
         self._scratch = controller_plant.CreateDefaultContext()
         self._tcp = controller_plant.GetFrameByName(tcp_frame_name)
@@ -86,40 +146,51 @@ class MassEstimator(LeafSystem):
         n = ports.NUM_ARM_JOINTS
         self._q = self.DeclareVectorInputPort(ports.ARM_POSITION_MEASURED, n)
         self._tau = self.DeclareVectorInputPort(ports.ARM_TORQUE_MEASURED, n)
-        self._state = self.DeclareDiscreteState(2 + 2 * n)
-        self.DeclarePeriodicDiscreteUpdateEvent(1.0 / sample_rate, 0.0, self._sample)
+        self._window = self.DeclareAbstractInputPort(WINDOW_PORT,
+                                                     AbstractValue.Make(WindowRequest()))
+        self._state = self.DeclareAbstractState(AbstractValue.Make(_Averaging()))
+        self.DeclarePeriodicUnrestrictedUpdateEvent(1.0 / sample_rate, 0.0, self._sample)
+        self.DeclareAbstractOutputPort(
+            ESTIMATE_PORT, lambda: AbstractValue.Make(MassEstimate()), self._output_estimate,
+            {self.abstract_state_ticket(self._state)})
 
-    def _sample(self, context: Context, state: DiscreteValues) -> None:
-        x = context.get_discrete_state(self._state).get_value().copy()
-        if x[0] < 0.5:
-            return
-        n = ports.NUM_ARM_JOINTS
-        x[1] += 1
-        x[2:2 + n] += self._q.Eval(context)
-        x[2 + n:] += self._tau.Eval(context)
-        state.get_mutable_vector(self._state).SetFromVector(x)
+    def _sample(self, context: Context, state: State) -> None:
+        current: _Averaging = context.get_abstract_state(self._state).get_value()
+        request = self._window.Eval(context)
+        if request.sequence != current.request.sequence:  # a new window starts now
+            wanted = max(1, round(request.duration * self._rate))
+            current = _Averaging(request, wanted, estimate=current.estimate)
+        elif current.count >= current.wanted:
+            return  # finished (or never asked): nothing to average
+        current = dc.replace(current, count=current.count + 1,
+                             sum_q=current.sum_q + self._q.Eval(context),
+                             sum_tau=current.sum_tau + self._tau.Eval(context))
+        if current.count == current.wanted:
+            current = dc.replace(current, estimate=self._publish(current))
+        state.get_mutable_abstract_state(self._state).set_value(current)
+
+    def _publish(self, done: _Averaging) -> MassEstimate:
+        window = TorqueWindow(done.sum_q / done.count, done.sum_tau / done.count, done.count)
+        estimate = done.estimate
+        if done.request.kind is WindowKind.EMPTY:
+            return MassEstimate(done.request.sequence, empty=window)
+        if estimate.empty is None:
+            return dc.replace(estimate, sequence=done.request.sequence, loaded=window,
+                              reason="no empty window was averaged before the loaded one")
+        try:
+            mass, reason = self.estimate_mass(estimate.empty, window), ""
+        except ValueError as error:  # the pose cannot show a weight
+            mass, reason = math.nan, str(error)
+        return dc.replace(estimate, sequence=done.request.sequence, loaded=window,
+                          mass_kg=mass, reason=reason)
+
+    def _output_estimate(self, context: Context, output: AbstractValue) -> None:
+        output.set_value(context.get_abstract_state(self._state).get_value().estimate)
 
     @property
     def model_plant(self) -> MultibodyPlant:
         """The estimator's own model of the robot (arm and gripper only)."""
         return self._plant
-
-    def begin_window(self, context: Context) -> None:
-        """Starts a new averaging window now (discarding any running one)."""
-        x = np.zeros(2 + 2 * ports.NUM_ARM_JOINTS)
-        x[0] = 1.0
-        context.SetDiscreteState(self._state, x)
-
-    def end_window(self, context: Context) -> TorqueWindow:
-        """Stops averaging; the mean of the samples since begin_window."""
-        x = context.get_discrete_state(self._state).get_value().copy()
-        count = int(x[1])
-        if x[0] < 0.5 or count == 0:
-            raise RuntimeError("no torque samples were averaged: call begin_window and let "
-                               "simulated time pass before end_window")
-        n = ports.NUM_ARM_JOINTS
-        context.SetDiscreteState(self._state, np.zeros_like(x))
-        return TorqueWindow(x[2:2 + n] / count, x[2 + n:] / count, count)
 
     # Our own model of the arm ---------------------------------------------------------------
 

@@ -10,6 +10,7 @@ import math
 from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import BasicVector, Context, LeafSystem, State
 
+from physcap_drake.immutable_state import Immutable
 from physcap_drake.physx.physx_config import StiffnessProbeConfig
 from physcap_drake.physx.stiffness_levels import (
     StiffnessThresholds,
@@ -23,6 +24,10 @@ from physcap_drake.station import ports
 #: effort is left; the next squeeze starts after at most MAX_RELEASE_TICKS dwells anyway.
 RELEASED_TOLERANCE = 0.0005
 MAX_RELEASE_TICKS = 20
+#: The estimator's ports besides the gripper's signals.
+SQUEEZE_PORT = "squeeze"
+RESULT_PORT = "result"
+ACTIVE_PORT = "active"
 
 
 class Phase(enum.Enum):
@@ -35,10 +40,21 @@ class Phase(enum.Enum):
 
 
 @dc.dataclass(frozen=True)
-class ProbeState:
+class SqueezeRequest(Immutable):
+    """A request on the StiffnessEstimator's `squeeze` port: a new `sequence` number (1, 2,
+    ...) starts probing the object between the open fingers, or with `stop` ends the running
+    probe (the gripper goes back to the skill executor)."""
+
+    sequence: int = 0
+    stop: bool = False
+
+
+@dc.dataclass(frozen=True)
+class ProbeState(Immutable):
     """Everything the probe remembers (kept in the Context as one abstract state).
 
-    command: the commanded opening, m. free_effort: the effort read before the last rise.
+    sequence: the squeeze request served. command: the commanded opening, m. free_effort:
+    the effort read before the last rise.
     contact: (opening m, effort) where the effort rose. d0: the accepted contact opening, m.
     samples: (opening m, effort) pairs of the running squeeze. deformations_mm: one per
     finished squeeze (NaN for a failed one). notes: why squeezes failed or contacts were
@@ -46,6 +62,7 @@ class ProbeState:
     """
 
     phase: Phase = Phase.IDLE
+    sequence: int = 0
     command: float = 0.0
     free_effort: float = 0.0
     contact: tuple[float, float] | None = None
@@ -58,13 +75,24 @@ class ProbeState:
 
 
 @dc.dataclass(frozen=True)
-class StiffnessResult:
-    """The outcome of a probe: one deformation (mm) and level per squeeze, the vote."""
+class StiffnessResult(Immutable):
+    """The outcome of a probe: one deformation (mm) and level per squeeze, the vote (`level`,
+    0 if most squeezes failed)."""
 
     level: int
     deformations_mm: tuple[float, ...]
     levels: tuple[int, ...]
     notes: tuple[str, ...]
+
+
+@dc.dataclass(frozen=True)
+class StiffnessReport(Immutable):
+    """The StiffnessEstimator's `result` output: about squeeze request `sequence` (0: none
+    yet), whether its squeezes are `finished`, and the `result` of those done so far."""
+
+    sequence: int = 0
+    finished: bool = False
+    result: StiffnessResult = StiffnessResult(0, (), (), ())
 
 
 class StiffnessEstimator(LeafSystem):
@@ -82,12 +110,18 @@ class StiffnessEstimator(LeafSystem):
     without reaching the effort fails the squeeze. Every step is held `dwell` s before the
     gripper is read.
 
+    A probe starts at the first step (every `dwell` s) after a new request arrives on the
+    `squeeze` port, closing from the opening measured then (the object between the open
+    fingers); a `stop` request ends it. The squeezes' deformations, levels and vote are
+    published on `result` as they come, `finished` once all `squeezes` are done.
+
     It reads only gripper.position_measured and gripper.effort_measured, and while probing
     commands the gripper through its own outputs (see GripperCommandSelector).
 
-    Input ports: gripper.position_measured (1, m), gripper.effort_measured (1, 0..1).
+    Input ports: gripper.position_measured (1, m), gripper.effort_measured (1, 0..1),
+        squeeze (SqueezeRequest).
     Output ports: gripper.position (1, m), gripper.force_limit (1, N), active (1: 1 while
-    probing, else 0).
+        probing, else 0), result (StiffnessReport).
     """
 
     def __init__(self, config: StiffnessProbeConfig, thresholds: StiffnessThresholds):
@@ -96,12 +130,16 @@ class StiffnessEstimator(LeafSystem):
         self._thresholds = thresholds
         self._opening = self.DeclareVectorInputPort(ports.GRIPPER_POSITION_MEASURED, 1)
         self._effort = self.DeclareVectorInputPort(ports.GRIPPER_EFFORT_MEASURED, 1)
+        self._request = self.DeclareAbstractInputPort(SQUEEZE_PORT,
+                                                      AbstractValue.Make(SqueezeRequest()))
         self._state = self.DeclareAbstractState(AbstractValue.Make(ProbeState()))
         self.DeclarePeriodicUnrestrictedUpdateEvent(config.dwell, 0.0, self._step)
         ticket = {self.abstract_state_ticket(self._state)}
         self.DeclareVectorOutputPort(ports.GRIPPER_POSITION, 1, self._output_command, ticket)
         self.DeclareVectorOutputPort(ports.GRIPPER_FORCE_LIMIT, 1, self._output_force, ticket)
-        self.DeclareVectorOutputPort("active", 1, self._output_active, ticket)
+        self.DeclareVectorOutputPort(ACTIVE_PORT, 1, self._output_active, ticket)
+        self.DeclareAbstractOutputPort(RESULT_PORT, lambda: AbstractValue.Make(StiffnessReport()),
+                                       self._output_result, ticket)
 
     @property
     def thresholds(self) -> StiffnessThresholds:
@@ -110,32 +148,24 @@ class StiffnessEstimator(LeafSystem):
     def _get(self, context: Context) -> ProbeState:
         return context.get_abstract_state(self._state).get_value()
 
-    def begin(self, context: Context, start_opening: float | None = None) -> None:
-        """Starts probing, closing from `start_opening` (m; default: the measured opening,
-        with the object between the open fingers)."""
-        opening = (float(self._opening.Eval(context)[0]) if start_opening is None
-                   else float(start_opening))
-        context.get_mutable_abstract_state(self._state).set_value(
-            ProbeState(Phase.SEEK_CONTACT, command=opening, start_opening=opening))
-
-    def done(self, context: Context) -> bool:
-        return self._get(context).phase in (Phase.DONE, Phase.IDLE)
-
-    def result(self, context: Context) -> StiffnessResult:
-        """The levels of the finished probe and their majority vote (0: failed)."""
-        state = self._get(context)
+    def _result(self, state: ProbeState) -> StiffnessResult:
         levels = tuple(level_from_deformation(d, self._thresholds) for d in state.deformations_mm)
         return StiffnessResult(majority_level(list(levels)), state.deformations_mm, levels,
                                state.notes)
-
-    def reset(self, context: Context) -> None:
-        """Back to idle: the gripper is handed back to the skill executor."""
-        context.get_mutable_abstract_state(self._state).set_value(ProbeState())
 
     # The probe's steps ------------------------------------------------------------------------
 
     def _step(self, context: Context, state: State) -> None:
         current = self._get(context)
+        request = self._request.Eval(context)
+        if request.sequence != current.sequence:
+            if request.stop:
+                current = dc.replace(current, phase=Phase.IDLE, sequence=request.sequence)
+            else:  # start closing from where the fingers are, with this dwell's step
+                opening = float(self._opening.Eval(context)[0])
+                current = ProbeState(Phase.SEEK_CONTACT, request.sequence, command=opening,
+                                     start_opening=opening)
+            state.get_mutable_abstract_state(self._state).set_value(current)
         if current.phase in (Phase.IDLE, Phase.DONE):
             return
         d = float(self._opening.Eval(context)[0])
@@ -213,6 +243,11 @@ class StiffnessEstimator(LeafSystem):
 
     def _output_force(self, context: Context, output: BasicVector) -> None:
         output.SetAtIndex(0, self._config.force_limit)
+
+    def _output_result(self, context: Context, output: AbstractValue) -> None:
+        state = self._get(context)
+        output.set_value(StiffnessReport(state.sequence, state.phase is Phase.DONE,
+                                         self._result(state)))
 
     def _output_active(self, context: Context, output: BasicVector) -> None:
         active = self._get(context).phase not in (Phase.IDLE, Phase.DONE)

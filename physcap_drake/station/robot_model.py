@@ -1,21 +1,32 @@
-"""Parsing the scenario's models, and the controller's own model of the arm.
+"""Parsing the scenario's models, and the robot's own model of itself (`RobotModel`).
 
 The controller model holds only the arm and its gripper, as a controller on the real robot
 knows them: no table, no objects, no payload. Gravity compensation, inverse kinematics and
 the mass estimator's Jacobians are computed from it, never from the simulated world.
+
+Parsing models is slow (about 0.2 s a plant), so the robot's model is built once per robot
+set-up (the directives that add the arm, its gripper and the fixed workcell) and shared by
+every system and check that needs it: `robot_model(...)` returns the same `RobotModel` for
+the same set-up. Finalized plants are only ever read (through each user's own context), so
+sharing them is safe, also across threads.
 """
 
 from __future__ import annotations
 
+import threading
+
 import numpy as np
+from pydrake.common.yaml import yaml_dump_typed
+from pydrake.geometry import SceneGraph
 from pydrake.multibody.parsing import (
     FlattenModelDirectives,
     ModelDirectives,
     Parser,
     ProcessModelDirectives,
 )
-from pydrake.multibody.plant import MultibodyPlant
+from pydrake.multibody.plant import AddMultibodyPlantSceneGraph, MultibodyPlant
 from pydrake.multibody.tree import ModelInstanceIndex
+from pydrake.systems.framework import Diagram, DiagramBuilder
 
 from physcap_drake.resources import add_model_packages, make_package_map
 
@@ -62,8 +73,67 @@ def make_model_plant(directives: list, model_names: tuple[str, ...]) -> Multibod
 
 def make_controller_plant(directives: list, arm_model: str,
                           gripper_model: str) -> MultibodyPlant:
-    """The controller's model: the arm and gripper alone (see module docstring)."""
-    return make_model_plant(directives, (arm_model, gripper_model))
+    """The controller's model: the arm and gripper alone (see module docstring); the shared
+    one of `robot_model`."""
+    return robot_model(directives, arm_model, gripper_model).controller_plant
+
+
+class RobotModel:
+    """What the robot knows of itself and its workcell, parsed once (see module docstring).
+
+    Attributes:
+        arm_model, gripper_model: the model instance names in the scenario's directives.
+        controller_plant: continuous-time plant of the arm and gripper alone.
+        arm_plant: the arm alone (6 positions), for time-parameterizing joint paths.
+        arm_joints: the controller plant's arm joints J1..J6.
+        gripper_stroke: the widest opening between the fingers, m (twice a finger's travel).
+        workcell: (diagram, plant, scene graph) of the arm, gripper and the models welded to
+            the world (the table: never the movable objects), for collision queries; built
+            on first use.
+    """
+
+    def __init__(self, directives: list, arm_model: str, gripper_model: str):
+        self.arm_model, self.gripper_model = arm_model, gripper_model
+        self.controller_plant = make_model_plant(directives, (arm_model, gripper_model))
+        self.arm_plant = make_model_plant(directives, (arm_model,))
+        plant = self.controller_plant
+        self.arm_joints = moving_joints(plant, plant.GetModelInstanceByName(arm_model))
+        fingers = moving_joints(plant, plant.GetModelInstanceByName(gripper_model))
+        self.gripper_stroke = 2.0 * float(fingers[0].position_upper_limits()[0])
+        environment = [m for m in world_welded_models(directives)
+                       if m not in (arm_model, gripper_model)]
+        self._workcell_directives = robot_directives(
+            directives, (arm_model, gripper_model, *environment))
+        self._workcell: tuple[Diagram, MultibodyPlant, SceneGraph] | None = None
+        self._lock = threading.Lock()
+
+    @property
+    def workcell(self) -> tuple[Diagram, MultibodyPlant, SceneGraph]:
+        with self._lock:
+            if self._workcell is None:
+                builder = DiagramBuilder()
+                plant, scene_graph = AddMultibodyPlantSceneGraph(builder, time_step=0.0)
+                add_directives(plant, self._workcell_directives)
+                plant.Finalize()
+                self._workcell = (builder.Build(), plant, scene_graph)
+            return self._workcell
+
+
+_models: dict[str, RobotModel] = {}
+_models_lock = threading.Lock()
+
+
+def robot_model(directives: list, arm_model: str, gripper_model: str) -> RobotModel:
+    """The RobotModel of the arm `arm_model` with `gripper_model` in the workcell the
+    directives set up: built on the first call for that set-up, then shared."""
+    environment = [m for m in world_welded_models(directives)
+                   if m not in (arm_model, gripper_model)]
+    kept = robot_directives(directives, (arm_model, gripper_model, *environment))
+    key = f"{arm_model}|{gripper_model}|" + yaml_dump_typed(ModelDirectives(directives=kept))
+    with _models_lock:
+        if key not in _models:
+            _models[key] = RobotModel(directives, arm_model, gripper_model)
+        return _models[key]
 
 
 def world_welded_models(directives: list) -> list[str]:

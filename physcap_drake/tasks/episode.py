@@ -19,7 +19,7 @@ from physcap_drake.recording.mcap_recorder import make_mcap_recorder
 from physcap_drake.recording.mcap_sink import McapSink
 from physcap_drake.resources import stations_dir
 from physcap_drake.robot_api import RobotAPI
-from physcap_drake.robot_diagram import RobotDiagram, build_robot_diagram
+from physcap_drake.robot_stack import RobotStack, build_robot_stack
 from physcap_drake.scenario import MAIN_CAMERA, Scenario, load_scenario
 from physcap_drake.station import (
     close_station,
@@ -42,7 +42,7 @@ class Episode:
 
     instance: TaskInstance
     scenario: Scenario
-    robot: RobotDiagram
+    robot: RobotStack
     api: RobotAPI
 
     @property
@@ -82,20 +82,20 @@ def make_episode(task_name: str, seed: int, answer: str = "", meshcat=None, *,
         pointers.append(OfflinePointer(_catalog(instance, scene_plant(station))))
         return AgentSystem(pointers[-1])
 
-    robot = build_robot_diagram(
+    robot = build_robot_stack(
         scenario, meshcat, make_agent=make_agent if with_agent else None,
         make_recorder=None if sink is None else (
             lambda station: make_mcap_recorder(sink, station, scenario)))
     try:
-        simulator = robot.make_simulator()
+        clock = robot.make_clock()
     except BaseException:
         close_station(robot.station)
         raise
-    with scene_ground_truth(robot.station, simulator.get_mutable_context()) as (plant, context):
+    with scene_ground_truth(robot.station, clock.mutable_context) as (plant, context):
         instance.apply_hidden_masses(plant, context)
     pointer = pointers[0] if pointers else OfflinePointer(_catalog(instance, plant))
     camera = next(c for c in scenario.cameras if c.name == MAIN_CAMERA)
-    api = RobotAPI(robot, simulator, locator=ObjectLocator(CameraGeometry(camera), pointer))
+    api = RobotAPI(robot, clock, locator=ObjectLocator(CameraGeometry(camera), pointer))
     return Episode(instance, scenario, robot, api)
 
 

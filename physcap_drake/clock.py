@@ -1,0 +1,131 @@
+"""The Clock: the one object that advances a diagram's time.
+
+Everything that waits for the robot (a RobotAPI call, an agent episode, `physcap sim`, the
+benchmarks) asks the clock to run: either for a duration, or until a condition on the
+diagram's Context holds. Waiting for something is Drake's simulator monitor: the condition is
+checked after every simulator step and ends the run at the first step after which it holds
+(`EventStatus.ReachedTermination`), so one `AdvanceTo(deadline)` replaces a polling loop.
+Only this module (and the CAN emulator's own simulator, which stands for the world behind the
+bus) calls `AdvanceTo`.
+
+Pacing also lives here: with the scenario's `simulator_config.target_realtime_rate` > 0 the
+simulator runs no faster than that multiple of real time. Time spent outside the clock (a
+model answering, a caller computing) is a pause: every run restarts Drake's pacing
+statistics, so a run never makes up for a pause by going faster than the rate.
+"""
+
+from __future__ import annotations
+
+import dataclasses as dc
+import time
+from collections.abc import Callable
+
+from pydrake.systems.analysis import ApplySimulatorConfig, Simulator, SimulatorConfig
+from pydrake.systems.framework import Context, Diagram, EventStatus
+
+#: How often run_for reports progress by default, s of simulated time.
+PROGRESS_PERIOD = 0.1
+
+
+@dc.dataclass
+class RunTiming:
+    """How long a run took: `sim_time` s of simulated time in `wall_time` s."""
+
+    sim_time: float
+    wall_time: float
+
+    @property
+    def realtime_factor(self) -> float:
+        """Simulated seconds per wall-clock second (3 means three times faster than life)."""
+        return self.sim_time / self.wall_time if self.wall_time > 0 else float("inf")
+
+
+class Clock:
+    """Owns the Simulator of `diagram` (configured by `config`, initialized on creation).
+
+    Read the diagram's state through `context`; write an exported input port through
+    `mutable_context` (`port.FixValue`), as an outside client feeds a diagram. Time moves
+    only through `run_for` and `run_until`.
+    """
+
+    def __init__(self, diagram: Diagram, config: SimulatorConfig | None = None):
+        self._diagram = diagram
+        self._simulator = Simulator(diagram)
+        if config is not None:
+            ApplySimulatorConfig(config, self._simulator)
+        self._simulator.Initialize()
+
+    @property
+    def diagram(self) -> Diagram:
+        return self._diagram
+
+    @property
+    def simulator(self) -> Simulator:
+        """The simulator, for reading its contexts (never advance it directly)."""
+        return self._simulator
+
+    @property
+    def context(self) -> Context:
+        """The diagram's root context, to read."""
+        return self._simulator.get_context()
+
+    @property
+    def mutable_context(self) -> Context:
+        """The root context, to fix the value of an exported input port."""
+        return self._simulator.get_mutable_context()
+
+    @property
+    def time(self) -> float:
+        """The diagram's time, s."""
+        return self._simulator.get_context().get_time()
+
+    @property
+    def realtime_rate(self) -> float:
+        """The pacing: simulated seconds per wall-clock second at most (0: as fast as it
+        goes)."""
+        return self._simulator.get_target_realtime_rate()
+
+    def run_for(self, duration: float,
+                on_progress: Callable[[float], None] | None = None) -> RunTiming:
+        """Runs `duration` s of simulated time; `on_progress(elapsed s)` is called every
+        PROGRESS_PERIOD s of simulated time and at the end. Timed."""
+        start_time, start_wall = self.time, time.perf_counter()
+        reported = [start_time]
+
+        def report(context: Context) -> EventStatus:
+            if context.get_time() - reported[0] >= PROGRESS_PERIOD - 1e-12:
+                reported[0] = context.get_time()
+                on_progress(reported[0] - start_time)
+            return EventStatus.DidNothing()
+
+        self._advance(start_time + duration, report if on_progress is not None else None)
+        if on_progress is not None and reported[0] < self.time:
+            on_progress(self.time - start_time)
+        return RunTiming(sim_time=self.time - start_time,
+                         wall_time=time.perf_counter() - start_wall)
+
+    def run_until(self, condition: Callable[[Context], bool], *, timeout: float) -> bool:
+        """Runs until `condition(root context)` holds, checked now and after every simulator
+        step, for at most `timeout` s of simulated time. Returns whether it holds."""
+        if condition(self.context):
+            return True
+
+        def monitor(context: Context) -> EventStatus:
+            if condition(context):
+                return EventStatus.ReachedTermination(self._diagram, "the awaited condition holds")
+            return EventStatus.DidNothing()
+
+        self._advance(self.time + timeout, monitor)
+        return condition(self.context)
+
+    def _advance(self, boundary: float, monitor) -> None:
+        simulator = self._simulator
+        if simulator.get_target_realtime_rate() > 0:
+            simulator.ResetStatistics()  # the time since the last run was a pause
+        if monitor is not None:
+            simulator.set_monitor(monitor)
+        try:
+            simulator.AdvanceTo(boundary)
+        finally:
+            if monitor is not None:
+                simulator.clear_monitor()

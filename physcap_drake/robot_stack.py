@@ -1,0 +1,195 @@
+"""The robot stack: the station with the skill executor and the physical probes above it, on
+one request path.
+
+    client --robot.request--> MassProbe --> StiffnessProbe --> SkillExecutor --> station
+    client <--robot.status--- MassProbe <-- StiffnessProbe <-- SkillExecutor
+                                 |  window/estimate   | squeeze/result
+                              MassEstimator      StiffnessEstimator --> GripperCommandSelector
+
+Every request (a skill, MeasureMass, MeasureStiffness) enters at the top and is answered on
+the status port (see `physcap_drake.control.requests`). The client is either outside the
+diagram (the exported `robot.request` input, fixed by the RobotAPI) or a system inside it
+(an AgentSystem with `request` output and `status` input ports).
+"""
+
+from __future__ import annotations
+
+import dataclasses as dc
+from collections.abc import Callable
+
+from pydrake.geometry import Meshcat
+from pydrake.systems.framework import (
+    Diagram,
+    DiagramBuilder,
+    InputPort,
+    LeafSystem,
+    OutputPort,
+)
+from pydrake.systems.primitives import LogVectorOutput, VectorLogSink
+
+from physcap_drake.clock import Clock
+from physcap_drake.control.planning_model import TCP_FRAME, PlanningModel
+from physcap_drake.control.requests import RobotRequest
+from physcap_drake.control.skill_executor import REQUEST_PORT, STATUS_PORT, SkillExecutor
+from physcap_drake.control.skill_planner import SkillPlanner
+from physcap_drake.physx.gripper_command_selector import GripperCommandSelector
+from physcap_drake.physx.mass_estimator import ESTIMATE_PORT, WINDOW_PORT, MassEstimator
+from physcap_drake.physx.mass_probe import MassProbe
+from physcap_drake.physx.stiffness_estimator import (
+    ACTIVE_PORT,
+    RESULT_PORT,
+    SQUEEZE_PORT,
+    StiffnessEstimator,
+)
+from physcap_drake.physx.stiffness_levels import load_thresholds
+from physcap_drake.physx.stiffness_probe import StiffnessProbe
+from physcap_drake.scenario import Scenario
+from physcap_drake.station import MakeStation, ports
+from physcap_drake.station.robot_model import RobotModel, robot_model
+
+#: The robot stack's request path, when its client is outside the diagram.
+REQUEST_INPUT = "robot.request"
+STATUS_OUTPUT = "robot.status"
+
+
+@dc.dataclass
+class RobotStack:
+    """The built diagram and handles to its parts (systems, not state: state is in contexts).
+
+    request_input: the exported `robot.request` port (None when a system inside the diagram
+    is the client); status_output: the status its requests are answered on.
+    """
+
+    scenario: Scenario
+    model: RobotModel
+    diagram: Diagram
+    station: Diagram
+    executor: SkillExecutor
+    mass_probe: MassProbe
+    mass_estimator: MassEstimator
+    stiffness_probe: StiffnessProbe
+    stiffness_estimator: StiffnessEstimator
+    request_input: InputPort | None
+    status_output: OutputPort
+    # With build_robot_stack(..., log_joints=True): logs of the commanded joint positions
+    # and the measured joint velocities, one sample per plant step (VectorLogSink systems).
+    command_log: VectorLogSink | None = None
+    velocity_log: VectorLogSink | None = None
+    # With build_robot_stack(..., make_agent=...): the AgentSystem, fed by the camera.
+    agent: LeafSystem | None = None
+    # With build_robot_stack(..., make_recorder=...): the recorder of the station's outputs.
+    recorder: LeafSystem | None = None
+
+    def make_clock(self) -> Clock:
+        """The diagram's clock: an initialized simulator configured by the scenario, with
+        no request on `robot.request` yet."""
+        clock = Clock(self.diagram, self.scenario.simulator_config)
+        if self.request_input is not None:
+            self.request_input.FixValue(clock.mutable_context, RobotRequest())
+        return clock
+
+
+def build_robot_stack(scenario: Scenario, meshcat: Meshcat | None = None, *,
+                      model: RobotModel | None = None, log_joints: bool = False,
+                      make_agent: Callable[[Diagram], LeafSystem] | None = None,
+                      make_recorder: Callable[[Diagram], LeafSystem] | None = None,
+                      ) -> RobotStack:
+    """Station + request path (probes and SkillExecutor) + the PhysX estimators, connected
+    through the station's port contract (the gripper commands pass a GripperCommandSelector,
+    so the stiffness estimator can take the gripper over while it squeezes).
+
+    model: the robot's model of itself (default: the scenario's shared one). With
+    `log_joints`, the commanded positions and measured velocities are logged every step.
+    `make_agent(station)` builds an AgentSystem whose camera input ports are connected to
+    the station's camera outputs; if it has `request` output and `status` input ports it is
+    the request path's client, else the path is exported as robot.request / robot.status.
+    `make_recorder(station)` builds a recorder (e.g. McapRecorder) each of whose input ports
+    is connected to the station output of the same name."""
+    station_config = scenario.station
+    model = model or robot_model(scenario.directives, station_config.arm_model,
+                                 station_config.gripper_model)
+    builder = DiagramBuilder()
+    station = builder.AddNamedSystem("station", MakeStation(scenario, meshcat))
+    skills = scenario.skills
+    planner = SkillPlanner(PlanningModel(robot=model), skills,
+                           gripper_stroke=model.gripper_stroke)
+    executor = builder.AddNamedSystem(
+        "skill_executor", SkillExecutor(planner, initial_force=skills.grasp_force))
+    for name in (ports.ARM_POSITION_MEASURED, ports.GRIPPER_POSITION_MEASURED):
+        builder.Connect(station.GetOutputPort(name), executor.GetInputPort(name))
+    builder.Connect(executor.GetOutputPort(ports.ARM_POSITION),
+                    station.GetInputPort(ports.ARM_POSITION))
+
+    mass_probe = builder.AddNamedSystem("mass_probe", MassProbe(
+        scenario.physx.mass, gripper_stroke=model.gripper_stroke,
+        grasp_force=skills.grasp_force))
+    stiffness_probe = builder.AddNamedSystem("stiffness_probe", StiffnessProbe(
+        gripper_stroke=model.gripper_stroke, grasp_force=skills.grasp_force))
+    for upper, lower in ((mass_probe, stiffness_probe), (stiffness_probe, executor)):
+        builder.Connect(upper.GetOutputPort(REQUEST_PORT), lower.GetInputPort(REQUEST_PORT))
+        builder.Connect(lower.GetOutputPort(STATUS_PORT), upper.GetInputPort(STATUS_PORT))
+
+    mass_estimator = builder.AddNamedSystem("mass_estimator", MassEstimator(
+        model.controller_plant, model.arm_joints, TCP_FRAME,
+        sample_rate=scenario.physx.mass.sample_rate))
+    for name in (ports.ARM_POSITION_MEASURED, ports.ARM_TORQUE_MEASURED):
+        builder.Connect(station.GetOutputPort(name), mass_estimator.GetInputPort(name))
+    builder.Connect(station.GetOutputPort(ports.GRIPPER_POSITION_MEASURED),
+                    mass_probe.GetInputPort(ports.GRIPPER_POSITION_MEASURED))
+    builder.Connect(mass_probe.GetOutputPort(WINDOW_PORT),
+                    mass_estimator.GetInputPort(WINDOW_PORT))
+    builder.Connect(mass_estimator.GetOutputPort(ESTIMATE_PORT),
+                    mass_probe.GetInputPort(ESTIMATE_PORT))
+
+    stiffness_estimator = builder.AddNamedSystem("stiffness_estimator", StiffnessEstimator(
+        scenario.physx.stiffness, load_thresholds(scenario.physx.stiffness.thresholds_file)))
+    for name in (ports.GRIPPER_POSITION_MEASURED, ports.GRIPPER_EFFORT_MEASURED):
+        builder.Connect(station.GetOutputPort(name), stiffness_estimator.GetInputPort(name))
+    builder.Connect(stiffness_probe.GetOutputPort(SQUEEZE_PORT),
+                    stiffness_estimator.GetInputPort(SQUEEZE_PORT))
+    builder.Connect(stiffness_estimator.GetOutputPort(RESULT_PORT),
+                    stiffness_probe.GetInputPort(RESULT_PORT))
+    selector = builder.AddNamedSystem("gripper_command_selector", GripperCommandSelector())
+    for name in (ports.GRIPPER_POSITION, ports.GRIPPER_FORCE_LIMIT):
+        builder.Connect(executor.GetOutputPort(name), selector.GetInputPort(f"executor.{name}"))
+        builder.Connect(stiffness_estimator.GetOutputPort(name),
+                        selector.GetInputPort(f"probe.{name}"))
+        builder.Connect(selector.GetOutputPort(name), station.GetInputPort(name))
+    builder.Connect(stiffness_estimator.GetOutputPort(ACTIVE_PORT),
+                    selector.GetInputPort("probe.active"))
+
+    agent = None
+    if make_agent is not None:
+        agent = builder.AddNamedSystem("agent", make_agent(station))
+        for name in (ports.CAMERA_RGB, ports.CAMERA_LABEL):
+            builder.Connect(station.GetOutputPort(name), agent.GetInputPort(name))
+    request_input = None
+    if agent is not None and agent.HasOutputPort(REQUEST_PORT):
+        builder.Connect(agent.GetOutputPort(REQUEST_PORT), mass_probe.GetInputPort(REQUEST_PORT))
+        if agent.HasInputPort(STATUS_PORT):
+            builder.Connect(mass_probe.GetOutputPort(STATUS_PORT),
+                            agent.GetInputPort(STATUS_PORT))
+    else:
+        builder.ExportInput(mass_probe.GetInputPort(REQUEST_PORT), REQUEST_INPUT)
+    builder.ExportOutput(mass_probe.GetOutputPort(STATUS_PORT), STATUS_OUTPUT)
+
+    recorder = None
+    if make_recorder is not None:
+        recorder = builder.AddNamedSystem("recorder", make_recorder(station))
+        for index in range(recorder.num_input_ports()):
+            port = recorder.get_input_port(index)
+            builder.Connect(station.GetOutputPort(port.get_name()), port)
+    logs = (None, None)
+    if log_joints:
+        period = scenario.plant_config.time_step
+        logs = (LogVectorOutput(executor.GetOutputPort(ports.ARM_POSITION), builder, period),
+                LogVectorOutput(station.GetOutputPort(ports.ARM_VELOCITY_ESTIMATED), builder,
+                                period))
+    diagram = builder.Build()
+    diagram.set_name("robot")
+    if request_input is None and diagram.HasInputPort(REQUEST_INPUT):
+        request_input = diagram.GetInputPort(REQUEST_INPUT)
+    return RobotStack(scenario, model, diagram, station, executor, mass_probe, mass_estimator,
+                      stiffness_probe, stiffness_estimator, request_input,
+                      diagram.GetOutputPort(STATUS_OUTPUT), *logs, agent=agent,
+                      recorder=recorder)
