@@ -41,16 +41,19 @@ class RunTiming:
 
 
 class Clock:
-    """Owns the Simulator of `diagram` (configured by `config`, initialized on creation).
+    """Owns the Simulator of `diagram` (configured by `config`, initialized on creation,
+    from `context` if given: a root context whose exported inputs are already fixed).
 
     Read the diagram's state through `context`; write an exported input port through
     `mutable_context` (`port.FixValue`), as an outside client feeds a diagram. Time moves
     only through `run_for` and `run_until`.
     """
 
-    def __init__(self, diagram: Diagram, config: SimulatorConfig | None = None):
+    def __init__(self, diagram: Diagram, config: SimulatorConfig | None = None,
+                 context: Context | None = None):
         self._diagram = diagram
-        self._simulator = Simulator(diagram)
+        self._simulator = Simulator(diagram, context) if context is not None else (
+            Simulator(diagram))
         if config is not None:
             ApplySimulatorConfig(config, self._simulator)
         self._simulator.Initialize()

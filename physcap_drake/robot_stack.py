@@ -83,10 +83,10 @@ class RobotStack:
     def make_clock(self) -> Clock:
         """The diagram's clock: an initialized simulator configured by the scenario, with
         no request on `robot.request` yet."""
-        clock = Clock(self.diagram, self.scenario.simulator_config)
+        context = self.diagram.CreateDefaultContext()
         if self.request_input is not None:
-            self.request_input.FixValue(clock.mutable_context, RobotRequest())
-        return clock
+            self.request_input.FixValue(context, RobotRequest())
+        return Clock(self.diagram, self.scenario.simulator_config, context)
 
 
 def build_robot_stack(scenario: Scenario, meshcat: Meshcat | None = None, *,

@@ -39,8 +39,7 @@ def setup():
     loop = AgentLoop(task=episode.instance.prompt, variant=load_variant("physcap"), llm=model,
                      api=episode.api, check=episode.check, seed=SEED, transcript=transcript)
     system = episode.robot.agent
-    root = episode.api.simulator.get_mutable_context()
-    context = system.GetMyMutableContextFromRoot(root)
+    context = system.GetMyMutableContextFromRoot(episode.api.clock.mutable_context)
     system.attach(loop, lambda: episode.api.robot_time)
     yield episode, system, context, loop, transcript, model
     episode.close()
@@ -48,14 +47,14 @@ def setup():
 
 def test_the_agent_decides_at_its_event_while_simulated_time_stands_still(setup):
     episode, system, context, loop, transcript, model = setup
-    simulator = episode.api.simulator
-    root = simulator.get_mutable_context()
-    simulator.AdvanceTo(0.1)
+    clock = episode.api.clock
+    root = clock.context
+    clock.run_for(0.1)
     assert model.calls == 0 and system.mind(context).phase == "idle"  # not started: no-op
     system.set_mind(context, AgentMind(phase="deciding"))
     assert model.calls == 0  # nothing happens until the simulator reaches an event
     wall = time.monotonic()
-    simulator.AdvanceTo(root.get_time() + 2 * AGENT_PERIOD)
+    clock.run_for(2 * AGENT_PERIOD)
     wall = time.monotonic() - wall
     mind = system.mind(context)
     assert mind.phase == "executing" and mind.pending is not None
@@ -71,17 +70,17 @@ def test_the_agent_decides_at_its_event_while_simulated_time_stands_still(setup)
 
 def test_code_blocks_run_between_events_and_the_mind_comes_back_to_deciding(setup):
     episode, system, context, loop, transcript, model = setup
-    simulator = episode.api.simulator
-    root = simulator.get_mutable_context()
+    clock = episode.api.clock
+    root = clock.context
     system.set_mind(context, AgentMind(phase="deciding"))
-    simulator.AdvanceTo(AGENT_PERIOD * 2)
+    clock.run_for(AGENT_PERIOD * 2)
     calls = model.calls
     mind = loop.execute(system.mind(context))  # the robot moves: the simulator advances
     assert mind.phase == "deciding" and mind.ran is not None and mind.ran.outcome.ok
     assert root.get_time() > 5.0 and model.calls == calls  # no decision while it ran
     assert episode.api.knowledge.entries  # the mass was measured
     system.set_mind(context, mind)
-    simulator.AdvanceTo(root.get_time() + 2 * AGENT_PERIOD)
+    clock.run_for(2 * AGENT_PERIOD)
     after = system.mind(context)
     assert len(after.steps) == 1 and after.steps[0].kind == "explore" and after.oi == 1
     assert after.phase in ("executing", "done")

@@ -15,19 +15,19 @@ from physcap_drake.perception.visible_objects import VisibleObject
 from physcap_drake.physx import calibration
 from physcap_drake.resources import stations_dir
 from physcap_drake.robot_api import RobotAPI
-from physcap_drake.robot_diagram import build_robot_diagram
+from physcap_drake.robot_stack import build_robot_stack
 from physcap_drake.scenario import load_scenario
 from physcap_drake.station import ports
 from physcap_drake.tasks.episode import make_episode
 
 REAL_ARM_OUTPUTS = set(ports.VECTOR_OUTPUTS)
-CONSUMERS = ("skill_executor", "mass_estimator", "stiffness_estimator",
-             "gripper_command_selector")
+CONSUMERS = ("skill_executor", "mass_probe", "mass_estimator", "stiffness_probe",
+             "stiffness_estimator", "gripper_command_selector")
 
 
 @pytest.fixture(scope="module")
 def robot():
-    return build_robot_diagram(load_scenario(stations_dir() / "piper_table.yaml"))
+    return build_robot_stack(load_scenario(stations_dir() / "piper_table.yaml"))
 
 
 def test_no_system_reads_a_simulation_only_output(robot):
@@ -57,13 +57,15 @@ def test_each_estimator_and_the_executor_reads_only_station_feedback(robot, name
 
 
 def test_the_estimators_expected_ports(robot):
-    mass = robot.diagram.GetSubsystemByName("mass_estimator")
-    assert {mass.get_input_port(i).get_name() for i in range(mass.num_input_ports())} == {
-        ports.ARM_POSITION_MEASURED, ports.ARM_TORQUE_MEASURED}
-    stiffness = robot.diagram.GetSubsystemByName("stiffness_estimator")
-    assert {stiffness.get_input_port(i).get_name()
-            for i in range(stiffness.num_input_ports())} == {
-        ports.GRIPPER_POSITION_MEASURED, ports.GRIPPER_EFFORT_MEASURED}
+    """Each estimator reads two station signals, and its probe's requests."""
+    for name, signals, request in (
+            ("mass_estimator", {ports.ARM_POSITION_MEASURED, ports.ARM_TORQUE_MEASURED},
+             "window"),
+            ("stiffness_estimator",
+             {ports.GRIPPER_POSITION_MEASURED, ports.GRIPPER_EFFORT_MEASURED}, "squeeze")):
+        system = robot.diagram.GetSubsystemByName(name)
+        assert {system.get_input_port(i).get_name()
+                for i in range(system.num_input_ports())} == signals | {request}
 
 
 def test_the_robots_own_models_contain_no_objects(robot):
@@ -77,7 +79,7 @@ def test_the_robots_own_models_contain_no_objects(robot):
 
 def test_the_estimators_model_ignores_objects_added_to_the_scene():
     scenario, _ = calibration._scenario_with("mass_600g", seed=0, trial=0, noise=True)
-    plant = build_robot_diagram(scenario).mass_estimator.model_plant
+    plant = build_robot_stack(scenario).mass_estimator.model_plant
     names = {plant.GetModelInstanceName(ModelInstanceIndex(i))
              for i in range(plant.num_model_instances())}
     assert names == {"WorldModelInstance", "DefaultModelInstance", "piper", "piper_gripper"}

@@ -1,21 +1,26 @@
-"""MassEstimator on synthetic inputs, and one get_mass end to end in the diagram."""
+"""The mass model of the MassEstimator (exact on synthetic torques), and one get_mass end to
+end through the RobotAPI on the whole robot stack. (The estimator's and the probe's ports are
+tested in test_mass_probe.py.)"""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
+from physcap_drake.control.planning_model import TCP_FRAME
 from physcap_drake.physx import calibration
 from physcap_drake.physx.mass_estimator import (
     GRAVITY,
+    MassEstimator,
     TorqueWindow,
     horizontal_load_offset,
     mass_from_torque_change,
 )
 from physcap_drake.resources import stations_dir
 from physcap_drake.robot_api import RobotAPI
-from physcap_drake.robot_diagram import build_robot_diagram
+from physcap_drake.robot_stack import build_robot_stack
 from physcap_drake.scenario import load_scenario
+from physcap_drake.station.robot_model import robot_model
 
 LIFT_POSE = np.array([0.3, 1.5, -1.3, 0.1, 1.0, 0.2])  # rad, an arm reaching over the table
 
@@ -44,7 +49,8 @@ def test_a_point_that_cannot_move_vertically_is_an_error():
 @pytest.fixture(scope="module")
 def estimator():
     scenario = load_scenario(stations_dir() / calibration.SCENARIO)
-    return build_robot_diagram(scenario).mass_estimator
+    model = robot_model(scenario.directives, "piper", "piper_gripper")
+    return MassEstimator(model.controller_plant, model.arm_joints, TCP_FRAME, sample_rate=200.0)
 
 
 def test_an_offset_grasp_is_found_and_weighed_exactly(estimator):
@@ -71,20 +77,13 @@ def test_the_arms_own_sag_is_not_counted_as_load(estimator):
     assert estimator.estimate_mass(empty, loaded) == pytest.approx(0.25, rel=1e-9)
 
 
-def test_weighing_a_reference_mass_in_the_diagram():
-    trial = calibration.run_mass_trial(350, trial=0, seed=7, noise=True)
-    assert trial.ok
-    assert trial.estimate_g == pytest.approx(350.0, abs=5.0)
-    assert trial.robot_time_s < 20.0
-
-
 def test_noise_free_weighing_is_exact_and_puts_the_object_back():
     scenario, base = calibration._scenario_with("mass_963g", seed=3, trial=1, noise=False)
-    robot = build_robot_diagram(scenario)
-    simulator = robot.make_simulator()
-    api = RobotAPI(robot, simulator)
+    robot = build_robot_stack(scenario)
+    clock = robot.make_clock()
+    api = RobotAPI(robot, clock)
     plant = robot.station.GetSubsystemByName("plant")
-    context = plant.GetMyContextFromRoot(simulator.get_context())
+    context = plant.GetMyContextFromRoot(clock.context)
     body = plant.GetBodyByName("mass_963g")
     start = plant.EvalBodyPoseInWorld(context, body).translation().copy()
     mass = api.get_mass(base + [0.0, 0.0, calibration.MASS_GRASP_HEIGHT], name="block")
@@ -94,15 +93,3 @@ def test_noise_free_weighing_is_exact_and_puts_the_object_back():
     assert np.linalg.norm(end.translation()[:2] - start[:2]) < 0.01  # back where it was
     assert end.rotation().matrix()[2, 2] > np.cos(np.radians(5))  # standing upright
     assert api.gripper_opening > 0.09  # and let go of
-
-
-def test_nothing_grasped_is_a_failure_not_a_number():
-    scenario, base = calibration._scenario_with("mass_350g", 0, 0, noise=True)
-    robot = build_robot_diagram(scenario)
-    api = RobotAPI(robot, robot.make_simulator())
-    empty_spot = base + [0.0, 0.15, 0.04]  # 15 cm beside the mass: nothing to grasp
-    assert np.isnan(api.get_mass(empty_spot, name="air"))
-    entry = api.knowledge.latest("air", "mass")
-    assert entry is None  # no successful entry ...
-    failure = api.knowledge.entries[-1]
-    assert not failure.ok and "nothing was grasped" in failure.note

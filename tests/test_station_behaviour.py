@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from pydrake.multibody.tree import JacobianWrtVariable
 
-from physcap_drake.sim_runner import make_simulator
+from physcap_drake.clock import Clock
 from physcap_drake.station import MakeStation, ports
 from physcap_drake.station.sim_config import SensorNoise
 from physcap_drake.station_commands import build_commanded_station
@@ -17,7 +17,8 @@ class Run:
 
     def __init__(self, scenario, **commands):
         self.diagram, self.station = build_commanded_station(scenario, **commands)
-        self.simulator = make_simulator(self.diagram, scenario)
+        self.clock = Clock(self.diagram, scenario.simulator_config)
+        self.simulator = self.clock.simulator
         self.plant = self.station.GetSubsystemByName("plant")
 
     @property
@@ -28,7 +29,7 @@ class Run:
         return self.station.GetOutputPort(port).Eval(self.station_context).copy()
 
     def advance_to(self, t: float) -> None:
-        self.simulator.AdvanceTo(t)
+        self.clock.run_for(t - self.clock.time)
 
 
 def noise_free(scenario):

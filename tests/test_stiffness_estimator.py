@@ -1,4 +1,5 @@
-"""StiffnessEstimator on a synthetic gripper, the level mapping, and one probe end to end."""
+"""StiffnessEstimator on a synthetic gripper through its ports, the level mapping, and the
+StiffnessProbe's sequence against a fake robot (no station, no physics)."""
 
 from __future__ import annotations
 
@@ -6,20 +7,39 @@ import math
 
 import numpy as np
 import pytest
-from pydrake.systems.analysis import Simulator
+from fake_executor import FORCE, SKILL_TIME, STROKE, FakeExecutor, assert_actions, served_log
 from pydrake.systems.framework import BasicVector, DiagramBuilder, LeafSystem
 
+from physcap_drake.clock import Clock
+from physcap_drake.control.requests import (
+    MoveGripper,
+    MoveToPose,
+    RobotRequest,
+    SkillState,
+    Wait,
+)
+from physcap_drake.control.skill_executor import REQUEST_PORT, STATUS_PORT
 from physcap_drake.physx import calibration
 from physcap_drake.physx.physx_config import StiffnessProbeConfig
-from physcap_drake.physx.stiffness_estimator import StiffnessEstimator
+from physcap_drake.physx.stiffness_estimator import (
+    ACTIVE_PORT,
+    RESULT_PORT,
+    SQUEEZE_PORT,
+    SqueezeRequest,
+    StiffnessEstimator,
+)
 from physcap_drake.physx.stiffness_levels import (
     StiffnessThresholds,
     deformation_at_effort,
     level_from_deformation,
     majority_level,
 )
-from physcap_drake.robot_api import RobotAPI
-from physcap_drake.robot_diagram import build_robot_diagram
+from physcap_drake.physx.stiffness_probe import (
+    APPROACH,
+    TIMEOUT,
+    MeasureStiffness,
+    StiffnessProbe,
+)
 from physcap_drake.station import ports
 
 THRESHOLDS = StiffnessThresholds([13.0, 6.0, 2.7, 1.3])
@@ -70,22 +90,73 @@ class SyntheticGripper(LeafSystem):
         output.SetAtIndex(0, min(effort, 1.0))
 
 
-def probe(gripper: SyntheticGripper, start_opening: float, squeezes: int = 3):
-    config = StiffnessProbeConfig(squeezes=squeezes)
+class OpenGripperCommand(LeafSystem):
+    """Holds the gripper at `opening` (m) until the estimator takes it over (its `active`
+    output), as the skill executor and the GripperCommandSelector do in the robot stack."""
+
+    def __init__(self, opening: float):
+        super().__init__()
+        self._opening = opening
+        self._estimator = self.DeclareVectorInputPort("estimator", 1)
+        self._active = self.DeclareVectorInputPort(ACTIVE_PORT, 1)
+        self.DeclareVectorOutputPort(ports.GRIPPER_POSITION, 1, self._command)
+
+    def _command(self, context, output: BasicVector):
+        active = self._active.Eval(context)[0] > 0.5
+        output.SetAtIndex(0, self._estimator.Eval(context)[0] if active else self._opening)
+
+
+def squeeze_rig(gripper: SyntheticGripper, start_opening: float,
+                config: StiffnessProbeConfig):
+    """The estimator and the synthetic gripper, squeeze requests fixed on the exported
+    `squeeze` input, the estimator's report on the exported `result` output."""
     builder = DiagramBuilder()
     estimator = builder.AddSystem(StiffnessEstimator(config, THRESHOLDS))
     builder.AddSystem(gripper)
-    for name in (ports.GRIPPER_POSITION, ports.GRIPPER_FORCE_LIMIT):
-        builder.Connect(estimator.GetOutputPort(name), gripper.GetInputPort(name))
+    hold = builder.AddSystem(OpenGripperCommand(start_opening))
+    builder.Connect(estimator.GetOutputPort(ports.GRIPPER_POSITION), hold.GetInputPort(
+        "estimator"))
+    builder.Connect(estimator.GetOutputPort(ACTIVE_PORT), hold.GetInputPort(ACTIVE_PORT))
+    builder.Connect(hold.GetOutputPort(ports.GRIPPER_POSITION),
+                    gripper.GetInputPort(ports.GRIPPER_POSITION))
+    builder.Connect(estimator.GetOutputPort(ports.GRIPPER_FORCE_LIMIT),
+                    gripper.GetInputPort(ports.GRIPPER_FORCE_LIMIT))
     for name in (ports.GRIPPER_POSITION_MEASURED, ports.GRIPPER_EFFORT_MEASURED):
         builder.Connect(gripper.GetOutputPort(name), estimator.GetInputPort(name))
+    builder.ExportInput(estimator.GetInputPort(SQUEEZE_PORT), SQUEEZE_PORT)
+    builder.ExportOutput(estimator.GetOutputPort(RESULT_PORT), RESULT_PORT)
+    builder.ExportOutput(estimator.GetOutputPort(ACTIVE_PORT), ACTIVE_PORT)
     diagram = builder.Build()
-    simulator = Simulator(diagram)
-    context = estimator.GetMyMutableContextFromRoot(simulator.get_mutable_context())
-    estimator.begin(context, start_opening)
-    while not estimator.done(context) and simulator.get_context().get_time() < 60:
-        simulator.AdvanceTo(simulator.get_context().get_time() + 0.3)
-    return estimator.result(context)
+    clock = Clock(diagram)
+    diagram.GetInputPort(SQUEEZE_PORT).FixValue(clock.mutable_context, SqueezeRequest())
+    return diagram, clock
+
+
+def probe(gripper: SyntheticGripper, start_opening: float, squeezes: int = 3):
+    diagram, clock = squeeze_rig(gripper, start_opening, StiffnessProbeConfig(
+        squeezes=squeezes))
+    clock.run_for(0.1)
+    diagram.GetInputPort(SQUEEZE_PORT).FixValue(clock.mutable_context, SqueezeRequest(1))
+    result = diagram.GetOutputPort(RESULT_PORT)
+    assert clock.run_until(lambda root: result.Eval(root).finished, timeout=60.0)
+    report = result.Eval(clock.context)
+    assert report.sequence == 1
+    assert diagram.GetOutputPort(ACTIVE_PORT).Eval(clock.context)[0] == 0.0  # handed back
+    return report.result
+
+
+def test_a_stop_request_ends_the_probe_and_hands_the_gripper_back():
+    diagram, clock = squeeze_rig(SyntheticGripper(width=0.06, slope=40.0), 0.07,
+                                 StiffnessProbeConfig())
+    squeeze, active = diagram.GetInputPort(SQUEEZE_PORT), diagram.GetOutputPort(ACTIVE_PORT)
+    squeeze.FixValue(clock.mutable_context, SqueezeRequest(1))
+    clock.run_for(0.5)
+    assert active.Eval(clock.context)[0] == 1.0
+    report = diagram.GetOutputPort(RESULT_PORT).Eval(clock.context)
+    assert report.sequence == 1 and not report.finished
+    squeeze.FixValue(clock.mutable_context, SqueezeRequest(2, stop=True))
+    clock.run_for(0.1)
+    assert active.Eval(clock.context)[0] == 0.0
 
 
 @pytest.mark.parametrize(("slope", "level"), [(40.0, 2), (100.0, 3), (400.0, 5)])
@@ -147,22 +218,6 @@ def test_thresholds_must_decrease():
         StiffnessThresholds([1.0, 2.0, 3.0, 4.0])
 
 
-def test_probing_a_specimen_in_the_diagram():
-    scenario, base = calibration._scenario_with("stiffness_level3", seed=5, trial=0, noise=True)
-    robot = build_robot_diagram(scenario)
-    api = RobotAPI(robot, robot.make_simulator())
-    assert api.get_stiffness(base + [0.0, 0.0, calibration.STIFFNESS_GRASP_HEIGHT],
-                             name="orange cylinder") == 3
-    measurement = api.last_stiffness
-    assert len(measurement.result.deformations_mm) == 5
-    assert measurement.robot_time_s < 40.0
-    entry = api.knowledge.latest("orange cylinder", "stiffness")
-    assert entry.value == 3 and "deformation per squeeze" in entry.note
-    # The gripper is the executor's again: it opens on request.
-    api.open_gripper()
-    assert api.gripper_opening > 0.09
-
-
 def test_thresholds_are_fitted_between_levels_and_scored():
     means = {1: 20.0, 2: 8.0, 3: 4.0, 4: 2.0, 5: 1.0}
     fitted = calibration.fit_thresholds(means)
@@ -173,3 +228,95 @@ def test_thresholds_are_fitted_between_levels_and_scored():
     matrix = calibration.confusion_matrix(trials, StiffnessThresholds(fitted))
     assert matrix[1, 2] == 1 and matrix[1, 3] == 1  # one level-2 trial read as level 3
     assert np.trace(matrix[:, 1:]) == 5
+
+
+# The StiffnessProbe on the request path ---------------------------------------------------
+
+POINT = [0.3, -0.1, 0.03]
+
+
+class ProbeRig:
+    """Client -> StiffnessProbe -> FakeExecutor, the probe's squeezes done by a
+    StiffnessEstimator on a SyntheticGripper."""
+
+    def __init__(self, gripper: SyntheticGripper, config: StiffnessProbeConfig):
+        builder = DiagramBuilder()
+        self.probe = builder.AddSystem(StiffnessProbe(gripper_stroke=STROKE,
+                                                      grasp_force=FORCE))
+        self.executor = builder.AddSystem(FakeExecutor(np.zeros(6)))
+        estimator = builder.AddSystem(StiffnessEstimator(config, THRESHOLDS))
+        builder.AddSystem(gripper)
+        hold = builder.AddSystem(OpenGripperCommand(0.07))
+        builder.Connect(self.probe.GetOutputPort(REQUEST_PORT),
+                        self.executor.GetInputPort(REQUEST_PORT))
+        builder.Connect(self.executor.GetOutputPort(STATUS_PORT),
+                        self.probe.GetInputPort(STATUS_PORT))
+        builder.Connect(self.probe.GetOutputPort(SQUEEZE_PORT),
+                        estimator.GetInputPort(SQUEEZE_PORT))
+        builder.Connect(estimator.GetOutputPort(RESULT_PORT), self.probe.GetInputPort(
+            RESULT_PORT))
+        builder.Connect(estimator.GetOutputPort(ports.GRIPPER_POSITION),
+                        hold.GetInputPort("estimator"))
+        builder.Connect(estimator.GetOutputPort(ACTIVE_PORT), hold.GetInputPort(ACTIVE_PORT))
+        builder.Connect(hold.GetOutputPort(ports.GRIPPER_POSITION),
+                        gripper.GetInputPort(ports.GRIPPER_POSITION))
+        builder.Connect(estimator.GetOutputPort(ports.GRIPPER_FORCE_LIMIT),
+                        gripper.GetInputPort(ports.GRIPPER_FORCE_LIMIT))
+        for name in (ports.GRIPPER_POSITION_MEASURED, ports.GRIPPER_EFFORT_MEASURED):
+            builder.Connect(gripper.GetOutputPort(name), estimator.GetInputPort(name))
+        builder.ExportInput(self.probe.GetInputPort(REQUEST_PORT), REQUEST_PORT)
+        builder.ExportOutput(self.probe.GetOutputPort(STATUS_PORT), STATUS_PORT)
+        builder.ExportOutput(estimator.GetOutputPort(ACTIVE_PORT), ACTIVE_PORT)
+        self.diagram = builder.Build()
+        self.clock = Clock(self.diagram)
+        self.port = self.diagram.GetInputPort(REQUEST_PORT)
+        self.port.FixValue(self.clock.mutable_context, RobotRequest())
+
+    def ask(self, action, sequence: int = 1, timeout: float = 60.0):
+        request = RobotRequest("test", sequence, action)
+        self.port.FixValue(self.clock.mutable_context, request)
+        status = self.diagram.GetOutputPort(STATUS_PORT)
+        assert self.clock.run_until(lambda root: status.Eval(root).finished(request),
+                                    timeout=timeout)
+        return status.Eval(self.clock.context)
+
+
+def test_get_stiffness_is_one_request_that_squeezes_between_approach_and_retreat():
+    rig = ProbeRig(SyntheticGripper(width=0.06, slope=40.0), StiffnessProbeConfig(squeezes=3))
+    status = rig.ask(MeasureStiffness(POINT))
+    assert status.state is SkillState.SUCCEEDED and status.label == "get_stiffness"
+    measurement = status.result
+    assert measurement.level == 2 and len(measurement.result.deformations_mm) == 3
+    assert "level 2 (soft)" in measurement.describe()
+    served = served_log(rig.executor, rig.clock.context)
+    assert_actions(served, [
+        MoveGripper(STROKE, FORCE, "open_gripper"), MoveToPose(POINT, None, APPROACH),
+        Wait(TIMEOUT), MoveGripper(STROKE, FORCE, "open_gripper"),
+        MoveToPose(np.add(POINT, [0.0, 0.0, APPROACH]))])
+    # The arm held (a wait) while the estimator squeezed, and no longer: the next request
+    # ended the wait, so the robot time counts the squeezes but not the 30 s allowed.
+    squeezing = measurement.robot_time_s - 4 * SKILL_TIME
+    assert 1.0 < squeezing < TIMEOUT
+    assert rig.diagram.GetOutputPort(ACTIVE_PORT).Eval(rig.clock.context)[0] == 0.0
+
+
+def test_squeezes_that_do_not_end_in_time_are_stopped_with_level_zero():
+    # Closing on nothing in 0.2 mm steps: each failed squeeze takes seconds, 25 take longer
+    # than the probe allows.
+    rig = ProbeRig(SyntheticGripper(width=0.0, slope=100.0),
+                   StiffnessProbeConfig(squeezes=25, contact_step=0.0002))
+    status = rig.ask(MeasureStiffness(POINT))
+    measurement = status.result
+    assert measurement.level == 0
+    assert f"the probe did not finish within {TIMEOUT:.0f} s" in measurement.result.notes
+    assert 0 < len(measurement.result.deformations_mm) < 25
+    assert rig.diagram.GetOutputPort(ACTIVE_PORT).Eval(rig.clock.context)[0] == 0.0  # stopped
+    assert measurement.robot_time_s == pytest.approx(TIMEOUT + 4 * SKILL_TIME, abs=0.02)
+
+
+def test_a_malformed_position_is_refused_and_other_requests_pass_through():
+    rig = ProbeRig(SyntheticGripper(width=0.06, slope=40.0), StiffnessProbeConfig())
+    status = rig.ask(MeasureStiffness("here"))
+    assert status.state is SkillState.REFUSED and "3 numbers" in status.message
+    assert rig.ask(Wait(0.2), sequence=2).state is SkillState.SUCCEEDED
+    assert served_log(rig.executor, rig.clock.context) == (Wait(0.2),)

@@ -114,7 +114,7 @@ class SkillExecutor(LeafSystem):
         opening = float(self._opening.Eval(context)[0])
         self._set(state, ExecutorState(JointPlan.hold(q, context.get_time()), opening,
                                        self._initial_force,
-                                       status=SkillStatus(joint_target=tuple(q))))
+                                       status=SkillStatus(joint_target=tuple(map(float, q)))))
 
     # The event ----------------------------------------------------------------------------
 
@@ -157,7 +157,7 @@ class SkillExecutor(LeafSystem):
         status = dc.replace(current.status, client=request.client, sequence=request.sequence,
                             state=SkillState.RUNNING, label=planned.label, message="",
                             started_at=now, finished_at=now,
-                            joint_target=tuple(planned.arm_plan.final_position))
+                            joint_target=tuple(map(float, planned.arm_plan.final_position)))
         return ExecutorState(planned.arm_plan, planned.gripper_opening, planned.gripper_force,
                              planned, status, served, reference_opening=opening,
                              reference_time=now)
@@ -187,7 +187,7 @@ class SkillExecutor(LeafSystem):
         status = dc.replace(current.status, state=result, message=message, finished_at=now,
                             robot_time=current.status.robot_time + now
                             - current.skill.start_time,
-                            joint_target=tuple(arm_plan.final_position))
+                            joint_target=tuple(map(float, arm_plan.final_position)))
         return dc.replace(current, arm_plan=arm_plan, status=status)
 
     def _arm_outcome(self, context: Context, current: ExecutorState, now: float):

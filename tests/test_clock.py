@@ -1,0 +1,76 @@
+"""The Clock: the one place time advances (run_for, run_until with a simulator monitor) and
+paces."""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import pytest
+from pydrake.systems.analysis import SimulatorConfig
+from pydrake.systems.framework import LeafSystem
+
+import physcap_drake
+from physcap_drake.clock import PROGRESS_PERIOD, Clock
+
+TICK = 0.01  # s
+
+
+class Counter(LeafSystem):
+    """Counts its periodic events (every TICK s) in its discrete state."""
+
+    def __init__(self):
+        super().__init__()
+        self.DeclareDiscreteState(1)
+        self.DeclarePeriodicDiscreteUpdateEvent(TICK, 0.0, self._tick)
+
+    def _tick(self, context, state):
+        state.get_mutable_vector().SetAtIndex(0, context.get_discrete_state_vector()[0] + 1)
+
+    def count(self, context) -> int:
+        return int(context.get_discrete_state_vector()[0])
+
+
+def test_run_for_advances_the_duration_and_reports_progress():
+    counter = Counter()
+    clock = Clock(counter)
+    seen = []
+    timing = clock.run_for(0.35, seen.append)
+    assert clock.time == pytest.approx(0.35)
+    assert timing.sim_time == pytest.approx(0.35) and timing.wall_time > 0
+    assert seen == pytest.approx([PROGRESS_PERIOD, 2 * PROGRESS_PERIOD, 3 * PROGRESS_PERIOD,
+                                  0.35])
+
+
+def test_run_until_stops_at_the_first_step_after_which_the_condition_holds():
+    counter = Counter()
+    clock = Clock(counter)
+    assert clock.run_until(lambda root: counter.count(root) >= 5, timeout=10.0)
+    # The fifth event (at 0.04 s) ends the step to 0.05 s: no further, far from the timeout.
+    assert clock.time == pytest.approx(0.05) and counter.count(clock.context) == 5
+
+
+def test_run_until_gives_up_at_the_timeout_and_does_not_run_when_already_true():
+    counter = Counter()
+    clock = Clock(counter)
+    assert not clock.run_until(lambda root: counter.count(root) > 1000, timeout=0.2)
+    assert clock.time == pytest.approx(0.2)
+    assert clock.run_until(lambda root: counter.count(root) > 0, timeout=1.0)
+    assert clock.time == pytest.approx(0.2)  # it held already: no time passed
+
+
+def test_a_paced_run_does_not_make_up_for_a_pause():
+    clock = Clock(Counter(), SimulatorConfig(target_realtime_rate=1.0))
+    assert clock.realtime_rate == 1.0
+    clock.run_for(0.1)
+    time.sleep(0.3)  # a model answering: the simulated time stands still meanwhile
+    start = time.perf_counter()
+    clock.run_for(0.2)
+    assert time.perf_counter() - start >= 0.19  # paced from the run's start, not caught up
+
+
+def test_only_the_clock_and_the_emulator_advance_time():
+    package = Path(physcap_drake.__file__).parent
+    callers = sorted(str(path.relative_to(package)) for path in package.rglob("*.py")
+                     if ".AdvanceTo(" in path.read_text())
+    assert callers == ["can/simulated_motion.py", "clock.py"]

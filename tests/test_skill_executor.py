@@ -1,0 +1,217 @@
+"""The SkillExecutor through its ports: requests fixed on its `request` input, a small
+synthetic arm and gripper behind its station ports, answers read from `status`."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from pydrake.systems.framework import BasicVector, DiagramBuilder, LeafSystem
+
+from physcap_drake.clock import Clock
+from physcap_drake.control.planning_model import PlanningModel
+from physcap_drake.control.requests import (
+    MoveGripper,
+    MoveToJoints,
+    RobotRequest,
+    SkillState,
+    Wait,
+)
+from physcap_drake.control.skill_executor import (
+    MONITOR_PERIOD,
+    REQUEST_PORT,
+    STATUS_PORT,
+    SkillExecutor,
+)
+from physcap_drake.control.skill_planner import SkillPlanner
+from physcap_drake.physx.mass_probe import MeasureMass
+from physcap_drake.resources import stations_dir
+from physcap_drake.scenario import load_scenario
+from physcap_drake.station import ports
+from physcap_drake.station.robot_model import robot_model
+
+REACHABLE = np.array([0.3, 1.2, -1.0, 0.0, 0.6, 0.0])  # rad, above the table
+GRIPPER_SPEED = 0.1  # m/s of opening
+
+
+class SyntheticArm(LeafSystem):
+    """An arm whose joints are wherever they are commanded (or stay where they started, if
+    `stuck`), and a gripper whose opening moves at GRIPPER_SPEED towards the command and
+    stops at `object_width` (m) when closing on an object, or at `widest` (m) when something
+    keeps it from opening further."""
+
+    def __init__(self, stuck: bool = False, object_width: float = 0.0, widest: float = 1.0,
+                 step: float = 0.004):
+        super().__init__()
+        self._stuck, self._width, self._widest = stuck, object_width, widest
+        n = ports.NUM_ARM_JOINTS
+        self._command = self.DeclareVectorInputPort(ports.ARM_POSITION, n)
+        self._gripper = self.DeclareVectorInputPort(ports.GRIPPER_POSITION, 1)
+        self.DeclareVectorInputPort(ports.GRIPPER_FORCE_LIMIT, 1)
+        self._opening = self.DeclareDiscreteState([0.05])
+        self.DeclarePeriodicDiscreteUpdateEvent(step, 0.0, self._move_gripper)
+        self._dt = step
+        if stuck:
+            self.DeclareVectorOutputPort(ports.ARM_POSITION_MEASURED, n,
+                                         lambda context, out: out.SetFromVector(np.zeros(n)),
+                                         {self.nothing_ticket()})
+        else:
+            self.DeclareVectorOutputPort(
+                ports.ARM_POSITION_MEASURED, n,
+                lambda context, out: out.SetFromVector(self._command.Eval(context)))
+        self.DeclareVectorOutputPort(ports.GRIPPER_POSITION_MEASURED, 1, self._output_opening,
+                                     {self.xd_ticket()})
+
+    def _move_gripper(self, context, state):
+        opening = context.get_discrete_state_vector().GetAtIndex(0)
+        step = np.clip(self._gripper.Eval(context)[0] - opening, -GRIPPER_SPEED * self._dt,
+                       GRIPPER_SPEED * self._dt)
+        state.get_mutable_vector().SetAtIndex(0, np.clip(opening + step, self._width,
+                                                         self._widest))
+
+    def _output_opening(self, context, output: BasicVector):
+        output.SetAtIndex(0, context.get_discrete_state_vector().GetAtIndex(0))
+
+
+class Rig:
+    """A SkillExecutor driving a SyntheticArm; requests go in through the exported
+    `request` input."""
+
+    def __init__(self, **arm):
+        scenario = load_scenario(stations_dir() / "piper_table.yaml")
+        model = robot_model(scenario.directives, "piper", "piper_gripper")
+        planner = SkillPlanner(PlanningModel(robot=model), scenario.skills,
+                               gripper_stroke=model.gripper_stroke)
+        builder = DiagramBuilder()
+        self.executor = builder.AddSystem(SkillExecutor(planner, initial_force=15.0))
+        arm = builder.AddSystem(SyntheticArm(**arm))
+        for name in (ports.ARM_POSITION, ports.GRIPPER_POSITION, ports.GRIPPER_FORCE_LIMIT):
+            builder.Connect(self.executor.GetOutputPort(name), arm.GetInputPort(name))
+        for name in (ports.ARM_POSITION_MEASURED, ports.GRIPPER_POSITION_MEASURED):
+            builder.Connect(arm.GetOutputPort(name), self.executor.GetInputPort(name))
+        builder.ExportInput(self.executor.GetInputPort(REQUEST_PORT), REQUEST_PORT)
+        builder.ExportOutput(self.executor.GetOutputPort(STATUS_PORT), STATUS_PORT)
+        self.diagram = builder.Build()
+        self.clock = Clock(self.diagram)
+        self.request_port = self.diagram.GetInputPort(REQUEST_PORT)
+        self.request_port.FixValue(self.clock.mutable_context, RobotRequest())
+
+    @property
+    def status(self):
+        return self.diagram.GetOutputPort(STATUS_PORT).Eval(self.clock.context)
+
+    def command(self) -> np.ndarray:
+        return self.executor.GetOutputPort(ports.ARM_POSITION).Eval(
+            self.executor.GetMyContextFromRoot(self.clock.context)).copy()
+
+    def send(self, request: RobotRequest) -> None:
+        self.request_port.FixValue(self.clock.mutable_context, request)
+
+    def finish(self, request: RobotRequest, timeout: float = 20.0):
+        assert self.clock.run_until(lambda root: self.diagram.GetOutputPort(STATUS_PORT).Eval(
+            root).finished(request), timeout=timeout)
+        return self.status
+
+
+def test_a_request_is_started_at_the_next_event_and_answered_on_status():
+    rig = Rig()
+    rig.clock.run_for(0.013)
+    request = RobotRequest("test", 1, MoveToJoints(REACHABLE))
+    rig.send(request)
+    rig.clock.run_until(lambda root: rig.status.answers(request), timeout=1.0)
+    running = rig.status
+    assert running.state is SkillState.RUNNING and running.label == "move to joints"
+    assert running.started_at == pytest.approx(2 * MONITOR_PERIOD)  # the event after 13 ms
+    np.testing.assert_allclose(running.joint_target, REACHABLE)
+    done = rig.finish(request)
+    assert done.state is SkillState.SUCCEEDED
+    assert done.robot_time == pytest.approx(done.finished_at - done.started_at)
+    assert done.finished_at - done.started_at > 0.5  # a real motion at the speed limits
+    np.testing.assert_allclose(rig.command(), REACHABLE)
+
+
+def test_a_refused_request_is_answered_with_its_reason_and_nothing_moves():
+    rig = Rig()
+    command = rig.command()
+    request = RobotRequest("test", 1, MoveToJoints([0.0, 3.5, -1.0, 0.0, 0.0, 0.0]))
+    rig.send(request)
+    status = rig.finish(request)
+    assert status.state is SkillState.REFUSED
+    assert "J2 = 3.5000 rad is outside [0.0000, 3.1416]" in status.message
+    assert status.robot_time == 0.0
+    np.testing.assert_array_equal(rig.command(), command)
+
+
+def test_an_action_the_executor_does_not_serve_is_refused():
+    rig = Rig()
+    request = RobotRequest("test", 1, MeasureMass([0.3, 0.1, 0.05]))
+    rig.send(request)
+    status = rig.finish(request)
+    assert status.state is SkillState.REFUSED and "cannot do 'get_mass'" in status.message
+
+
+def test_a_request_that_arrives_while_a_skill_runs_waits_for_it():
+    rig = Rig()
+    first = RobotRequest("test", 1, MoveToJoints(REACHABLE))
+    rig.send(first)
+    rig.clock.run_for(0.2)
+    assert rig.status.answers(first) and rig.status.state is SkillState.RUNNING
+    second = RobotRequest("test", 2, MoveToJoints(np.zeros(6), check_workspace=False))
+    rig.send(second)
+    rig.clock.run_until(lambda root: rig.status.answers(second), timeout=10.0)
+    assert rig.status.started_at > 0.5  # after the first motion's end ...
+    np.testing.assert_allclose(rig.command(), REACHABLE, atol=1e-3)  # ... where it ended
+    assert rig.finish(second).state is SkillState.SUCCEEDED
+    np.testing.assert_allclose(rig.command(), np.zeros(6), atol=1e-12)
+
+
+def test_a_new_request_ends_a_running_wait():
+    rig = Rig()
+    wait = RobotRequest("test", 1, Wait(10.0))
+    rig.send(wait)
+    rig.clock.run_for(0.5)
+    close = RobotRequest("test", 2, MoveGripper(0.0, 10.0, "close_gripper"))
+    rig.send(close)
+    status = rig.finish(close)
+    assert status.started_at == pytest.approx(0.5, abs=MONITOR_PERIOD + 1e-9)
+    # The robot time counts the half second of waiting, not the ten asked for.
+    assert status.robot_time == pytest.approx(status.finished_at, abs=1e-9)
+
+
+def test_each_request_is_served_once_and_old_ones_are_ignored():
+    rig = Rig()
+    first = RobotRequest("test", 1, Wait(0.1))
+    rig.send(first)
+    rig.finish(first)
+    again = rig.status
+    rig.clock.run_for(0.1)
+    assert rig.status == again  # the same request still on the port: nothing new
+    rig.send(RobotRequest("test", 0, Wait(0.1)))  # an older sequence number
+    rig.clock.run_for(0.1)
+    assert rig.status == again
+    other = RobotRequest("other client", 1, Wait(0.1))  # another client's numbering
+    rig.send(other)
+    assert rig.finish(other).state is SkillState.SUCCEEDED
+
+
+def test_closing_on_an_object_succeeds_and_opening_against_one_fails():
+    rig = Rig(object_width=0.03)
+    close = RobotRequest("test", 1, MoveGripper(0.0, 10.0, "close_gripper"))
+    rig.send(close)
+    status = rig.finish(close)
+    assert status.state is SkillState.SUCCEEDED and "stopped at 30.0 mm" in status.message
+
+    blocked = Rig(widest=0.08)  # the fingers cannot open past 80 mm
+    request = RobotRequest("test", 1, MoveGripper(0.1, 10.0, "open_gripper"))
+    blocked.send(request)
+    status = blocked.finish(request)
+    assert status.state is SkillState.FAILED and "blocked at 80.0 mm" in status.message
+
+
+def test_a_motion_that_does_not_arrive_fails_and_the_arm_holds_where_it_is():
+    rig = Rig(stuck=True)
+    request = RobotRequest("test", 1, MoveToJoints(REACHABLE))
+    rig.send(request)
+    status = rig.finish(request)
+    assert status.state is SkillState.FAILED and "did not arrive" in status.message
+    np.testing.assert_array_equal(rig.command(), np.zeros(6))  # stopped where measured
+    np.testing.assert_array_equal(status.joint_target, np.zeros(6))
