@@ -15,6 +15,7 @@ from physcap_drake.station.arm_feedforward import ArmFeedforward
 from physcap_drake.station.cameras import add_camera
 from physcap_drake.station.gripper_servo import GripperServo
 from physcap_drake.station.joint_target_interpolator import JointTargetInterpolator
+from physcap_drake.station.render_world import add_render_world
 from physcap_drake.station.robot_model import (
     add_directives,
     arm_joint_limits,
@@ -157,8 +158,10 @@ def MakeSimStation(scenario, meshcat: Meshcat | None = None) -> Diagram:
     builder.Connect(gripper_servo.GetOutputPort("effort"), effort.get_input_port())
     builder.ExportOutput(effort.get_output_port(), ports.GRIPPER_EFFORT_MEASURED)
 
+    if scenario.cameras:
+        render_plant, render_scene_graph = add_render_world(builder, plant, scenario.directives)
     for camera in scenario.cameras:
-        add_camera(builder, plant, scene_graph, camera)
+        add_camera(builder, render_plant, render_scene_graph, camera)
     builder.ExportOutput(plant.get_body_poses_output_port(), ports.BODY_POSES)
     if meshcat is not None:
         ApplyVisualizationConfig(scenario.visualization, builder, meshcat=meshcat)
