@@ -11,7 +11,7 @@ from pydrake.systems.primitives import ConstantVectorSource, Demultiplexer
 from pydrake.visualization import ApplyVisualizationConfig
 
 from physcap_drake.station import ports
-from physcap_drake.station.arm_feedforward import ArmFeedforward
+from physcap_drake.station.arm_feedforward import make_arm_feedforward
 from physcap_drake.station.cameras import add_camera
 from physcap_drake.station.gripper_servo import GripperServo
 from physcap_drake.station.joint_target_interpolator import JointTargetInterpolator
@@ -124,14 +124,16 @@ def MakeSimStation(scenario, meshcat: Meshcat | None = None) -> Diagram:
                                                  config.gripper_model)
         controller_arm = controller_plant.GetModelInstanceByName(config.arm_model)
         arm_joints = [a.joint() for a in _arm_actuators(controller_plant, controller_arm)]
-        feedforward = builder.AddNamedSystem("arm_feedforward", ArmFeedforward(
-            controller_plant, arm_joints,
-            inverse_dynamics=servo.feedforward == "inverse_dynamics"))
+        inverse_dynamics = servo.feedforward == "inverse_dynamics"
+        feedforward = builder.AddSystem(make_arm_feedforward(
+            controller_plant, arm_joints, inverse_dynamics=inverse_dynamics))
         builder.Connect(arm_state.get_output_port(0), feedforward.GetInputPort("arm_position"))
         builder.Connect(arm_state.get_output_port(1), feedforward.GetInputPort("arm_velocity"))
-        builder.Connect(interpolator.GetOutputPort("acceleration"),
-                        feedforward.GetInputPort("reference_acceleration"))
-        builder.Connect(feedforward.get_output_port(), plant.get_actuation_input_port(arm))
+        if inverse_dynamics:
+            builder.Connect(interpolator.GetOutputPort("acceleration"),
+                            feedforward.GetInputPort("reference_acceleration"))
+        builder.Connect(feedforward.GetOutputPort("torque"),
+                        plant.get_actuation_input_port(arm))
     builder.ExportInput(interpolator.GetInputPort("position_commanded"), ports.ARM_POSITION)
     builder.ExportOutput(arm_state.get_output_port(0), ports.ARM_POSITION_MEASURED)
     builder.ExportOutput(arm_state.get_output_port(1), ports.ARM_VELOCITY_ESTIMATED)
