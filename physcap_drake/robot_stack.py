@@ -32,7 +32,7 @@ from physcap_drake.control.planning_model import TCP_FRAME, PlanningModel
 from physcap_drake.control.requests import RobotRequest
 from physcap_drake.control.skill_executor import REQUEST_PORT, STATUS_PORT, SkillExecutor
 from physcap_drake.control.skill_planner import SkillPlanner
-from physcap_drake.physx.gripper_command_selector import GripperCommandSelector
+from physcap_drake.physx.gripper_command_selector import make_gripper_command_selector
 from physcap_drake.physx.mass_estimator import ESTIMATE_PORT, WINDOW_PORT, MassEstimator
 from physcap_drake.physx.mass_probe import MassProbe
 from physcap_drake.physx.stiffness_estimator import (
@@ -95,7 +95,7 @@ def build_robot_stack(scenario: Scenario, meshcat: Meshcat | None = None, *,
                       make_recorder: Callable[[Diagram], LeafSystem] | None = None,
                       ) -> RobotStack:
     """Station + request path (probes and SkillExecutor) + the PhysX estimators, connected
-    through the station's port contract (the gripper commands pass a GripperCommandSelector,
+    through the station's port contract (the gripper commands pass a gripper command selector,
     so the stiffness estimator can take the gripper over while it squeezes).
 
     model: the robot's model of itself (default: the scenario's shared one). With
@@ -149,7 +149,7 @@ def build_robot_stack(scenario: Scenario, meshcat: Meshcat | None = None, *,
                     stiffness_estimator.GetInputPort(SQUEEZE_PORT))
     builder.Connect(stiffness_estimator.GetOutputPort(RESULT_PORT),
                     stiffness_probe.GetInputPort(RESULT_PORT))
-    selector = builder.AddNamedSystem("gripper_command_selector", GripperCommandSelector())
+    selector = builder.AddSystem(make_gripper_command_selector())
     for name in (ports.GRIPPER_POSITION, ports.GRIPPER_FORCE_LIMIT):
         builder.Connect(executor.GetOutputPort(name), selector.GetInputPort(f"executor.{name}"))
         builder.Connect(stiffness_estimator.GetOutputPort(name),

@@ -2,32 +2,60 @@
 
 from __future__ import annotations
 
-from pydrake.systems.framework import BasicVector, Context, LeafSystem
+from pydrake.common.value import AbstractValue
+from pydrake.systems.framework import (
+    Context,
+    Diagram,
+    DiagramBuilder,
+    InputPortIndex,
+    LeafSystem,
+)
+from pydrake.systems.primitives import PortSwitch
 
 from physcap_drake.station import ports
 
+SOURCES = ("executor", "probe")
 
-class GripperCommandSelector(LeafSystem):
+
+class _ActiveSource(LeafSystem):
+    """Turns the probe's `active` flag into the index of the switches' input to pass."""
+
+    def __init__(self, indices: dict):
+        super().__init__()
+        self._indices = indices
+        self._active = self.DeclareVectorInputPort("probe.active", 1)
+        self.DeclareAbstractOutputPort("source", lambda: AbstractValue.Make(InputPortIndex(0)),
+                                       self._source)
+
+    def _source(self, context: Context, output: AbstractValue) -> None:
+        source = "probe" if self._active.Eval(context)[0] > 0.5 else "executor"
+        output.set_value(self._indices[source])
+
+
+def make_gripper_command_selector() -> Diagram:
     """Passes the skill executor's gripper commands to the station, except while a probe's
-    `active` input is 1: then the probe's commands pass.
+    `active` input is 1: then the probe's commands pass. The commands go through Drake's
+    PortSwitch (C++: the station reads them every plant step); only a change of `active`
+    runs Python.
 
     Input ports: executor.gripper.position, executor.gripper.force_limit,
         probe.gripper.position, probe.gripper.force_limit (1 each; m and N), probe.active (1).
     Output ports: gripper.position (1, m), gripper.force_limit (1, N).
     """
-
-    def __init__(self):
-        super().__init__()
-        self._inputs = {
-            (source, name): self.DeclareVectorInputPort(f"{source}.{name}", 1)
-            for source in ("executor", "probe")
-            for name in (ports.GRIPPER_POSITION, ports.GRIPPER_FORCE_LIMIT)
-        }
-        self._active = self.DeclareVectorInputPort("probe.active", 1)
-        for name in (ports.GRIPPER_POSITION, ports.GRIPPER_FORCE_LIMIT):
-            self.DeclareVectorOutputPort(
-                name, 1, lambda context, output, name=name: self._select(context, output, name))
-
-    def _select(self, context: Context, output: BasicVector, name: str) -> None:
-        source = "probe" if self._active.Eval(context)[0] > 0.5 else "executor"
-        output.SetFromVector(self._inputs[(source, name)].Eval(context))
+    builder = DiagramBuilder()
+    switches = {}
+    for name in (ports.GRIPPER_POSITION, ports.GRIPPER_FORCE_LIMIT):
+        switch = builder.AddNamedSystem(f"{name} switch", PortSwitch(1))
+        switches[name] = switch
+        for source in SOURCES:
+            builder.ExportInput(switch.DeclareInputPort(source), f"{source}.{name}")
+        builder.ExportOutput(switch.get_output_port(), name)
+    any_switch = switches[ports.GRIPPER_POSITION]
+    indices = {source: any_switch.GetInputPort(source).get_index() for source in SOURCES}
+    active = builder.AddNamedSystem("active_source", _ActiveSource(indices))
+    builder.ExportInput(active.GetInputPort("probe.active"), "probe.active")
+    for switch in switches.values():
+        builder.Connect(active.GetOutputPort("source"), switch.get_port_selector_input_port())
+    diagram = builder.Build()
+    diagram.set_name("gripper_command_selector")
+    return diagram

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import numpy as np
 from pydrake.systems.framework import BasicVector, Context, DiscreteValues, LeafSystem
 
 from physcap_drake.station.sim_config import GripperServoConfig
@@ -61,27 +60,30 @@ class GripperServo(LeafSystem):
     def _start_at_measured(self, context: Context, state: DiscreteValues) -> None:
         state.set_value([self._finger_state.Eval(context)[0], self._force_limit_now(context)])
 
+    # The loop runs every plant step: plain float arithmetic (numpy's clip on a scalar costs
+    # more than the rest of the step).
+
     def _step(self, context: Context, state: DiscreteValues) -> None:
         s_ref = context.get_discrete_state_vector().GetAtIndex(0)
-        s_target = float(np.clip(0.5 * self._command.Eval(context)[0], 0.0, self._s_max))
+        s_target = _clamp(0.5 * self._command.Eval(context)[0], 0.0, self._s_max)
         max_step = 0.5 * self._config.max_opening_speed * self._dt
-        s_ref += float(np.clip(s_target - s_ref, -max_step, max_step))
+        s_ref += _clamp(s_target - s_ref, -max_step, max_step)
         # Anti-windup: against an object the reference stops where the force limit is
         # reached, so reopening moves the fingers at once instead of unwinding first.
         s = self._finger_state.Eval(context)[0]
         limit = self._force_limit_now(context)
         band = limit / self._config.stiffness
-        state.set_value([float(np.clip(s_ref, s - band, s + band)), limit])
+        state.set_value([_clamp(s_ref, s - band, s + band), limit])
 
     def _force_limit_now(self, context: Context) -> float:
-        return float(np.clip(self._force_limit.Eval(context)[0], 0.0, self._config.max_force))
+        return _clamp(self._force_limit.Eval(context)[0], 0.0, self._config.max_force)
 
     def _finger_force(self, context: Context) -> float:
         """f, the force each finger pushes with (positive opening), N."""
         s_ref, limit = context.get_discrete_state_vector().get_value()
         s, _, s_dot, _ = self._finger_state.Eval(context)
         force = self._config.stiffness * (s_ref - s) - self._config.damping * s_dot
-        return float(np.clip(force, -limit, limit))
+        return _clamp(force, -limit, limit)
 
     def _output_force(self, context: Context, output: BasicVector) -> None:
         output.SetAtIndex(0, 2.0 * self._finger_force(context))
@@ -92,3 +94,8 @@ class GripperServo(LeafSystem):
 
     def _output_effort(self, context: Context, output: BasicVector) -> None:
         output.SetAtIndex(0, abs(self._finger_force(context)) / self._config.max_force)
+
+
+def _clamp(value, lower: float, upper: float) -> float:
+    """`value` limited to [lower, upper], as a float (numpy.clip's result for a scalar)."""
+    return float(min(max(value, lower), upper))
