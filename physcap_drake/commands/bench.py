@@ -10,6 +10,7 @@ import typer
 from rich.table import Table
 
 from physcap_drake.bench.can_loop_bench import run_can_loop
+from physcap_drake.bench.episode_bench import SEEDS, TASKS, run_episode_bench
 from physcap_drake.bench.pick_place_bench import run_trial, summarize
 from physcap_drake.bench.station_bench import CASES, DURATION, run_station_case
 from physcap_drake.commands.common import console, save_json, sim_progress, trial_progress
@@ -83,3 +84,24 @@ def can_loop(
                   f"{result.commands_sent} commands sent")
     if json_path is not None:
         save_json(json_path, dataclasses.asdict(result))
+
+
+@app.command("episode")
+def episode(json_path: Annotated[Path | None, typer.Option(
+        "--json", help="Also write the results to this JSON file.")] = None) -> None:
+    """Robot time per wall-clock second of agent episodes: the physcap variant with the
+    reference reasoner on seeds 0-2 of each task, in this process one after the other."""
+    with trial_progress("bench episode", len(TASKS) * len(SEEDS)) as advance:
+        results = run_episode_bench(on_episode=lambda task, seed, summary: advance(
+            summary["success"]))
+    table = Table(title="physcap bench episode (physcap, reference reasoner, seeds 0-2)")
+    for column in ("task", "robot time (s)", "wall time (s)", "rtf", "cpu time (s)",
+                   "successes", "load"):
+        table.add_column(column, justify="right")
+    for r in results:
+        table.add_row(r.task, f"{r.robot_time_s:.1f}", f"{r.wall_time_s:.1f}", f"{r.rtf:.2f}",
+                      f"{r.cpu_time_s:.1f}", f"{r.successes}/{r.episodes}",
+                      f"{r.load_average:.1f}")
+    console.print(table)
+    if json_path is not None:
+        save_json(json_path, [dataclasses.asdict(r) for r in results])

@@ -1,0 +1,61 @@
+"""`physcap bench episode`: how fast agent episodes run, robot time per wall-clock second.
+
+Runs the `physcap` variant with the offline reference reasoner on a few seeds of each task,
+one episode after the other in this process (as one worker of `physcap eval` does), and
+adds up per task the robot execution time (simulated seconds spent executing skills), the
+wall time of the whole episode (building its diagram included) and the CPU time this
+process spent on it (a figure that a machine loaded by other work disturbs less).
+"""
+
+from __future__ import annotations
+
+import dataclasses as dc
+import os
+import time
+from collections.abc import Callable
+
+from physcap_drake.agent.episode_runner import run_agent_episode
+
+TASKS = ("find_blue_cube", "identify_empty_can", "pick_ripe_avocado", "empty_cup")
+SEEDS = (0, 1, 2)
+AGENT = "physcap"
+
+
+@dc.dataclass
+class EpisodeBenchResult:
+    """One task's episodes: `rtf` = robot_time_s / wall_time_s. load_average: the machine's
+    1-minute load average when the task's first episode started."""
+
+    task: str
+    robot_time_s: float
+    wall_time_s: float
+    rtf: float
+    cpu_time_s: float
+    episodes: int
+    successes: int
+    load_average: float
+
+
+def run_episode_bench(tasks=TASKS, seeds=SEEDS,
+                      on_episode: Callable[[str, int, dict], None] | None = None
+                      ) -> list[EpisodeBenchResult]:
+    """Runs the episodes; `on_episode(task, seed, summary)` hears each one as it ends."""
+    results = []
+    for task in tasks:
+        load = os.getloadavg()[0]
+        robot = wall = cpu = 0.0
+        successes = 0
+        for seed in seeds:
+            start_wall, start_cpu = time.perf_counter(), time.process_time()
+            run = run_agent_episode(task, seed, agent=AGENT, llm="reference")
+            wall += time.perf_counter() - start_wall
+            cpu += time.process_time() - start_cpu
+            summary = run.summary()
+            robot += summary["robot_time_s"]
+            successes += bool(summary["success"])
+            if on_episode is not None:
+                on_episode(task, seed, summary)
+        results.append(EpisodeBenchResult(task, round(robot, 3), round(wall, 3),
+                                          round(robot / wall, 3), round(cpu, 3), len(seeds),
+                                          successes, load))
+    return results
