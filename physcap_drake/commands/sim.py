@@ -34,6 +34,9 @@ def sim(
         "--realtime-rate", min=0.0,
         help="Pace at this multiple of real time, 0 for as fast as possible (default: 1 with "
              "--meshcat, else the scenario's simulator_config.target_realtime_rate).")] = None,
+    graphviz: Annotated[Path | None, typer.Option(
+        "--graphviz", help="Write the built diagram to this file as Graphviz dot (render it "
+                           "with `dot -Tsvg F -o F.svg`).")] = None,
 ) -> None:
     """Build the scenario's station and run it, printing sim time, wall time and the
     real-time factor."""
@@ -45,6 +48,10 @@ def sim(
         loaded.simulator_config.target_realtime_rate = realtime_rate
     viewer = make_meshcat(loaded) if (meshcat or html) else None
     diagram, _ = build_commanded_station(loaded, meshcat=viewer, sweep=wiggle, duration=seconds)
+    if graphviz is not None:
+        graphviz.parent.mkdir(parents=True, exist_ok=True)
+        graphviz.write_text(diagram.GetGraphvizString())
+        console.print(f"wrote the diagram to {graphviz}")
     clock = Clock(diagram, loaded.simulator_config)
     if viewer is not None:
         viewer.StartRecording(frames_per_second=32.0, set_visualizations_while_recording=True)

@@ -1,0 +1,62 @@
+"""`physcap sim --graphviz` and `physcap bench episode` (with a stand-in for the episodes:
+the bench's bookkeeping, not the episodes, is under test here)."""
+
+from __future__ import annotations
+
+import json
+import time
+
+import pytest
+from typer.testing import CliRunner
+
+from physcap_drake.bench import episode_bench
+from physcap_drake.cli import app
+from physcap_drake.resources import stations_dir
+
+runner = CliRunner()
+TABLE = str(stations_dir() / "piper_table.yaml")
+
+
+def test_sim_writes_the_built_diagram_as_graphviz(tmp_path):
+    dot = tmp_path / "diagram.dot"
+    result = runner.invoke(app, ["sim", "--scenario", TABLE, "--duration", "0",
+                                 "--graphviz", str(dot)])
+    assert result.exit_code == 0, result.output
+    text = dot.read_text()
+    assert text.startswith("digraph")
+    for system in ("station", "plant", "joint_target_interpolator", "gripper_servo",
+                   "arm_feedforward", "render_scene_graph"):
+        assert system in text, system
+
+
+class FakeRun:
+    def __init__(self, task: str, seed: int):
+        self._summary = {"task": task, "seed": seed, "success": seed != 1,
+                         "robot_time_s": 10.0 + seed}
+
+    def summary(self) -> dict:
+        return self._summary
+
+
+def test_bench_episode_adds_up_each_tasks_seeds(tmp_path, monkeypatch):
+    ran = []
+
+    def fake_episode(task, seed, *, agent, llm):
+        assert (agent, llm) == ("physcap", "reference")
+        ran.append((task, seed))
+        time.sleep(0.01)
+        return FakeRun(task, seed)
+
+    monkeypatch.setattr(episode_bench, "run_agent_episode", fake_episode)
+    out = tmp_path / "bench.json"
+    result = runner.invoke(app, ["bench", "episode", "--json", str(out)])
+    assert result.exit_code == 0, result.output
+    assert ran == [(task, seed) for task in episode_bench.TASKS for seed in (0, 1, 2)]
+    rows = json.loads(out.read_text())
+    assert [row["task"] for row in rows] == list(episode_bench.TASKS)
+    for row in rows:
+        assert row["robot_time_s"] == 33.0  # 10 + 11 + 12 s
+        assert row["wall_time_s"] >= 0.03
+        assert row["rtf"] == pytest.approx(33.0 / row["wall_time_s"], rel=0.02)
+        assert row["successes"] == 2 and row["episodes"] == 3
+    assert "identify_empty_can" in result.output and "rtf" in result.output
