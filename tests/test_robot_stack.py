@@ -1,0 +1,88 @@
+"""The robot stack's request path with a client inside the diagram (as the AgentSystem will
+be): a scripted client system sends its requests on its `request` output and hears the
+answers on its `status` input; the clock runs until it is done."""
+
+from __future__ import annotations
+
+import dataclasses as dc
+
+import numpy as np
+import pytest
+from pydrake.common.value import AbstractValue
+from pydrake.systems.framework import LeafSystem
+
+from physcap_drake.control.requests import (
+    MoveGripper,
+    MoveToJoints,
+    RobotRequest,
+    SkillState,
+    SkillStatus,
+    Wait,
+)
+from physcap_drake.control.skill_executor import REQUEST_PORT, STATUS_PORT
+from physcap_drake.immutable_state import Immutable
+from physcap_drake.robot_stack import REQUEST_INPUT, build_robot_stack
+
+CLIENT_PERIOD = 0.02  # s, like the AgentSystem's events
+
+
+@dc.dataclass(frozen=True)
+class Script(Immutable):
+    request: RobotRequest = RobotRequest()
+    answers: tuple[SkillStatus, ...] = ()
+
+
+class ScriptedClient(LeafSystem):
+    """Sends `actions` one at a time, each once the previous one has been answered."""
+
+    def __init__(self, actions):
+        super().__init__()
+        self._actions = tuple(actions)
+        self._status = self.DeclareAbstractInputPort(STATUS_PORT,
+                                                     AbstractValue.Make(SkillStatus()))
+        self._state = self.DeclareAbstractState(AbstractValue.Make(Script()))
+        self.DeclarePeriodicUnrestrictedUpdateEvent(CLIENT_PERIOD, 0.0, self._update)
+        self.DeclareAbstractOutputPort(
+            REQUEST_PORT, lambda: AbstractValue.Make(RobotRequest()),
+            lambda context, output: output.set_value(self.script(context).request),
+            {self.abstract_state_ticket(self._state)})
+
+    def script(self, context) -> Script:
+        return context.get_abstract_state(self._state).get_value()
+
+    def done(self, context) -> bool:
+        return len(self.script(context).answers) == len(self._actions)
+
+    def _update(self, context, state):
+        script, status = self.script(context), self._status.Eval(context)
+        answers = script.answers
+        if script.request.sequence > 0:
+            if not status.finished(script.request):
+                return
+            answers += (status,)
+        if len(answers) < len(self._actions):
+            request = RobotRequest("scripted", len(answers) + 1, self._actions[len(answers)])
+        else:
+            request = script.request
+        state.get_mutable_abstract_state(self._state).set_value(Script(request, answers))
+
+
+def test_a_client_inside_the_diagram_drives_the_robot_through_the_request_path(
+        table_scenario):
+    actions = [MoveGripper(0.05, 15.0, "open_gripper"), Wait(0.2),
+               MoveToJoints([0.0, 0.5, 3.5, 0.0, 0.0, 0.0]),  # J3 past its limit: refused
+               MoveToJoints(np.zeros(6), check_workspace=False)]
+    robot = build_robot_stack(table_scenario, make_agent=lambda station: ScriptedClient(
+        actions))
+    assert robot.request_input is None and not robot.diagram.HasInputPort(REQUEST_INPUT)
+    clock = robot.make_clock()
+    client, context = robot.agent, robot.agent.GetMyContextFromRoot(clock.context)
+    assert clock.run_until(lambda root: client.done(context), timeout=10.0)
+    answers = client.script(context).answers
+    assert [a.state for a in answers] == [SkillState.SUCCEEDED, SkillState.SUCCEEDED,
+                                          SkillState.REFUSED, SkillState.SUCCEEDED]
+    assert [a.sequence for a in answers] == [1, 2, 3, 4]
+    assert "J3 = 3.5000 rad is outside" in answers[2].message
+    assert answers[1].finished_at - answers[1].started_at == pytest.approx(0.2)
+    assert answers[-1].robot_time == pytest.approx(
+        sum(a.finished_at - a.started_at for a in answers))
