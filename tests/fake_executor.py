@@ -108,3 +108,13 @@ def assert_actions(served, expected) -> None:
                 assert value == wanted
             else:
                 np.testing.assert_allclose(value, wanted)
+
+
+def ask(diagram, clock, action, sequence: int = 1, timeout: float = 60.0):
+    """Puts `action` on `diagram`'s exported request input (as client "test"), runs `clock`
+    until the exported status output has answered it, and returns the answer."""
+    request = RobotRequest("test", sequence, action)
+    diagram.GetInputPort(REQUEST_PORT).FixValue(clock.mutable_context, request)
+    status = diagram.GetOutputPort(STATUS_PORT)
+    assert clock.run_until(lambda root: status.Eval(root).finished(request), timeout=timeout)
+    return status.Eval(clock.context)

@@ -14,6 +14,7 @@ from fake_executor import (
     SKILL_TIME,
     STROKE,
     FakeExecutor,
+    ask,
     assert_actions,
     served_log,
 )
@@ -118,12 +119,8 @@ class Rig:
     def status(self, root=None) -> SkillStatus:
         return self.diagram.GetOutputPort(STATUS_PORT).Eval(root or self.clock.context)
 
-    def ask(self, action, sequence: int = 1) -> SkillStatus:
-        request = RobotRequest("test", sequence, action)
-        self.port.FixValue(self.clock.mutable_context, request)
-        assert self.clock.run_until(lambda root: self.status(root).finished(request),
-                                    timeout=30.0)
-        return self.status()
+    def ask(self, action, sequence: int = 1):
+        return ask(self.diagram, self.clock, action, sequence)
 
     def served(self) -> tuple:
         return served_log(self.robot, self.clock.context)

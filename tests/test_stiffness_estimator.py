@@ -7,7 +7,7 @@ import math
 
 import numpy as np
 import pytest
-from fake_executor import FORCE, SKILL_TIME, STROKE, FakeExecutor, assert_actions, served_log
+from fake_executor import FORCE, SKILL_TIME, STROKE, FakeExecutor, ask, assert_actions, served_log
 from pydrake.systems.framework import BasicVector, DiagramBuilder, LeafSystem
 
 from physcap_drake.clock import Clock
@@ -106,11 +106,10 @@ class OpenGripperCommand(LeafSystem):
         output.SetAtIndex(0, self._estimator.Eval(context)[0] if active else self._opening)
 
 
-def squeeze_rig(gripper: SyntheticGripper, start_opening: float,
-                config: StiffnessProbeConfig):
-    """The estimator and the synthetic gripper, squeeze requests fixed on the exported
-    `squeeze` input, the estimator's report on the exported `result` output."""
-    builder = DiagramBuilder()
+def add_squeezing(builder: DiagramBuilder, gripper: SyntheticGripper, start_opening: float,
+                  config: StiffnessProbeConfig) -> StiffnessEstimator:
+    """Adds a StiffnessEstimator squeezing with `gripper`, which otherwise holds
+    `start_opening` (m); returns the estimator."""
     estimator = builder.AddSystem(StiffnessEstimator(config, THRESHOLDS))
     builder.AddSystem(gripper)
     hold = builder.AddSystem(OpenGripperCommand(start_opening))
@@ -123,9 +122,18 @@ def squeeze_rig(gripper: SyntheticGripper, start_opening: float,
                     gripper.GetInputPort(ports.GRIPPER_FORCE_LIMIT))
     for name in (ports.GRIPPER_POSITION_MEASURED, ports.GRIPPER_EFFORT_MEASURED):
         builder.Connect(gripper.GetOutputPort(name), estimator.GetInputPort(name))
+    builder.ExportOutput(estimator.GetOutputPort(ACTIVE_PORT), ACTIVE_PORT)
+    return estimator
+
+
+def squeeze_rig(gripper: SyntheticGripper, start_opening: float,
+                config: StiffnessProbeConfig):
+    """The estimator and the synthetic gripper, squeeze requests fixed on the exported
+    `squeeze` input, the estimator's report on the exported `result` output."""
+    builder = DiagramBuilder()
+    estimator = add_squeezing(builder, gripper, start_opening, config)
     builder.ExportInput(estimator.GetInputPort(SQUEEZE_PORT), SQUEEZE_PORT)
     builder.ExportOutput(estimator.GetOutputPort(RESULT_PORT), RESULT_PORT)
-    builder.ExportOutput(estimator.GetOutputPort(ACTIVE_PORT), ACTIVE_PORT)
     diagram = builder.Build()
     clock = Clock(diagram)
     diagram.GetInputPort(SQUEEZE_PORT).FixValue(clock.mutable_context, SqueezeRequest())
@@ -244,9 +252,7 @@ class ProbeRig:
         self.probe = builder.AddSystem(StiffnessProbe(gripper_stroke=STROKE,
                                                       grasp_force=FORCE))
         self.executor = builder.AddSystem(FakeExecutor(np.zeros(6)))
-        estimator = builder.AddSystem(StiffnessEstimator(config, THRESHOLDS))
-        builder.AddSystem(gripper)
-        hold = builder.AddSystem(OpenGripperCommand(0.07))
+        estimator = add_squeezing(builder, gripper, 0.07, config)
         builder.Connect(self.probe.GetOutputPort(REQUEST_PORT),
                         self.executor.GetInputPort(REQUEST_PORT))
         builder.Connect(self.executor.GetOutputPort(STATUS_PORT),
@@ -255,30 +261,15 @@ class ProbeRig:
                         estimator.GetInputPort(SQUEEZE_PORT))
         builder.Connect(estimator.GetOutputPort(RESULT_PORT), self.probe.GetInputPort(
             RESULT_PORT))
-        builder.Connect(estimator.GetOutputPort(ports.GRIPPER_POSITION),
-                        hold.GetInputPort("estimator"))
-        builder.Connect(estimator.GetOutputPort(ACTIVE_PORT), hold.GetInputPort(ACTIVE_PORT))
-        builder.Connect(hold.GetOutputPort(ports.GRIPPER_POSITION),
-                        gripper.GetInputPort(ports.GRIPPER_POSITION))
-        builder.Connect(estimator.GetOutputPort(ports.GRIPPER_FORCE_LIMIT),
-                        gripper.GetInputPort(ports.GRIPPER_FORCE_LIMIT))
-        for name in (ports.GRIPPER_POSITION_MEASURED, ports.GRIPPER_EFFORT_MEASURED):
-            builder.Connect(gripper.GetOutputPort(name), estimator.GetInputPort(name))
         builder.ExportInput(self.probe.GetInputPort(REQUEST_PORT), REQUEST_PORT)
         builder.ExportOutput(self.probe.GetOutputPort(STATUS_PORT), STATUS_PORT)
-        builder.ExportOutput(estimator.GetOutputPort(ACTIVE_PORT), ACTIVE_PORT)
         self.diagram = builder.Build()
         self.clock = Clock(self.diagram)
         self.port = self.diagram.GetInputPort(REQUEST_PORT)
         self.port.FixValue(self.clock.mutable_context, RobotRequest())
 
-    def ask(self, action, sequence: int = 1, timeout: float = 60.0):
-        request = RobotRequest("test", sequence, action)
-        self.port.FixValue(self.clock.mutable_context, request)
-        status = self.diagram.GetOutputPort(STATUS_PORT)
-        assert self.clock.run_until(lambda root: status.Eval(root).finished(request),
-                                    timeout=timeout)
-        return status.Eval(self.clock.context)
+    def ask(self, action, sequence: int = 1):
+        return ask(self.diagram, self.clock, action, sequence)
 
 
 def test_get_stiffness_is_one_request_that_squeezes_between_approach_and_retreat():
