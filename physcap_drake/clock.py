@@ -88,6 +88,11 @@ class Clock:
         goes)."""
         return self._simulator.get_target_realtime_rate()
 
+    def set_realtime_rate(self, rate: float) -> None:
+        """Paces the runs from now on at `rate` simulated seconds per wall-clock second at
+        most (0: as fast as it goes), e.g. 1 for someone watching in Meshcat."""
+        self._simulator.set_target_realtime_rate(rate)
+
     def run_for(self, duration: float,
                 on_progress: Callable[[float], None] | None = None) -> RunTiming:
         """Runs `duration` s of simulated time; `on_progress(elapsed s)` is called every

@@ -60,7 +60,9 @@ def test_run_until_gives_up_at_the_timeout_and_does_not_run_when_already_true():
 
 
 def test_a_paced_run_does_not_make_up_for_a_pause():
-    clock = Clock(Counter(), SimulatorConfig(target_realtime_rate=1.0))
+    clock = Clock(Counter(), SimulatorConfig(target_realtime_rate=2.0))
+    assert clock.realtime_rate == 2.0
+    clock.set_realtime_rate(1.0)
     assert clock.realtime_rate == 1.0
     clock.run_for(0.1)
     time.sleep(0.3)  # a model answering: the simulated time stands still meanwhile
