@@ -18,9 +18,15 @@ import numpy as np
 import pytest
 
 from physcap_drake.agent.sandbox import (
+    ApiFunction,
     CodeOutcome,
     CodeRejected,
+    FunctionSpec,
+    Number,
+    OrNone,
     SandboxLimits,
+    Text,
+    Vector,
     check_code,
     lockdown,
     protocol,
@@ -89,9 +95,18 @@ class FakeRobot:
         raise WeirdError("a class the code cannot know")
 
     def api(self) -> dict:
-        return {name: getattr(self, name) for name in
-                ("goto_pose", "get_mass", "get_object_pose", "breakpoint_code_block", "sleep",
-                 "explode", "weird")}
+        """goto_pose and get_mass with parameter kinds (as the robot API declares them), the
+        rest checked as plain values."""
+        table = {name: getattr(self, name) for name in
+                 ("get_object_pose", "breakpoint_code_block", "sleep", "explode", "weird")}
+        table["goto_pose"] = ApiFunction(self.goto_pose, FunctionSpec.of(
+            "goto_pose", self.goto_pose, {"position": Vector(3),
+                                          "quaternion_wxyz": OrNone(Vector(4)),
+                                          "z_approach": Number()}, motion=True))
+        table["get_mass"] = ApiFunction(self.get_mass, FunctionSpec.of(
+            "get_mass", self.get_mass, {"position": Vector(3), "name": OrNone(Text(120))},
+            motion=True))
+        return table
 
 
 @pytest.fixture
@@ -195,15 +210,22 @@ def test_exception_in_a_function_reports_the_innermost_generated_line(robot):
     assert outcome.stdout == "before\n"
 
 
-def test_nan_and_inf_survive_both_directions(robot):
+def test_nan_and_inf_reach_the_code_but_never_the_api(robot):
     code = ("p = get_object_pose('ghost')\n"
             "print(np.isnan(p[0]), np.isposinf(p[1]), np.isneginf(p[2]))\n"
-            "get_mass([float('nan'), float('inf'), -float('inf')])\n")
+            "try:\n"
+            "    get_mass([0.3, float('inf'), 0.0])\n"
+            "except ValueError as error:\n"
+            "    print('refused:', error)\n"
+            "get_mass([float('nan'), 0.0, 0.0])\n")
     outcome = run(code, robot)
-    assert outcome.ok, outcome.error
     assert "True True True" in outcome.stdout
-    sent = robot.calls[-1][1][0]
-    assert np.isnan(sent[0]) and sent[1] == float("inf") and sent[2] == -float("inf")
+    assert "refused: get_mass(): position must hold finite numbers, got [0.3, inf, 0.0]" in (
+        outcome.stdout)
+    assert outcome.kind == "exception"
+    assert outcome.error.startswith("ValueError at line 7: get_mass(): position must hold "
+                                    "finite numbers, got [nan, 0.0, 0.0]")
+    assert [name for name, _ in robot.calls] == ["get_object_pose"]
 
 
 def test_breakpoint_code_block_is_allowed_but_breakpoint_is_not(robot):

@@ -35,6 +35,11 @@ from typing import Any
 import numpy as np
 
 MAX_MESSAGE_BYTES = 1 << 20
+#: Bounds of what the child reports, kept by the child and checked by the parent: the class
+#: name and message of an exception, and the text of one "out" message (characters).
+MAX_ERROR_TYPE_CHARS = 100
+MAX_ERROR_MESSAGE_CHARS = 2000
+MAX_OUT_CHARS = 50_000
 # Exit codes of the child for its own failures (not the code's): setup before the code ran
 # failed, or the parent went away mid-conversation.
 EXIT_SETUP_FAILED = 87
