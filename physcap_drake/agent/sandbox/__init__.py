@@ -20,6 +20,7 @@ from .signatures import (
     FunctionSpec,
     Number,
     OrNone,
+    ParameterKind,
     PlainValue,
     Refused,
     Text,
@@ -27,6 +28,6 @@ from .signatures import (
 )
 
 __all__ = ["ApiFunction", "BlockBudget", "Call", "CodeOutcome", "CodeRejected", "FunctionSpec",
-           "Meters", "Number", "OrNone", "OutcomeKind", "PlainValue", "Refused",
+           "Meters", "Number", "OrNone", "OutcomeKind", "ParameterKind", "PlainValue", "Refused",
            "SandboxLimits", "SandboxSession", "Stop", "Text", "Vector", "check_code",
            "run_sandboxed"]

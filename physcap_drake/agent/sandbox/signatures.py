@@ -77,7 +77,7 @@ def _is_number(value: Any) -> bool:
 def _as_float(number: int | float) -> float:
     """The number as a float; integers beyond the float range become infinities."""
     if isinstance(number, int) and abs(number) >= 1e308:
-        return math.copysign(math.inf, number)
+        return math.inf if number > 0 else -math.inf
     return float(number)
 
 
