@@ -757,13 +757,30 @@ def test_sysv_ipc_and_other_unmetered_kernel_memory_are_denied(robot):
         "      attempt('semget', lambda: libc.semget(0, 1, IPC_CREAT | 0o600)),\n"
         "      attempt('memfd', lambda: os.memfd_create('x')),\n"
         "      attempt('pipe', os.pipe),\n"
-        "      attempt('mlock', lambda: libc.mlockall(3)))\n"
+        "      attempt('mlock', lambda: libc.mlockall(3)),\n"
+        "      attempt('getcwd', os.getcwd),\n"
+        "      attempt('unknown', lambda: libc.syscall(1000)))\n"
     )
     outcome = run_raw(code, robot)
     assert outcome.ok, outcome.error
     assert "seccomp" in outcome.isolation
+    # errno 1 is EPERM; harmless but unlisted calls (getcwd) and calls no kernel knows yet
+    # (which would fail with ENOSYS) are refused the same way: the list fails closed
     assert outcome.stdout.split() == ["shmget:-1:1", "msgget:-1:1", "semget:-1:1", "memfd:1",
-                                      "pipe:1", "mlock:-1:1"]
+                                      "pipe:1", "mlock:-1:1", "getcwd:1", "unknown:-1:1"]
+
+
+def test_the_allow_list_names_real_system_calls_on_x86_64_and_aarch64():
+    """libseccomp resolves each name per architecture; a misspelt name would silently allow
+    nothing. aarch64 has no time() (its C library uses clock_gettime)."""
+    import pyseccomp
+
+    for arch, missing in ((pyseccomp.Arch.X86_64, set()), (pyseccomp.Arch.AARCH64, {"time"})):
+        unknown = {name for name in (*seccomp.ALLOWED, seccomp.READ_ONLY_PRLIMIT)
+                   if pyseccomp.resolve_syscall(arch, name) < 0}
+        assert unknown == missing, arch
+    assert not {"shmget", "shmat", "msgget", "semget", "memfd_create", "pipe2", "socket",
+                "clone", "openat", "ioctl"} & set(seccomp.ALLOWED)
 
 
 def test_a_fatal_api_error_stops_the_code_at_once(robot):
@@ -810,3 +827,9 @@ def test_the_parents_own_oversized_replies_are_its_errors(robot):
     assert first.startswith("huge_result() returned a value the sandbox cannot hand to the "
                             "code: message of")
     assert 1900 < int(second.split()[0]) <= 2000 and second.endswith("characters cut]")
+
+
+def test_any_code_the_static_check_accepts_fits_in_the_start_message(robot):
+    code = "# " + "\U0001F600" * 99_000 + "\nprint('ran')\n"  # 1.2 MB as escaped JSON
+    outcome = run(code, robot)
+    assert outcome.ok and outcome.stdout == "ran\n", outcome.error

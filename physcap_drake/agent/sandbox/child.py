@@ -50,7 +50,8 @@ def main() -> None:
     """Run one piece of generated code as the parent asks; never returns."""
     proto_in, proto_out = _claim_pipes()
     try:
-        session = _Session(proto_in, proto_out, protocol.read_message(proto_in))
+        session = _Session(proto_in, proto_out,
+                           protocol.read_message(proto_in, protocol.MAX_START_BYTES))
         session.lock_down()
     except BaseException:  # noqa: BLE001 - any setup failure ends the child; stderr says why
         traceback.print_exc()

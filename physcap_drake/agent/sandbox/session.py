@@ -18,8 +18,9 @@ are checked before and after every call, from the owner's `Meters`. Time spent b
 `next_call` returning a call and its answer is the owner's (not counted as the code's
 computing time; counted in the block's total wall time).
 
-What the parent sends is its own responsibility: a start message too large to send rejects
-the code with that reason; a result that cannot be sent, or an oversized error message, is
+What the parent sends is its own responsibility: the start message has room for any code the
+static check accepts (a larger one, possible only without the check, is rejected with that
+reason); a result that cannot be sent, or an oversized error message, is
 answered as a RuntimeError or cut short; none of these is ever blamed on the child.
 """
 
@@ -123,7 +124,7 @@ class SandboxSession:
                  "limits": {"cpu_s": self._limits.cpu_s, "memory_mb": self._limits.memory_mb,
                             "max_output_chars": self._limits.max_output_chars}}
         try:
-            frame = protocol.pack(start)
+            frame = protocol.pack(start, protocol.MAX_START_BYTES)
         except protocol.ProtocolError as error:
             return self._end("rejected", f"code rejected: the code is too large to hand to the "
                              f"sandbox ({error}; characters beyond ASCII take 6 to 12 bytes "
