@@ -69,13 +69,15 @@ class CodeAPI:
         names = MOTION_FUNCTIONS + (PHYSX_FUNCTIONS if physx else ())
         self._functions: dict[str, Callable] = {name: getattr(api, name) for name in names}
         self._functions["breakpoint_code_block"] = breakpoint_code_block
+        # Built here, so a RobotAPI signature that PARAMETER_KINDS does not match fails now.
+        self._table = {name: ApiFunction(_plain_results(function), spec_of(name, function))
+                       for name, function in self._functions.items()}
 
     def functions(self) -> dict[str, ApiFunction]:
         """name -> the function (numpy results turned into lists for the RPC) with the spec
         its calls are checked against (the RobotAPI method's signature and
         PARAMETER_KINDS)."""
-        return {name: ApiFunction(_plain_results(function), spec_of(name, function))
-                for name, function in self._functions.items()}
+        return dict(self._table)
 
     def names(self) -> list[str]:
         return list(self._functions)
