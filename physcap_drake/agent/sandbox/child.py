@@ -2,7 +2,7 @@
 
 Started by `runner` through a tiny bootstrap that loads this folder as a standalone package,
 so neither drake nor the rest of physcap_drake is ever imported here: only the standard
-library, numpy and the sandbox's own small modules. The steps:
+library, numpy, pyseccomp (for the syscall filter) and the sandbox's own small modules. The steps:
 
 1. Move the protocol pipes off fds 0 and 1 and put /dev/null there, so nothing that writes to
    stdout (numpy's own print calls, C code) can corrupt the protocol.
