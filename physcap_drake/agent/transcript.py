@@ -79,23 +79,26 @@ def markdown_header(title: str, instruction: str = "") -> str:
 
 
 def entry_markdown(entry: TranscriptEntry) -> str:
-    """One entry as a markdown paragraph (ending in a blank line)."""
+    """One entry as markdown: paragraphs separated, and ended, by a blank line."""
     at = f"(robot time {entry.robot_time_s:.1f} s)"
     kind, data = entry.kind, entry.data
     if kind == "code":
-        thought = data.get("thought", "")
-        lines = [f"**Thought:** {thought.strip()}", ""] if thought else []
-        lines += ["```python", f"# Code block {entry.step}", entry.text.rstrip(), "```"]
+        thought = data.get("thought", "").strip()
+        code = f"```python\n# Code block {entry.step}\n{entry.text.rstrip()}\n```"
+        blocks = [f"**Thought:** {thought}", code] if thought else [code]
     elif kind == "planner" and "sufficient" in data:
-        lines = [f"**Planner** {at}: {_verdict(data)}", "", *_planner_tables(data)]
+        blocks = [f"**Planner** {at}: {_verdict(data)}", *_planner_blocks(data)]
     elif kind == "prioritizer" and "scored_candidates" in data:
-        lines = [f"**Prioritizer** {at}:", "", *_priority_table(data)]
-    elif kind in ("output", "observation"):
-        lines = [f"**{kind.capitalize()}** {at}:", "", "```", entry.text.rstrip(), "```"]
+        blocks = [f"**Prioritizer** {at}:", _priority_table(data)]
+    elif kind == "observation":  # "objects in view:" and a markdown list, one per object
+        first, _, rest = entry.text.strip().partition("\n")
+        blocks = [f"**Observation** {at}: {first}", *([rest] if rest else [])]
+    elif kind == "output":
+        blocks = [f"**Output** {at}:", f"```\n{entry.text.rstrip()}\n```"]
     else:
         label = {"measurement": "Measured", "result": "Result"}.get(kind, kind.capitalize())
-        lines = [f"**{label}** {at}: {entry.text.strip()}"]
-    return "\n".join(lines) + "\n\n"
+        blocks = [f"**{label}** {at}: {entry.text.strip()}"]
+    return "\n\n".join(blocks) + "\n\n"
 
 
 def outcome_markdown(summary: dict[str, Any]) -> str:
@@ -121,30 +124,30 @@ def _verdict(plan: dict) -> str:
     return f"{enough}: {plan.get('reason', '').strip()}"
 
 
-def _planner_tables(plan: dict) -> list[str]:
-    lines = []
+def _planner_blocks(plan: dict) -> list[str]:
+    blocks = []
     central = plan.get("central_objects") or []
     if central:
-        lines += ["Central objects: " + "; ".join(
+        blocks.append("Central objects: " + "; ".join(
             f"{o['name']} ({', '.join(o.get('required_properties', [])) or '-'})"
-            for o in central), ""]
+            for o in central))
     candidates = plan.get("exploration_candidates") or []
     if candidates:
-        lines.append(_table(("candidate", "action", "reveals", "cost"), [
+        blocks.append(_table(("candidate", "action", "reveals", "cost"), [
             (c["name"], call_signature(c), c.get("expected_info", ""),
              c.get("estimated_cost", "")) for c in candidates]))
     if plan.get("ordering_reason"):
-        lines.append(f"Order: {plan['ordering_reason']}")
-    return lines
+        blocks.append(f"Order: {plan['ordering_reason']}")
+    return blocks
 
 
-def _priority_table(answer: dict) -> list[str]:
+def _priority_table(answer: dict) -> str:
     scores = {s["name"]: s for s in answer["scored_candidates"]}
     order = [c["name"] for c in answer.get("prioritized_candidates", [])] or list(scores)
     rows = [(str(rank), name, f"{scores[name]['priority_score']:.1f}",
              scores[name].get("reason", "")) for rank, name in enumerate(order, start=1)
             if name in scores]
-    return [_table(("order", "candidate", "score", "reason"), rows)]
+    return _table(("order", "candidate", "score", "reason"), rows)
 
 
 def call_signature(candidate: dict) -> str:
@@ -160,7 +163,7 @@ def _table(header: tuple[str, ...], rows: list[tuple[str, ...]]) -> str:
 
     lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
     lines += ["| " + " | ".join(cell(value) for value in row) + " |" for row in rows]
-    return "\n".join(lines) + "\n"
+    return "\n".join(lines)
 
 
 # --- plain text (the console) ----------------------------------------------------------------

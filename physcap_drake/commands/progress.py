@@ -1,4 +1,4 @@
-"""Progress of long work: a bar on a terminal, plain lines otherwise.
+"""Progress of long work: a bar on a terminal, plain lines otherwise; and a heartbeat.
 
 A rich progress bar draws nothing useful when the output is a pipe or a log file (it shows
 up, if at all, when the work is over), so off a terminal `ProgressReport` prints one line when
@@ -8,13 +8,21 @@ the end; each says how far it got, the time spent and the time left at the pace 
 
 from __future__ import annotations
 
+import threading
 import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 
 from rich.console import Console
 from rich.markup import escape
-from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
+from rich.progress import (
+    BarColumn,
+    Progress,
+    SpinnerColumn,
+    TextColumn,
+    TimeElapsedColumn,
+    TimeRemainingColumn,
+)
 
 #: Wall-clock seconds between two progress lines when the output is not a terminal.
 LINE_INTERVAL_S = 10.0
@@ -119,3 +127,40 @@ def trial_progress(console: Console, description: str, total: int
             report.advance(note=f"{successes} ok")
 
         yield advance
+
+
+class Heartbeat:
+    """Shows that work goes on while nothing else is printed (a code block moving the robot
+    for a while): between `start(what)` and `stop()`, a spinner with the time elapsed on a
+    terminal, otherwise a line `what (N s)` every `interval_s` of wall time."""
+
+    def __init__(self, console: Console, interval_s: float = LINE_INTERVAL_S):
+        self._console, self._interval = console, interval_s
+        self._bar: Progress | None = None
+        self._stopped: threading.Event | None = None
+
+    def start(self, what: str) -> None:
+        self.stop()
+        if self._console.is_terminal:
+            self._bar = Progress(SpinnerColumn(), TextColumn(escape(what)),
+                                 TimeElapsedColumn(), console=self._console, transient=True)
+            self._bar.add_task(what, total=None)
+            self._bar.start()
+            return
+        stopped = self._stopped = threading.Event()
+        started = time.monotonic()
+
+        def beat() -> None:
+            while not stopped.wait(self._interval):
+                self._console.print(f"  {what} ({time.monotonic() - started:.0f} s)",
+                                    markup=False, highlight=False)
+
+        threading.Thread(target=beat, name="heartbeat", daemon=True).start()
+
+    def stop(self) -> None:
+        if self._bar is not None:
+            self._bar.stop()
+            self._bar = None
+        if self._stopped is not None:
+            self._stopped.set()
+            self._stopped = None

@@ -33,6 +33,7 @@ from physcap_drake.agent.transcript import TranscriptEntry, entry_markdown, mark
 from physcap_drake.recording.git_state import git_state
 from physcap_drake.recording.mcap_sink import McapSink
 from physcap_drake.sim_runner import save_meshcat_html
+from physcap_drake.station.view import frame_on_table
 from physcap_drake.tasks.registry import get_task
 
 MCAP_FILE = "episode.mcap"
@@ -82,8 +83,11 @@ class _Appender:
 
 
 def record_episode(folder: str | Path, task: str, seed: int, *, meshcat_html: bool = False,
-                   overwrite: bool = False, **options) -> AgentRun:
+                   overwrite: bool = False, contact_forces: bool = False,
+                   **options) -> AgentRun:
     """Runs one episode (see `run_agent_episode`; `options` go to it) and writes its folder.
+    A Meshcat view (`meshcat`, or the one made for `meshcat_html`) is framed on the table,
+    with the contact forces shown only if `contact_forces`.
 
     Raises FileExistsError if the folder already holds a recording and not `overwrite`.
     """
@@ -107,6 +111,13 @@ def record_episode(folder: str | Path, task: str, seed: int, *, meshcat_html: bo
     _also_on_record(client, lambda record: calls_file.add(
         json.dumps(record.to_json(), ensure_ascii=False) + "\n"))
     listener = options.pop("on_entry", None)
+    then = options.pop("on_start", None)
+
+    def on_start(episode) -> None:
+        if meshcat is not None:
+            frame_on_table(meshcat, contact_forces=contact_forces)
+        if then is not None:
+            then(episode)
 
     def on_entry(entry: TranscriptEntry) -> None:
         transcript_file.add(entry_markdown(entry))
@@ -116,7 +127,7 @@ def record_episode(folder: str | Path, task: str, seed: int, *, meshcat_html: bo
     sink = McapSink(folder / MCAP_FILE, overwrite=True)
     try:
         run = run_agent_episode(task, seed, meshcat=meshcat, sink=sink, on_entry=on_entry,
-                                client=client, **options)
+                                on_start=on_start, client=client, **options)
     except BaseException as error:
         transcript_file.add(f"**Stopped:** {type(error).__name__}: {error}\n")
         write_json(folder / ERROR_FILE, {

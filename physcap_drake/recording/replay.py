@@ -108,8 +108,10 @@ def transcript_markdown(recording: Recording) -> str:
     transcript = Transcript()
     transcript.entries = [TranscriptEntry(**m.value) for m in
                           recording.on(topics.AGENT_TRANSCRIPT)]
-    task = recording.metadata.get(topics.EPISODE_METADATA, {}).get("task", "")
+    meta = recording.metadata.get(topics.EPISODE_METADATA, {})
+    task = meta.get("task", "")
+    title = (f"{task}, seed {meta.get('seed')}, agent {meta.get('agent')}" if task else
+             f"Transcript of {recording.path.name}")
     summaries = recording.on(topics.EPISODE_SUMMARY)
-    return transcript.as_markdown(f"Transcript of {recording.path.name}",
-                                  TASKS[task].prompt if task in TASKS else "",
+    return transcript.as_markdown(title, TASKS[task].prompt if task in TASKS else "",
                                   summaries[-1].value if summaries else None)
