@@ -71,12 +71,11 @@ def load_scenario_or_exit(path: Path) -> Scenario:
 
 def make_meshcat(scenario: Scenario | None = None, *, live: bool) -> Meshcat:
     """Drake's Meshcat, with the scenario's server parameters (localhost by default); its
-    address is printed when someone is to look at it `live`, and only then (Drake's own
-    "listening" line included): an HTML file needs no server address."""
+    address is printed (once: Drake's own "listening" log line is held back) when someone
+    is to look at it `live`, and only then: an HTML file needs no server address."""
     drake_log = logging.getLogger("drake")
     level = drake_log.level
-    if not live:
-        drake_log.setLevel(logging.WARNING)
+    drake_log.setLevel(logging.WARNING)
     try:
         meshcat = Meshcat() if scenario is None else Meshcat(scenario.meshcat)
     finally:
