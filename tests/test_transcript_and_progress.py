@@ -4,12 +4,14 @@ output is not a terminal."""
 from __future__ import annotations
 
 import io
+import re
+import time
 
 from rich.console import Console
 
 from physcap_drake.agent.schemas import PlannerAnswer, PrioritizerAnswer
 from physcap_drake.agent.transcript import Transcript, entry_text
-from physcap_drake.commands.progress import ProgressReport
+from physcap_drake.commands.progress import Heartbeat, ProgressReport
 
 CANDIDATES = [
     {"name": "red can", "action": "get_mass", "description": "Weigh it.",
@@ -91,3 +93,15 @@ def test_progress_off_a_terminal_prints_lines_with_time_left():
     assert lines[1] == "get_mass: 10/100 trials, ok, 10s elapsed, about 1m30s left"
     assert lines[3] == "get_mass: 30/100 trials, ok, 30s elapsed, about 1m10s left"
     assert len(lines) == 4  # the last update already printed the final state
+
+
+def test_heartbeat_off_a_terminal_says_the_block_still_runs():
+    out = io.StringIO()
+    heartbeat = Heartbeat(Console(file=out, force_terminal=False), interval_s=0.01)
+    heartbeat.start("code block 1 running")
+    deadline = time.monotonic() + 10.0
+    while "code block 1 running (" not in out.getvalue() and time.monotonic() < deadline:
+        time.sleep(0.01)
+    heartbeat.stop()
+    first = out.getvalue().splitlines()[0]
+    assert re.fullmatch(r"  code block 1 running \(\d+ s\)", first), first
