@@ -26,7 +26,12 @@ from physcap_drake.commands import (
     sim,
     task,
 )
-from physcap_drake.commands.common import error_console, exit_2_on_bad_input, fail
+from physcap_drake.commands.common import (
+    BAD_INPUT,
+    error_console,
+    exit_2_on_bad_input,
+    print_error,
+)
 
 try:  # newer typer releases carry their own copy of click
     from typer._click.exceptions import NoArgsIsHelpError, UsageError
@@ -106,10 +111,8 @@ def main(argv: list[str] | None = None) -> None:
         code = 0
     except UsageError as error:
         where = f" (see '{error.ctx.command_path} --help')" if error.ctx is not None else ""
-        try:
-            fail(error.format_message() + where)
-        except typer.Exit as exit_:
-            code = exit_.exit_code
+        print_error(error.format_message() + where)
+        code = BAD_INPUT
     except (typer.Abort, KeyboardInterrupt):
         error_console.print("[bold red]interrupted[/]")
         code = 130

@@ -29,10 +29,15 @@ error_console = Console(stderr=True, soft_wrap=True)
 BAD_INPUT = 2
 
 
-def fail(message: str, code: int = BAD_INPUT) -> NoReturn:
-    """Prints `error: <message>` as one line on stderr and exits with `code`."""
+def print_error(message: str) -> None:
+    """Prints `error: <message>` as one line on stderr."""
     error_console.print(f"[bold red]error:[/] {escape(' '.join(message.split()))}",
                         highlight=False)
+
+
+def fail(message: str, code: int = BAD_INPUT) -> NoReturn:
+    """Prints `error: <message>` as one line on stderr and exits with `code`."""
+    print_error(message)
     raise typer.Exit(code=code)
 
 
