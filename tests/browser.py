@@ -77,3 +77,12 @@ def meshcat_image(page: Path, chromium: str, workdir: Path, size: tuple[int, int
     data_url = _probe(page, chromium, workdir, f"viewer.capture_image({size[0]}, {size[1]})")
     png = base64.b64decode(data_url.split(",", 1)[1])
     return cv2.imdecode(np.frombuffer(png, np.uint8), cv2.IMREAD_COLOR)
+
+
+def meshcat_visibility(page: Path, path: str) -> set[bool]:
+    """The values a Meshcat HTML file's commands give the `visible` property of `path`
+    (decoded from the msgpack commands the page carries: 0xc2 is false, 0xc3 true)."""
+    commands = b"".join(base64.b64decode(blob) for blob in re.findall(
+        r"data:application/octet-binary;base64,([A-Za-z0-9+/=]+)", page.read_text()))
+    visible = re.escape(path.encode()) + rb"\xa8property\xa7visible\xa5value([\xc2\xc3])"
+    return {value == b"\xc3" for value in re.findall(visible, commands)}

@@ -15,7 +15,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 import pytest
-from browser import find_chromium, meshcat_scene_tree
+from browser import find_chromium, meshcat_scene_tree, meshcat_visibility
 from jsonschema import Draft202012Validator
 from mcap.reader import NonSeekingReader, make_reader
 from pydrake.geometry import Meshcat
@@ -181,6 +181,9 @@ def test_meshcat_html_shows_the_arm_in_headless_chromium(episode_folder, tmp_pat
     assert "piper" in illustration and "piper_gripper" in illustration
     assert len(illustration["piper"]) >= 6  # the arm's links
     assert "red_can" in illustration
+    # framed on the table: no contact-force arrows unless asked for
+    assert meshcat_visibility(episode_folder / "meshcat.html", "/drake/contact_forces") == {
+        False}
 
 
 def test_replay_rebuilds_the_motion_from_the_mcap(episode_folder, recording):
