@@ -48,9 +48,13 @@ def run(task: Annotated[str, typer.Option("--task", help=f"One of: {', '.join(TA
             "--record", help="Save the model calls as JSON Lines (replay with "
                              "--llm replay:FILE).")] = None,
         pointer: Annotated[str, typer.Option(
-            "--pointer", help="How get_object_pose finds objects: offline (simulated "
-                              "segmenter) or vlm (the model points; needs an image model).")
-                           ] = "offline",
+            "--pointer", help="How get_object_pose finds objects: offline (phrases resolved "
+                              "against the perceived objects) or vlm (the model points; "
+                              "needs an image model).")] = "offline",
+        perception: Annotated[str, typer.Option(
+            "--perception", help="What sees the objects: rgbd (colour and depth images "
+                                 "alone, the camera emulated as a RealSense in simulation) "
+                                 "or label (the simulator's perfect segmenter).")] = "label",
         quiet: Annotated[bool, typer.Option("--quiet", help="Print only the summary.")] = False,
         out: Annotated[Path | None, typer.Option(
             "--out", help="Write the episode's folder here: episode.mcap (open it in "
@@ -77,7 +81,8 @@ def run(task: Annotated[str, typer.Option("--task", help=f"One of: {', '.join(TA
     if viewer is not None and meshcat:
         console.print(f"Meshcat is at {viewer.web_url()}")
     options = dict(agent=agent, llm=llm, model=model, meshcat=viewer, pointer=pointer,
-                   scenario_file=scenario, on_entry=None if quiet else _print_entry)
+                   perception=perception, scenario_file=scenario,
+                   on_entry=None if quiet else _print_entry)
     try:
         if out is None:
             result = run_agent_episode(task, seed, **options)
