@@ -82,7 +82,7 @@ def run_agent_episode(task: str, seed: int, *, agent: str = "physcap", llm: str 
                       robot_time_limit: float = ROBOT_TIME_LIMIT,
                       pointer: str = "offline", sink: McapSink | None = None,
                       scenario_file: str | Path | None = None,
-                      perception: str = "label") -> AgentRun:
+                      perception: str = "label", judge: str = "simulator") -> AgentRun:
     """Runs one episode of `task` with layout `seed`. `llm` is a backend spec (see
     physcap_drake.agent.llm.factory); `client` overrides it with a ready client (it should
     be a RecordingClient for the calls to be reported). `on_entry` hears each transcript
@@ -93,13 +93,14 @@ def run_agent_episode(task: str, seed: int, *, agent: str = "physcap", llm: str 
     closes the sink. `scenario_file` replaces the task's own scenario (e.g. the same scene
     with `station: !PiperCan`); a CAN station is released when the episode ends.
     `perception`: "rgbd" (from the colour and depth images alone) or "label" (the
-    simulator's perfect segmenter); see tasks.episode."""
+    simulator's perfect segmenter); `judge`: "simulator" (ground truth) or "perception"
+    (the final camera view); see tasks.episode."""
     if pointer not in ("offline", "vlm"):
         raise ValueError(f"pointer must be 'offline' or 'vlm', got {pointer!r}")
     variant = load_variant(agent)
     client = client or make_llm(llm, model, seed=seed)
     episode = make_episode(task, seed, meshcat=meshcat, with_agent=True, sink=sink,
-                           scenario_file=scenario_file, perception=perception)
+                           scenario_file=scenario_file, perception=perception, judge=judge)
     if pointer == "vlm":
         episode.api.use_locator(ObjectLocator(episode.api.locator.perception,
                                               VlmPointer(pointer_ask(client))))

@@ -55,6 +55,9 @@ def run(task: Annotated[str, typer.Option("--task", help=f"One of: {', '.join(TA
             "--perception", help="What sees the objects: rgbd (colour and depth images "
                                  "alone, the camera emulated as a RealSense in simulation) "
                                  "or label (the simulator's perfect segmenter).")] = "label",
+        judge: Annotated[str, typer.Option(
+            "--judge", help="Who decides success: simulator (ground truth) or perception "
+                            "(the final camera view).")] = "simulator",
         quiet: Annotated[bool, typer.Option("--quiet", help="Print only the summary.")] = False,
         out: Annotated[Path | None, typer.Option(
             "--out", help="Write the episode's folder here: episode.mcap (open it in "
@@ -81,7 +84,7 @@ def run(task: Annotated[str, typer.Option("--task", help=f"One of: {', '.join(TA
     if viewer is not None and meshcat:
         console.print(f"Meshcat is at {viewer.web_url()}")
     options = dict(agent=agent, llm=llm, model=model, meshcat=viewer, pointer=pointer,
-                   perception=perception, scenario_file=scenario,
+                   perception=perception, judge=judge, scenario_file=scenario,
                    on_entry=None if quiet else _print_entry)
     try:
         if out is None:

@@ -6,13 +6,16 @@ import numpy as np
 from pydrake.math import RigidTransform
 from pydrake.systems.sensors import CameraConfig
 
+from physcap_drake.station.camera_intrinsics import rendered_intrinsics
+
 
 class CameraGeometry:
     """The calibrated camera: its intrinsics and its pose in the world (the extrinsics X_WC,
     the colour camera's optical frame C in the world).
 
-    Pixel (u, v): column and row, the origin at the top-left pixel's centre. Depth: metres
-    along the optical axis (the camera frame's +z; +x right, +y down in the image).
+    Pixel (u, v): column and row, the origin at the top-left pixel's centre (OpenCV's and
+    librealsense's convention). Depth: metres along the optical axis (the camera frame's +z;
+    +x right, +y down in the image).
     """
 
     def __init__(self, width: int, height: int, fx: float, fy: float, cx: float, cy: float,
@@ -31,10 +34,10 @@ class CameraGeometry:
                 config.X_BD.GetDeterministicValue()):
             raise ValueError(f"camera '{config.name}': the colour and depth cameras must share "
                              "one pose (X_BC == X_BD) to back-project depth at colour pixels")
+        fx, fy, cx, cy = rendered_intrinsics(config)
         color, _ = config.MakeCameras()
         intrinsics = color.core().intrinsics()
-        return cls(intrinsics.width(), intrinsics.height(), intrinsics.focal_x(),
-                   intrinsics.focal_y(), intrinsics.center_x(), intrinsics.center_y(),
+        return cls(intrinsics.width(), intrinsics.height(), fx, fy, cx, cy,
                    config.X_PB.GetDeterministicValue() @ config.X_BC.GetDeterministicValue())
 
     @classmethod

@@ -22,7 +22,12 @@ import numpy as np
 from physcap_drake.perception.camera_geometry import CameraGeometry
 from physcap_drake.perception.colors import color_name
 from physcap_drake.perception.grasp import grasp_point_from_points
-from physcap_drake.perception.regions import Region, SceneGeometry, footprint
+from physcap_drake.perception.regions import (
+    Region,
+    SceneGeometry,
+    footprint,
+    footprint_rectangle,
+)
 from physcap_drake.perception.shapes import classify, container_kind
 
 #: Side of the median filter applied to a region's depth, px.
@@ -43,9 +48,6 @@ MAX_AXIS_SHIFT = 0.03
 #: plane (m); it needs this many pixels of each colour.
 TABLE_BAND = 0.02
 MIN_SHARPENED = 200
-#: A container's middle: the middle of its footprint between these percentiles of its
-#: points along each side (and their complements).
-CONTAINER_EXTENT = 2.0
 
 
 @dc.dataclass(frozen=True)
@@ -91,7 +93,7 @@ def describe(region: Region, rgb: np.ndarray, depth: np.ndarray, geometry: Scene
         points = np.column_stack([region.points[:, :2], region.heights])
         grasp, top = grasp_point_from_points(points)
         sides = footprint(region.points)
-        centre = _footprint_centre(region.points, CONTAINER_EXTENT)
+        centre = footprint_rectangle(region.points).mean(axis=0)
         grasp[:2] = centre
         return ObjectView(container_kind(top), color, False, top, sides, centre, grasp, region)
     points = smoothed_points(region, depth, camera)
@@ -178,15 +180,3 @@ def sharpen_container(region: Region, rgb: np.ndarray, geometry: SceneGeometry) 
 
 def _lab(rgb: np.ndarray) -> np.ndarray:
     return cv2.cvtColor(np.ascontiguousarray(rgb), cv2.COLOR_RGB2LAB).astype(np.float32)
-
-
-def _footprint_centre(points: np.ndarray, percent: float) -> np.ndarray:
-    """The middle of the points' footprint on the table (the extent from the `percent` to
-    the 100 - `percent` percentile along its principal axes), m."""
-    xy = points[:, :2]
-    mean = xy.mean(axis=0)
-    axes = np.linalg.svd(xy - mean, full_matrices=False)[2]
-    along = (xy - mean) @ axes.T
-    middle = 0.5 * (np.percentile(along, 100 - percent, axis=0)
-                    + np.percentile(along, percent, axis=0))
-    return mean + middle @ axes

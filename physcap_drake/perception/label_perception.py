@@ -15,7 +15,9 @@ import numpy as np
 from physcap_drake.perception.camera_geometry import CameraGeometry
 from physcap_drake.perception.grasp import grasp_point_from_points
 from physcap_drake.perception.offline_pointer import OfflinePointer
+from physcap_drake.perception.regions import footprint_rectangle
 from physcap_drake.perception.seen_object import SeenObject
+from physcap_drake.perception.shapes import CONTAINERS
 from physcap_drake.perception.visible_objects import VisibleObject
 from physcap_drake.station import ports
 
@@ -39,8 +41,9 @@ class LabelPerception:
             rows, cols = np.nonzero(mask & np.isfinite(depth) & (depth > 0))
             points = self.camera.back_project(cols, rows, depth[rows, cols])
             grasp, top = grasp_point_from_points(points)
+            area = footprint_rectangle(points) if visible.category in CONTAINERS else None
             seen.append(SeenObject(visible, mask, column, float(np.nonzero(mask)[0].mean()),
-                                   grasp, top))
+                                   grasp, top, area))
         return seen
 
     def known(self) -> list[VisibleObject]:

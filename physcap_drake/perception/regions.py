@@ -170,6 +170,20 @@ def _split_on_table(pixels: np.ndarray, box, geometry: SceneGeometry) -> list[np
     return parts
 
 
+def footprint_rectangle(points: np.ndarray, percent: float = 2.0) -> np.ndarray:
+    """The rectangle (4 × 2 corners on the table, m) spanned by the points' footprint along
+    its principal axes, from the `percent` to the 100 - `percent` percentile each way."""
+    xy = points[:, :2]
+    mean = xy.mean(axis=0)
+    axes = np.linalg.svd(xy - mean, full_matrices=False)[2]
+    along = (xy - mean) @ axes.T
+    low, high = np.percentile(along, percent, axis=0), np.percentile(along, 100 - percent,
+                                                                     axis=0)
+    corners = np.array([[low[0], low[1]], [high[0], low[1]], [high[0], high[1]],
+                        [low[0], high[1]]])
+    return mean + corners @ axes
+
+
 def footprint(points: np.ndarray) -> tuple[float, float]:
     """The sides (shorter, longer) of the points' footprint on the table (robust extent
     along its principal axes), m."""

@@ -25,7 +25,7 @@ import numpy as np
 from physcap_drake.perception.camera_geometry import CameraGeometry
 from physcap_drake.perception.describe import describe
 from physcap_drake.perception.object_memory import ObjectMemory
-from physcap_drake.perception.regions import find_regions, scene_geometry
+from physcap_drake.perception.regions import find_regions, footprint_rectangle, scene_geometry
 from physcap_drake.perception.robot_mask import RobotSelfFilter
 from physcap_drake.perception.seen_object import SeenObject
 from physcap_drake.perception.visible_objects import VisibleObject
@@ -61,7 +61,9 @@ class RgbdPerception:
                  for region in find_regions(geometry)]
         names = self.memory.recognize(views)
         seen = sorted((SeenObject(visible, view.region.mask, view.column, view.row,
-                                  view.grasp_point, view.top_height)
+                                  view.grasp_point, view.top_height,
+                                  footprint_rectangle(view.region.points) if view.container
+                                  else None)
                        for visible, view in zip(names, views, strict=True)),
                       key=lambda s: s.column)
         self._last = (key, seen)

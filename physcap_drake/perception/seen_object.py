@@ -17,7 +17,8 @@ class SeenObject:
     use). mask: its pixels (H × W bool). column, row: its mean pixel (px; columns grow to
     the image's right, so sorting by column orders objects left to right). grasp_point: the
     fingertip target of a top-down grasp (world frame, m). top_height: its top above the
-    table, m.
+    table, m. area: for a container (tray, basket), the rectangle it covers on the table
+    (4 × 2 corners, m); None for other objects.
     """
 
     visible: VisibleObject
@@ -26,6 +27,7 @@ class SeenObject:
     row: float
     grasp_point: np.ndarray
     top_height: float
+    area: np.ndarray | None = None
 
     @property
     def name(self) -> str:

@@ -19,7 +19,9 @@ from pathlib import Path
 from pydrake.systems.sensors import CameraConfig
 
 from physcap_drake.agent.agent_system import AgentSystem
+from physcap_drake.agent.reference.task_reading import read_task
 from physcap_drake.perception.camera_geometry import CameraGeometry
+from physcap_drake.perception.judge import judge_placement, judge_uncovered
 from physcap_drake.perception.label_perception import LabelPerception
 from physcap_drake.perception.object_locator import ObjectLocator
 from physcap_drake.perception.offline_pointer import OfflinePointer
@@ -45,6 +47,8 @@ from physcap_drake.tasks.task_instance import TaskInstance
 #: The tray every task puts things on, as the camera sees it.
 TRAY = VisibleObject("wooden tray", "tray", "brown")
 BASKET = VisibleObject("basket", "basket", "brown")
+#: Who decides an episode's success: the simulator's ground truth, or the final camera view.
+JUDGES = ("simulator", "perception")
 #: The perception modules an episode can use: RGB-D (the default path on a real rig) and the
 #: simulator's label segmenter (an ablation).
 PERCEPTIONS = ("rgbd", "label")
@@ -59,6 +63,7 @@ class Episode:
     scenario: Scenario
     robot: RobotDiagram
     api: RobotAPI
+    judge: str = "simulator"
 
     @property
     def plant(self):
@@ -71,8 +76,28 @@ class Episode:
         return scene_snapshot(self.robot.station, self.api.simulator.get_context())[1]
 
     def check(self):
-        """The task's success check on the simulated world's ground truth."""
+        """The task's success check: on the simulated world's ground truth, or (judge
+        "perception") from the final camera view (`perception.judge`)."""
+        if self.judge == "perception":
+            return self.judge_from_camera()
         return get_task(self.instance.task).check(self)
+
+    def judge_from_camera(self):
+        """The outcome as the camera sees it now: the task's object alone in its container,
+        or enough of the sought objects in view (the task's goal as the reference reasoner
+        reads it; the object the task is about is its pinned or drawn answer)."""
+        goal = read_task(self.instance.prompt)
+        locator = self.api.locator
+        station = self.robot.station
+        context = station.GetMyContextFromRoot(self.api.simulator.get_context())
+        images = {name: station.GetOutputPort(name).Eval(context) for name in
+                  locator.perception.input_ports}
+        images = {name: getattr(value, "data", value) for name, value in images.items()}
+        seen = locator.perception.look(images)
+        if goal.kind == "hidden":
+            return judge_uncovered(seen, goal.sought, goal.count)
+        return judge_placement(seen, locator.perception.known(), self.instance.answer,
+                               goal.destination, goal.subject)
 
     def close(self) -> None:
         """Releases the station (a CAN station stops streaming; the arm holds)."""
@@ -82,15 +107,18 @@ class Episode:
 def make_episode(task_name: str, seed: int, answer: str = "", meshcat=None, *,
                  with_agent: bool = False, sink: McapSink | None = None,
                  scenario_file: str | Path | None = None,
-                 perception: str = "label") -> Episode:
+                 perception: str = "label", judge: str = "simulator") -> Episode:
     """Loads stations/<task>.yaml (or `scenario_file`), lays out the objects for `seed`,
     builds and initializes the simulation with the objects' hidden masses, and wires camera
     perception (`perception`: "rgbd" or "label", see the module docstring) to the API (and,
     `with_agent`, to an AgentSystem in the diagram). With a `sink`, an McapRecorder in the
-    diagram records the station's signals to it. Call `close()` on the episode when done."""
+    diagram records the station's signals to it. `judge`: who decides success ("simulator"
+    or "perception", see Episode.check). Call `close()` on the episode when done."""
     if perception not in PERCEPTIONS:
         raise ValueError(f"perception must be one of {', '.join(PERCEPTIONS)}; "
                          f"got {perception!r}")
+    if judge not in JUDGES:
+        raise ValueError(f"judge must be one of {', '.join(JUDGES)}; got {judge!r}")
     task = get_task(task_name)
     scenario = load_scenario(scenario_file or stations_dir() / task.scenario_file)
     instance = task.instance(seed, answer or scenario.task.answer)
@@ -130,7 +158,7 @@ def make_episode(task_name: str, seed: int, answer: str = "", meshcat=None, *,
 
     locator = ObjectLocator(make_perception(robot.station), read_inputs=read_station)
     api = RobotAPI(robot, simulator, locator=locator)
-    return Episode(instance, scenario, robot, api)
+    return Episode(instance, scenario, robot, api, judge)
 
 
 def _catalog(instance: TaskInstance, plant) -> dict:

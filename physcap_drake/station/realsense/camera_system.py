@@ -25,6 +25,7 @@ from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import Context, LeafSystem, ValueProducer
 from pydrake.systems.sensors import ImageDepth32F, ImageRgba8U
 
+from physcap_drake.station.camera_intrinsics import rendered_intrinsics
 from physcap_drake.station.ports import camera_port
 from physcap_drake.station.realsense.config import RealSense
 from physcap_drake.station.realsense.frames import RgbdFrame
@@ -107,15 +108,13 @@ class EmulatedRealSenseCamera(_RgbdOutputs):
     """
 
     def __init__(self, entry: RealSense, seed: int):
-        color, _ = entry.rendering_config().MakeCameras()
-        intrinsics = color.core().intrinsics()
+        fx, fy, cx, cy = rendered_intrinsics(entry.rendering_config())
         super().__init__(entry.name, entry.width, entry.height,
                          {self.time_ticket(), self.all_input_ports_ticket()})
         self.entry, self._seed = entry, seed
-        self._focal_x = intrinsics.focal_x()
+        self._focal_x = fx
         self.device = SoftwareRealSense(  # a device handle, not state
-            entry.width, entry.height, intrinsics.focal_x(), intrinsics.focal_y(),
-            intrinsics.center_x(), intrinsics.center_y(), fps=entry.fps,
+            entry.width, entry.height, fx, fy, cx, cy, fps=entry.fps,
             depth_unit=entry.emulation.depth_unit, record_to=entry.record_to)
         atexit.register(self.device.close)
         self._rgb_in = self.DeclareAbstractInputPort(RENDERED_RGB,
