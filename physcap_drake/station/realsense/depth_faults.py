@@ -152,7 +152,7 @@ def occlusion_shadow(depth: np.ndarray, focal_baseline: float) -> np.ndarray:
     suffix_min = np.minimum.accumulate(shifted[:, ::-1], axis=1)[:, ::-1]
     right_min = np.full(depth.shape, np.inf)
     right_min[:, :-1] = suffix_min[:, 1:]
-    return np.isfinite(depth) & (right_min < shifted - 0.25)
+    return np.isfinite(depth) & (right_min < shifted - 1e-3)
 
 
 def _blob_uniform(shape, size: float, rng: np.random.Generator) -> np.ndarray:

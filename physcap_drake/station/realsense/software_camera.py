@@ -40,6 +40,7 @@ class SoftwareRealSense:
                  name: str = "Intel RealSense D435 (emulated)"):
         rs = librealsense()
         self.width, self.height, self.depth_unit = width, height, depth_unit
+        self.intrinsics = (fx, fy, cx, cy)
         intrinsics = rs.intrinsics()
         intrinsics.width, intrinsics.height = width, height
         intrinsics.fx, intrinsics.fy, intrinsics.ppx, intrinsics.ppy = fx, fy, cx, cy
@@ -57,7 +58,10 @@ class SoftwareRealSense:
             _stream(rs, rs.stream.color, 1, rs.format.rgb8, 3, intrinsics, fps)
         ).as_video_stream_profile()
         self._depth_sensor.add_read_only_option(rs.option.depth_units, depth_unit)
-        self._depth_profile.register_extrinsics_to(self._color_profile, rs.extrinsics())
+        registered = rs.extrinsics()  # depth rendered in the colour frame: the identity
+        registered.rotation = [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0]
+        registered.translation = [0.0, 0.0, 0.0]
+        self._depth_profile.register_extrinsics_to(self._color_profile, registered)
         self._recorder = rs.recorder(record_to, self._device) if record_to else None
         self._syncer = rs.syncer()
         for sensor, profile in ((self._depth_sensor, self._depth_profile),
