@@ -3,8 +3,9 @@
 Its input ports are the station outputs its perception module reads (`camera.rgb`,
 `camera.depth` and the arm's measured joints for RGB-D perception; `camera.label` instead of
 the joints for the simulator's segmenter), so what the agent sees is exactly what is wired
-to it: no plant, no poses, no masses. Its state is the agent's mind (`AgentMind`: phase, code blocks run, the code
-block waiting to run, ...) in the Context, published as a summary on `agent.progress`.
+to it: no plant, no poses, no masses. Its state is the agent's mind (`AgentMind`: phase,
+code blocks run, the code block waiting to run, ...) in the Context, published as a summary
+on `agent.progress`.
 
 Every `period` s a periodic unrestricted-update event runs; when the mind is "deciding", the
 event looks through the camera ports and lets the policy (`AgentLoop.think`) decide and write

@@ -26,6 +26,9 @@ from physcap_drake.station.realsense.calibration_file import CalibrationMismatch
 from physcap_drake.station.realsense.config import RealSense
 from physcap_drake.station.realsense.pipeline_camera import CameraUnavailable
 
+#: The station calibrated by default: the PiPER and its table, nothing else on it.
+DEFAULT_SCENARIO = stations_dir() / "calibration.yaml"
+
 
 def _placement(text: str) -> tuple[float, float, float]:
     try:
@@ -39,8 +42,7 @@ def calibrate_camera(
     scenario: Annotated[Path, typer.Option(
         "--scenario", help="The station and its camera: a rendered or emulated camera is "
                            "calibrated in simulation, a live !RealSense with the printed "
-                           "board at the --board-at places.")] = stations_dir()
-        / "calibration.yaml",
+                           "board at the --board-at places.")] = DEFAULT_SCENARIO,
     camera: Annotated[str, typer.Option("--camera", help="Which camera.")] = "camera",
     board_at: Annotated[list[str] | None, typer.Option(
         "--board-at", help="Where the board lies for one view: X,Y,YAW of its centre (m, m, "

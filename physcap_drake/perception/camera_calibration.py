@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import dataclasses as dc
 from collections.abc import Callable, Sequence
-from datetime import datetime, timezone
+from datetime import UTC, datetime
 
 import numpy as np
 from pydrake.common.schema import Transform
@@ -106,7 +106,7 @@ def calibration_of(fit: charuco.PoseFit, camera: CameraGeometry, views: int, *,
         method=f"ChArUco board on the table ({charuco.SQUARES[0]} x {charuco.SQUARES[1]} "
                f"squares of {1000 * charuco.SQUARE:g} mm), PnP over all views",
         views=views, reprojection_error_px=round(fit.reprojection_error_px, 4),
-        date=datetime.now(timezone.utc).isoformat(timespec="seconds"))
+        date=datetime.now(UTC).isoformat(timespec="seconds"))
 
 
 def calibrate_in_simulation(scenario, camera_name: str = "camera",

@@ -2,8 +2,8 @@
 
 Without a learned detector, perception names an object's kind by comparing the size of what
 it sees (the height of its top above the table and the two sides of its footprint) with
-the typical sizes of the kinds it knows (`PROTOTYPES`), as a person would tell a soda can from a cup or a
-cube at a glance. The comparison ignores orientation (sides sorted by length), so a can
+the typical sizes of the kinds it knows (`PROTOTYPES`), as a person tells a soda can from a
+cup or a cube at a glance. The comparison ignores orientation (sides sorted by length), so a can
 lying on its side is still a can. Only the kinds in the vocabulary compete (the nouns of
 the task, as an open-vocabulary detector takes its queries); a region that fits none of
 them within `MAX_DISTANCE` is an "object".

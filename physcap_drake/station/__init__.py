@@ -38,8 +38,8 @@ def close_station(station: Diagram) -> None:
     """Releases what a station holds outside Drake (camera devices and their recordings, a
     CAN link, an emulator thread); the real arm is left enabled and holding. Safe to call
     twice."""
-    from physcap_drake.station.can_station import INTERFACE, close_can_station
     from physcap_drake.station.cameras import close_cameras
+    from physcap_drake.station.can_station import INTERFACE, close_can_station
 
     close_cameras(station)
     if station.HasSubsystemNamed(INTERFACE):

@@ -23,8 +23,7 @@ from pydrake.geometry import (
     SceneGraph,
 )
 from pydrake.multibody.plant import MultibodyPlant
-from pydrake.systems.framework import DiagramBuilder
-from pydrake.systems.framework import Diagram
+from pydrake.systems.framework import Diagram, DiagramBuilder
 from pydrake.systems.sensors import CameraConfig, RgbdSensor
 
 from physcap_drake.station.ports import camera_port

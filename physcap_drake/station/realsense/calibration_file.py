@@ -11,6 +11,7 @@ import dataclasses as dc
 from pathlib import Path
 
 import numpy as np
+import yaml
 from pydrake.common.schema import Transform
 from pydrake.common.yaml import yaml_dump_typed, yaml_load_typed
 from pydrake.math import RigidTransform
@@ -78,7 +79,8 @@ def load_calibration(path: str | Path) -> CameraCalibration:
         raise CalibrationMismatch(f"camera calibration file {str(path)!r}: no such file")
     try:
         return yaml_load_typed(schema=CameraCalibration, filename=str(path))
-    except Exception as error:  # yaml or schema errors: the file is not one of ours
+    except (RuntimeError, ValueError, TypeError, KeyError, AssertionError,
+            yaml.YAMLError) as error:  # not one of ours
         raise CalibrationMismatch(f"{path}: not a camera calibration file ({error})") from None
 
 
