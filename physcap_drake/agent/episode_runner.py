@@ -135,9 +135,10 @@ def run_agent_episode(task: str, seed: int, *, agent: str = "physcap", llm: str 
     start = time.monotonic()
     try:
         mind = drive_agent(simulator, system, agent_context, loop)
+        # Judged before the station is released: a camera judge still needs its camera.
+        outcome = loop.outcome(mind, time.monotonic() - start)
     finally:
         episode.close()
-    outcome = loop.outcome(mind, time.monotonic() - start)
     run = AgentRun(task, variant.name, seed, getattr(client, "name", llm),
                    getattr(client, "model", model or ""), outcome, transcript,
                    list(getattr(client, "records", [])), episode)

@@ -82,6 +82,8 @@ class SoftwareRealSense:
         or 4 uint8; depth: H × W, m, 0 (or inf) where there is none. The frames carry the
         device's own clock: frame n at n frame periods (the syncer pairs frames by their
         timestamps and expects them at the stream's rate)."""
+        if not self._open:
+            raise RuntimeError("the emulated RealSense is closed (its station was released)")
         rgb = np.ascontiguousarray(np.asarray(rgb)[:, :, :3], dtype=np.uint8)
         depth = np.asarray(depth, dtype=np.float64).reshape(self.height, self.width)
         counts = np.where(np.isfinite(depth) & (depth > 0), np.rint(depth / self.depth_unit),
