@@ -192,3 +192,17 @@ def test_first_views_through_an_emulated_realsense(task):
         mismatch = result.mismatch.replace("straw missed", "") if task == "empty_cup" \
             else result.mismatch
         assert not mismatch.strip(", "), result
+
+
+def test_an_agent_episode_on_rgbd_perception_judged_by_the_camera():
+    """The physcap agent solves identify_empty_can seed 0 seeing through the emulated
+    RealSense; the camera's verdict agrees with the simulator's ground truth."""
+    from physcap_drake.agent.episode_runner import run_agent_episode
+
+    verdicts = {}
+    run = run_agent_episode("identify_empty_can", 0, perception="rgbd", judge="perception")
+    verdicts["camera"] = run.outcome.success
+    verdicts["simulator"] = get_task("identify_empty_can").check(run.episode).success
+    assert verdicts == {"camera": True, "simulator": True}, run.outcome.reason
+    assert "alone in the brown tray" in run.outcome.reason
+    assert run.outcome.oi == 1  # it weighed only the opened cans it saw straws on

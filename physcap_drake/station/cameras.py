@@ -27,6 +27,12 @@ from pydrake.systems.framework import Diagram, DiagramBuilder
 from pydrake.systems.sensors import CameraConfig, RgbdSensor
 
 from physcap_drake.station.ports import camera_port
+from physcap_drake.station.realsense.camera_system import (
+    RENDERED_DEPTH,
+    RENDERED_RGB,
+    EmulatedRealSenseCamera,
+    RgbdCameraSystem,
+)
 from physcap_drake.station.realsense.config import RealSense
 
 
@@ -75,12 +81,6 @@ def add_emulated_realsense(builder: DiagramBuilder, plant: MultibodyPlant,
     """Adds an emulated RealSense (an RgbdSensor feeding an EmulatedRealSenseCamera) and
     exports `<name>.rgb`, `<name>.depth` from the camera and `<name>.label` from the
     renderer. Raises ValueError for a live or recorded RealSense (not emulated)."""
-    from physcap_drake.station.realsense.camera_system import (
-        RENDERED_DEPTH,
-        RENDERED_RGB,
-        EmulatedRealSenseCamera,
-    )
-
     if not entry.emulate:
         raise ValueError(f"camera '{entry.name}': a simulated station's RealSense must be "
                          "emulated (emulate: true); a live or recorded camera cannot see the "
@@ -100,7 +100,7 @@ def add_emulated_realsense(builder: DiagramBuilder, plant: MultibodyPlant,
 def close_cameras(station: Diagram) -> None:
     """Releases the camera devices of `station` (and finishes their recordings)."""
     for system in station.GetSystems():
-        if hasattr(system, "camera_name") and hasattr(system, "close"):
+        if isinstance(system, RgbdCameraSystem):
             system.close()
 
 

@@ -27,6 +27,11 @@ from pydrake.systems.sensors import ImageDepth32F, ImageRgba8U
 
 from physcap_drake.station.camera_intrinsics import rendered_intrinsics
 from physcap_drake.station.ports import camera_port
+from physcap_drake.station.realsense.calibration_file import (
+    CalibrationMismatch,
+    intrinsics_mismatch,
+    load_calibration,
+)
 from physcap_drake.station.realsense.config import RealSense
 from physcap_drake.station.realsense.frames import RgbdFrame
 from physcap_drake.station.realsense.pipeline_camera import PipelineRealSense
@@ -42,9 +47,10 @@ _NO_FRAME = RgbdFrame(np.zeros((0, 0, 3), np.uint8), np.zeros((0, 0), np.float32
                       0.0, 0.0, 0.0, -1)
 
 
-class _RgbdOutputs(LeafSystem):
-    """Declares the two image outputs of camera `name`, both read from one frame cache
-    entry computed by `_frame(context)` whenever its `prerequisites` change."""
+class RgbdCameraSystem(LeafSystem):
+    """A camera driver: declares the two image outputs of camera `name`, both read from one
+    frame cache entry computed by `_frame(context)` whenever its `prerequisites` change;
+    `close()` releases the device."""
 
     def __init__(self, name: str, width: int, height: int, prerequisites: set):
         super().__init__()
@@ -70,6 +76,9 @@ class _RgbdOutputs(LeafSystem):
     def _frame(self, context: Context) -> RgbdFrame:
         raise NotImplementedError
 
+    def close(self) -> None:
+        raise NotImplementedError
+
     def _output_rgb(self, context: Context, output: AbstractValue) -> None:
         frame = self.frame(context)
         image = output.get_mutable_value()
@@ -84,7 +93,7 @@ class _RgbdOutputs(LeafSystem):
         image.mutable_data[:, :, 0] = frame.depth
 
 
-class RealSenseCamera(_RgbdOutputs):
+class RealSenseCamera(RgbdCameraSystem):
     """A live or recorded RealSense's images (see the module docstring)."""
 
     def __init__(self, source: PipelineRealSense):
@@ -100,7 +109,7 @@ class RealSenseCamera(_RgbdOutputs):
         self.source.close()
 
 
-class EmulatedRealSenseCamera(_RgbdOutputs):
+class EmulatedRealSenseCamera(RgbdCameraSystem):
     """An emulated RealSense fed by rendered images (see the module docstring).
 
     entry: the scenario's camera entry (its intrinsics are the rendering camera's, from
@@ -109,6 +118,12 @@ class EmulatedRealSenseCamera(_RgbdOutputs):
 
     def __init__(self, entry: RealSense, seed: int):
         fx, fy, cx, cy = rendered_intrinsics(entry.rendering_config())
+        if entry.calibration:
+            problem = intrinsics_mismatch(load_calibration(entry.calibration), fx, fy, cx, cy)
+            if problem:
+                raise CalibrationMismatch(f"camera '{entry.name}': calibration file "
+                                          f"{entry.calibration!r} does not match the emulated "
+                                          f"camera: {problem}")
         super().__init__(entry.name, entry.width, entry.height,
                          {self.time_ticket(), self.all_input_ports_ticket()})
         self.entry, self._seed = entry, seed
