@@ -1,8 +1,7 @@
 """What the camera shows of one region: its kind, colour, size, a straw, and where to grasp it.
 
-Geometry comes from the region's own depth, median-filtered over a `SMOOTHING` window of
-its pixels only (the depth noise of one pixel is about a centimetre; the filter does not
-mix the object with what is behind it): its top height above the table, its footprint, and
+Geometry comes from the region's own depth, median-filtered over a small window of its
+pixels only (`SceneGeometry.smoothed_points`): its top height above the table, its footprint, and
 the top-down grasp point (`grasp_point_from_points`, the same rule as for the simulated
 segmenter). A straw is a thin part standing above the object's top: raw depth pixels just
 above its outline in the image, near its top on the table, higher than the top.
@@ -19,7 +18,6 @@ import dataclasses as dc
 import cv2
 import numpy as np
 
-from physcap_drake.perception.camera_geometry import CameraGeometry
 from physcap_drake.perception.colors import color_name
 from physcap_drake.perception.grasp import grasp_point_from_points
 from physcap_drake.perception.regions import (
@@ -30,8 +28,6 @@ from physcap_drake.perception.regions import (
 )
 from physcap_drake.perception.shapes import classify, container_kind
 
-#: Side of the median filter applied to a region's depth, px.
-SMOOTHING = 5
 #: A straw: pixels at least this much higher than the top (m), within this distance of the
 #: object's top on the table (m), at least `STRAW_GAP` px above its outline in the image and
 #: up to `STRAW_REACH` px; at least `STRAW_PIXELS` of them.
@@ -82,9 +78,9 @@ class ObjectView:
         return self.region.row
 
 
-def describe(region: Region, rgb: np.ndarray, depth: np.ndarray, geometry: SceneGeometry,
-             camera: CameraGeometry, vocabulary: tuple[str, ...] = ()) -> ObjectView:
-    """The ObjectView of `region` in the frame (`rgb`, `depth`) whose back-projection is
+def describe(region: Region, rgb: np.ndarray, geometry: SceneGeometry,
+             vocabulary: tuple[str, ...] = ()) -> ObjectView:
+    """The ObjectView of `region` in the colour image `rgb` whose depth's back-projection is
     `geometry`; its kind is chosen among `vocabulary` (see `shapes.classify`)."""
     if region.container:
         region = sharpen_container(region, rgb, geometry)
@@ -96,7 +92,7 @@ def describe(region: Region, rgb: np.ndarray, depth: np.ndarray, geometry: Scene
         centre = footprint_rectangle(region.points).mean(axis=0)
         grasp[:2] = centre
         return ObjectView(container_kind(top), color, False, top, sides, centre, grasp, region)
-    points = smoothed_points(region, depth, camera)
+    points = geometry.smoothed_points(region.rows, region.cols)
     heights = geometry.plane.heights(points)
     table_points = np.column_stack([points[:, :2], heights])
     grasp, top = grasp_point_from_points(table_points)
@@ -106,22 +102,6 @@ def describe(region: Region, rgb: np.ndarray, depth: np.ndarray, geometry: Scene
         grasp[:2] = dome_centre(table_points, grasp[:2])
     straw = has_straw(region, geometry, top, grasp[:2])
     return ObjectView(kind, color, straw, top, sides, grasp[:2].copy(), grasp, region)
-
-
-def smoothed_points(region: Region, depth: np.ndarray, camera: CameraGeometry) -> np.ndarray:
-    """World points (N × 3, m) of the region's pixels with depth, each from the median depth
-    of the region's pixels in the SMOOTHING × SMOOTHING window around it."""
-    rows, cols = region.rows, region.cols
-    half = SMOOTHING // 2
-    top, left = rows.min() - half, cols.min() - half
-    height, width = rows.max() - top + half + 1, cols.max() - left + half + 1
-    crop = np.full((height + 2 * half, width + 2 * half), np.nan)
-    depth = np.asarray(depth, dtype=np.float64).reshape(camera.height, camera.width)
-    crop[rows - top + half, cols - left + half] = depth[rows, cols]
-    windows = np.stack([crop[i:i + height, j:j + width]
-                        for i in range(SMOOTHING) for j in range(SMOOTHING)])
-    median = np.nanmedian(windows[:, rows - top, cols - left], axis=0)
-    return camera.back_project(cols, rows, median)
 
 
 def dome_centre(points: np.ndarray, fallback: np.ndarray) -> np.ndarray:

@@ -9,9 +9,10 @@ its height above the table.
   (opened to drop single noisy pixels, closed to bridge holes in the depth), split where
   their points fall apart on the table (two objects side by side in the image).
 - **Containers** are large and low: groups of pixels whose height, averaged over a
-  `SMOOTHING` window (the depth noise of one pixel is about a centimetre), is more than
+  `LOW_WINDOW` window (the depth noise of one pixel is about a centimetre), is more than
   `LOW_HEIGHT` above the table, whose footprint is at least `CONTAINER_SIZE` wide both
-  ways. A container keeps the objects inside it separate: they are objects of their own.
+  ways. A container keeps the objects inside it separate: they are objects of their own;
+  thin pieces along its edges are its walls (`is_wall_of`, once its outline is sharp).
 
 Pixels the caller excludes (the robot itself) take part in nothing. Nothing here knows
 what any region is; `describe` says what it looks like.
@@ -33,15 +34,23 @@ OBJECT_HEIGHT = 0.030
 #: Ignore everything higher than this above the table (nothing on it is that tall), m.
 MAX_HEIGHT = 0.35
 #: Smoothing window for low structures, px, and the averaged height they rise above, m.
-SMOOTHING = 15
+LOW_WINDOW = 15
 LOW_HEIGHT = 0.004
 #: A container's footprint is at least this wide in both directions, m.
 CONTAINER_SIZE = 0.14
+#: A piece of a container's wall is at most this thick and lies within WALL_BAND of the
+#: edge of the container's area, m.
+WALL_THICKNESS = 0.03
+WALL_BAND = 0.03
+#: Side of the median filter that takes the noise out of a region's depth, px.
+SMOOTHING_WINDOW = 5
 #: Fewest pixels with depth for an object.
 MIN_PIXELS = 25
 #: Points of one object lie within this distance of each other's neighbours on the table;
-#: a wider gap splits a region into two objects, m.
-SPLIT_GAP = 0.025
+#: a wider gap splits a region into two objects, m. A cell of this size counts as occupied
+#: with at least CELL_POINTS points in it.
+SPLIT_GAP = 0.02
+CELL_POINTS = 3
 
 
 @dc.dataclass(frozen=True)
@@ -64,13 +73,30 @@ class Region:
 @dc.dataclass(frozen=True)
 class SceneGeometry:
     """The back-projected image: the table plane, every pixel's world point (H × W × 3, NaN
-    without depth) and height above the table (H × W, NaN without depth), and the pixels
-    with usable depth (not excluded)."""
+    without depth) and height above the table (H × W, NaN without depth), the pixels with
+    usable depth (not excluded), the depth image (H × W, m) and the camera."""
 
     plane: Plane
     points: np.ndarray
     heights: np.ndarray
     usable: np.ndarray
+    depth: np.ndarray
+    camera: CameraGeometry
+
+    def smoothed_points(self, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
+        """World points (N × 3, m) of the pixels (rows, cols), each from the median depth of
+        those of the pixels in the SMOOTHING_WINDOW-square around it (the depth noise of
+        one pixel is about a centimetre; the filter does not mix a region with what lies
+        around it)."""
+        half = SMOOTHING_WINDOW // 2
+        top, left = rows.min(), cols.min()
+        height, width = rows.max() - top + 1, cols.max() - left + 1
+        crop = np.full((height + 2 * half, width + 2 * half), np.nan)
+        crop[rows - top + half, cols - left + half] = self.depth[rows, cols]
+        windows = np.stack([crop[i:i + height, j:j + width]
+                            for i in range(SMOOTHING_WINDOW) for j in range(SMOOTHING_WINDOW)])
+        median = np.nanmedian(windows[:, rows - top, cols - left], axis=0)
+        return self.camera.back_project(cols, rows, median)
 
 
 def scene_geometry(depth: np.ndarray, camera: CameraGeometry,
@@ -91,7 +117,7 @@ def scene_geometry(depth: np.ndarray, camera: CameraGeometry,
     heights[rows, cols] = plane.heights(world)
     usable = np.zeros(valid.shape, dtype=bool)
     usable[rows, cols] = True
-    return SceneGeometry(plane, points, heights, usable)
+    return SceneGeometry(plane, points, heights, usable, np.where(valid, depth, np.nan), camera)
 
 
 def find_regions(geometry: SceneGeometry) -> list[Region]:
@@ -112,6 +138,20 @@ def find_regions(geometry: SceneGeometry) -> list[Region]:
     containers = _containers(geometry, body.astype(bool), large)
     return (sorted(objects, key=lambda r: r.column)
             + sorted(containers, key=lambda r: r.column))
+
+
+def is_wall_of(region: Region, container: Region) -> bool:
+    """Whether `region` is a piece of the container's wall: thin, and all along the edge of
+    the rectangle the container covers (dark walls lose depth in patches, so a wall can
+    come apart from the rest of its container)."""
+    if footprint(region.points)[0] > WALL_THICKNESS:
+        return False
+    corners = footprint_rectangle(container.points)
+    centre, axes = corners.mean(axis=0), (corners[1] - corners[0], corners[3] - corners[0])
+    offsets = region.points[:, :2] - centre
+    margins = [np.linalg.norm(a) / 2 - np.abs(offsets @ (a / np.linalg.norm(a)))
+               for a in axes]
+    return bool(np.all(np.abs(np.minimum(*margins)) < WALL_BAND))
 
 
 def _components(mask: np.ndarray):
@@ -146,19 +186,23 @@ def _region(box, pixels: np.ndarray, geometry: SceneGeometry,
 
 def _split_on_table(pixels: np.ndarray, box, geometry: SceneGeometry) -> list[np.ndarray]:
     """The pixels of one image region (a mask within `box`) grouped by where their points
-    stand on the table: cells of SPLIT_GAP that touch form one group."""
+    stand on the table: cells of SPLIT_GAP holding at least CELL_POINTS points that touch
+    form one group (two objects one behind the other in the image stand apart on the table;
+    the few points the depth noise throws into the gap between them do not join them; the
+    points are median-filtered first)."""
     rows, cols = np.nonzero(pixels)
     if len(rows) == 0:
         return []
-    xy = geometry.points[box][rows, cols, :2]
+    xy = geometry.smoothed_points(rows + box[0].start, cols + box[1].start)[:, :2]
     cells = np.floor(xy / SPLIT_GAP).astype(int)
     low = cells.min(axis=0)
     grid_shape = cells.max(axis=0) - low + 1
     if grid_shape.prod() > 1_000_000:  # absurdly spread (noise): keep as one
         return [pixels]
-    grid = np.zeros(grid_shape, np.uint8)
-    grid[cells[:, 0] - low[0], cells[:, 1] - low[1]] = 1
-    count, labels = cv2.connectedComponents(grid, connectivity=8)
+    counts = np.zeros(grid_shape, np.int32)
+    np.add.at(counts, (cells[:, 0] - low[0], cells[:, 1] - low[1]), 1)
+    count, labels = cv2.connectedComponents((counts >= CELL_POINTS).astype(np.uint8),
+                                            connectivity=8)
     if count <= 2:
         return [pixels]
     which = labels[cells[:, 0] - low[0], cells[:, 1] - low[1]]
@@ -202,7 +246,7 @@ def _containers(geometry: SceneGeometry, objects: np.ndarray,
     long tall regions (a basket's walls) they touch, at least CONTAINER_SIZE both ways."""
     usable = geometry.usable
     heights = np.where(usable, np.nan_to_num(geometry.heights), 0.0)
-    window = (SMOOTHING, SMOOTHING)
+    window = (LOW_WINDOW, LOW_WINDOW)
     weight = cv2.boxFilter(usable.astype(np.float64), -1, window, normalize=False)
     total = cv2.boxFilter(heights, -1, window, normalize=False)
     smooth = np.where(weight > 0, total / np.maximum(weight, 1e-9), 0.0)

@@ -6,7 +6,7 @@ joint positions (to leave its arm out of the picture). Each look:
 1. back-projects the depth with the camera's intrinsics and extrinsics, leaves out the
    points on the robot (`robot_mask`), and fits the table plane (`table_plane`);
 2. finds the regions standing above the table: objects, and containers such as a tray
-   (`regions`);
+   (`regions`; pieces of a container's wall are not objects);
 3. describes each by what the camera shows: kind (by size, among the task's nouns),
    colour, a straw, its height, and its top-down grasp point (`describe`);
 4. names them, recognizing the objects of earlier looks (`object_memory`).
@@ -25,7 +25,12 @@ import numpy as np
 from physcap_drake.perception.camera_geometry import CameraGeometry
 from physcap_drake.perception.describe import describe
 from physcap_drake.perception.object_memory import ObjectMemory
-from physcap_drake.perception.regions import find_regions, footprint_rectangle, scene_geometry
+from physcap_drake.perception.regions import (
+    find_regions,
+    footprint_rectangle,
+    is_wall_of,
+    scene_geometry,
+)
 from physcap_drake.perception.robot_mask import RobotSelfFilter
 from physcap_drake.perception.seen_object import SeenObject
 from physcap_drake.perception.visible_objects import VisibleObject
@@ -57,8 +62,11 @@ class RgbdPerception:
             return self._last[1]
         geometry = scene_geometry(depth, self.camera,
                                   exclude=None if q is None else RobotSelfFilter(q))
-        views = [describe(region, rgb, depth, geometry, self.camera, self.vocabulary)
+        views = [describe(region, rgb, geometry, self.vocabulary)
                  for region in find_regions(geometry)]
+        containers = [v.region for v in views if v.container]
+        views = [v for v in views if v.container or not any(
+            is_wall_of(v.region, container) for container in containers)]
         names = self.memory.recognize(views)
         seen = sorted((SeenObject(visible, view.region.mask, view.column, view.row,
                                   view.grasp_point, view.top_height,
