@@ -3,9 +3,10 @@
 `PipelineRealSense` enables the z16 depth and rgb8 colour streams at the entry's
 resolution and frame rate on the device with the entry's serial number (or plays the
 entry's recording back, not in real time so no frame is skipped), optionally recording to
-a `.db3` file. Each `next_frame()` waits for the next frameset; depth that is not yet in
-the colour camera's frame (a live device's) goes through `rs.align` to colour, and the
-frameset then takes the frame path every source shares (`frame_from_frameset`).
+a `.db3` file. Each `next_frame()` takes the newest frameset (a recording's next one);
+depth that is not yet in the colour camera's frame (a live device's) goes through `rs.align`
+to colour, and the frameset then takes the frame path every source shares
+(`frame_from_frameset`).
 """
 
 from __future__ import annotations
@@ -104,9 +105,16 @@ class PipelineRealSense:
                                       f"{problem}")
 
     def next_frame(self) -> RgbdFrame:
-        """The next aligned frame. Raises CameraUnavailable if none comes (a stalled camera,
-        or the end of a recording)."""
-        ok, frameset = self._pipeline.try_wait_for_frames(FRAME_TIMEOUT_MS)
+        """The next aligned frame: a live camera's newest (older queued frames are dropped,
+        so a frame taken after a pause is not stale), a recording's next. Raises
+        CameraUnavailable if none comes (a stalled camera, or the end of a recording)."""
+        frameset = None
+        if not self.entry.recording:
+            while (polled := self._pipeline.poll_for_frames()).size() > 0:
+                frameset = polled
+        ok = frameset is not None
+        if not ok:
+            ok, frameset = self._pipeline.try_wait_for_frames(FRAME_TIMEOUT_MS)
         if not ok:
             source = "the recording has ended" if self.entry.recording else \
                 f"no frame within {FRAME_TIMEOUT_MS} ms"
