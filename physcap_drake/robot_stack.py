@@ -100,10 +100,11 @@ def build_robot_stack(scenario: Scenario, meshcat: Meshcat | None = None, *,
 
     model: the robot's model of itself (default: the scenario's shared one). With
     `log_joints`, the commanded positions and measured velocities are logged every step.
-    `make_agent(station)` builds an AgentSystem whose camera input ports (camera.rgb,
-    camera.label, those it has) are connected to the station's camera outputs; if it has a
-    `request` output port it is the request path's client (and its `status` input, if any,
-    hears the answers), else the path is exported as robot.request / robot.status.
+    `make_agent(station)` builds an AgentSystem each of whose input ports (the camera images
+    and what else its perception reads; `status` aside) is connected to the station output
+    of the same name; if it has a `request` output port it is the request path's client
+    (and its `status` input, if any, hears the answers), else the path is exported as
+    robot.request / robot.status.
     `make_recorder(station)` builds a recorder (e.g. McapRecorder) each of whose input ports
     is connected to the station output of the same name."""
     station_config = scenario.station
@@ -162,9 +163,10 @@ def build_robot_stack(scenario: Scenario, meshcat: Meshcat | None = None, *,
     agent = None
     if make_agent is not None:
         agent = builder.AddNamedSystem("agent", make_agent(station))
-        for name in (ports.CAMERA_RGB, ports.CAMERA_LABEL):
-            if agent.HasInputPort(name):
-                builder.Connect(station.GetOutputPort(name), agent.GetInputPort(name))
+        for index in range(agent.num_input_ports()):
+            port = agent.get_input_port(index)
+            if port.get_name() != STATUS_PORT:
+                builder.Connect(station.GetOutputPort(port.get_name()), port)
     request_input = None
     if agent is not None and agent.HasOutputPort(REQUEST_PORT):
         builder.Connect(agent.GetOutputPort(REQUEST_PORT), mass_probe.GetInputPort(REQUEST_PORT))

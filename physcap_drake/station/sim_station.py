@@ -12,7 +12,7 @@ from pydrake.visualization import ApplyVisualizationConfig
 
 from physcap_drake.station import ports
 from physcap_drake.station.arm_feedforward import make_arm_feedforward
-from physcap_drake.station.cameras import add_camera
+from physcap_drake.station.cameras import add_cameras
 from physcap_drake.station.gripper_servo import GripperServo
 from physcap_drake.station.joint_target_interpolator import JointTargetInterpolator
 from physcap_drake.station.render_world import add_render_world
@@ -162,8 +162,7 @@ def MakeSimStation(scenario, meshcat: Meshcat | None = None) -> Diagram:
 
     if scenario.cameras:
         render_plant, render_scene_graph = add_render_world(builder, plant, scenario.directives)
-    for camera in scenario.cameras:
-        add_camera(builder, render_plant, render_scene_graph, camera)
+        add_cameras(builder, render_plant, render_scene_graph, scenario)
     builder.ExportOutput(plant.get_body_poses_output_port(), ports.BODY_POSES)
     if meshcat is not None:
         ApplyVisualizationConfig(scenario.visualization, builder, meshcat=meshcat)
