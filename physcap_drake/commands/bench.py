@@ -103,8 +103,11 @@ def can_loop(
 @app.command("episode")
 def episode(json_path: Annotated[Path | None, typer.Option(
         "--json", help="Also write the results to this JSON file.")] = None) -> None:
-    """Robot time per wall-clock second of agent episodes: the physcap variant with the
-    reference reasoner on seeds 0-2 of each task, in this process one after the other."""
+    """Measure how fast agent episodes run.
+
+    Runs the physcap variant with the reference reasoner on seeds 0-2 of each task, one
+    after the other in this process, and prints robot time, wall time, robot time per
+    wall-clock second (rtf) and CPU time per task."""
     with trial_progress("bench episode", len(EPISODE_TASKS) * len(SEEDS)) as advance:
         results = run_episode_bench(on_episode=lambda task, seed, summary: advance(
             summary["success"]))
