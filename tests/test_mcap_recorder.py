@@ -1,0 +1,116 @@
+"""The McapRecorder through its ports: constant station signals and a synthetic image in,
+an MCAP file out, without a station, a simulator of the world or an agent."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from pydrake.common.value import AbstractValue
+from pydrake.systems.analysis import Simulator
+from pydrake.systems.framework import DiagramBuilder
+from pydrake.systems.primitives import ConstantValueSource, ConstantVectorSource
+from pydrake.systems.sensors import ImageRgba8U
+
+from physcap_drake.control.planning_model import TCP_FRAME, PlanningModel
+from physcap_drake.recording import topics
+from physcap_drake.recording.mcap_recorder import GRIPPER_JOINT, McapRecorder
+from physcap_drake.recording.mcap_sink import McapSink
+from physcap_drake.recording.reading import read_recording
+from physcap_drake.resources import stations_dir
+from physcap_drake.scenario import load_scenario
+from physcap_drake.station import ports
+from physcap_drake.station.robot_model import moving_joints
+
+ARM_Q = np.array([0.1, 0.8, -0.9, 0.05, 0.3, -0.2])  # rad
+ARM_V = np.array([0.0, 0.01, -0.02, 0.0, 0.0, 0.03])  # rad/s
+ARM_TAU = np.array([0.0, 3.2, -1.5, 0.1, 0.2, 0.0])  # N·m
+OPENING, EFFORT = 0.042, 0.35  # m, fraction of the maximum
+DURATION, STATE_PERIOD, IMAGE_PERIOD = 0.3, 0.04, 0.1  # s
+
+
+def _recorder_run(tmp_path):
+    """Runs a recorder fed by constant sources for DURATION s; returns (recording, model)."""
+    scenario = load_scenario(stations_dir() / "piper_table.yaml")
+    config = scenario.station
+    model = PlanningModel(scenario.directives, config.arm_model, config.gripper_model)
+    arm = model.plant.GetModelInstanceByName(config.arm_model)
+    joint_names = [joint.name() for joint in moving_joints(model.plant, arm)]
+    tcp = model.plant.GetFrameByName(
+        TCP_FRAME, model.plant.GetModelInstanceByName(config.gripper_model))
+    path = tmp_path / "recorder.mcap"
+    sink = McapSink(path)
+    builder = DiagramBuilder()
+    recorder = builder.AddSystem(McapRecorder(
+        sink, joint_names, kinematics=model, fingertip=(tcp.body(), tcp.GetFixedPoseInBodyFrame()),
+        state_period=STATE_PERIOD, image_period=IMAGE_PERIOD, flush_period=0.1))
+    values = {ports.ARM_POSITION_MEASURED: ARM_Q, ports.ARM_VELOCITY_ESTIMATED: ARM_V,
+              ports.ARM_TORQUE_MEASURED: ARM_TAU, ports.GRIPPER_POSITION_MEASURED: [OPENING],
+              ports.GRIPPER_EFFORT_MEASURED: [EFFORT]}
+    for name, value in values.items():
+        source = builder.AddSystem(ConstantVectorSource(np.asarray(value, dtype=float)))
+        builder.Connect(source.get_output_port(), recorder.GetInputPort(name))
+    image = ImageRgba8U(32, 24)
+    image.mutable_data[:] = (200, 40, 10, 255)
+    camera = builder.AddSystem(ConstantValueSource(AbstractValue.Make(image)))
+    builder.Connect(camera.get_output_port(), recorder.GetInputPort(ports.CAMERA_RGB))
+    simulator = Simulator(builder.Build())
+    simulator.AdvanceTo(DURATION + 1e-3)  # events at DURATION itself are taken too
+    sink.close()
+    return read_recording(path), model, joint_names, tcp
+
+
+@pytest.fixture(scope="module")
+def run(tmp_path_factory):
+    return _recorder_run(tmp_path_factory.mktemp("recorder"))
+
+
+def test_joint_states_carry_the_input_signals_at_the_state_period(run):
+    recording, _, joint_names, _ = run
+    states = recording.on(topics.JOINT_STATES)
+    times = np.array([m.time_s for m in states])
+    assert len(states) == int(DURATION / STATE_PERIOD) + 1  # t = 0 included
+    assert np.allclose(np.diff(times), STATE_PERIOD, atol=1e-6)
+    joints = states[-1].value.joints
+    assert [j.name for j in joints] == [*joint_names, GRIPPER_JOINT]
+    assert np.allclose([j.position for j in joints[:6]], ARM_Q)
+    assert np.allclose([j.velocity for j in joints[:6]], ARM_V)
+    assert np.allclose([j.effort for j in joints[:6]], ARM_TAU)
+    assert joints[6].position == pytest.approx(OPENING)
+
+
+def test_the_gripper_effort_is_recorded_as_the_fraction_it_is(run):
+    recording = run[0]
+    gripper = recording.on(topics.GRIPPER_STATE)
+    assert len(gripper) == len(recording.on(topics.JOINT_STATES))
+    assert gripper[-1].value == pytest.approx({"opening_m": OPENING, "effort": EFFORT})
+
+
+def test_frames_are_the_forward_kinematics_of_the_measured_joints(run):
+    recording, model, _, tcp = run
+    plant = model.plant
+    context = plant.CreateDefaultContext()
+    plant.SetPositions(context, model.full_positions(ARM_Q, OPENING))
+    expected = plant.CalcRelativeTransform(context, plant.world_frame(), tcp)
+    transforms = {t.child_frame_id: t for t in recording.on(topics.TRANSFORMS)[-1].value.transforms}
+    fingertip = transforms[topics.FINGERTIP_FRAME]
+    position = [fingertip.translation.x, fingertip.translation.y, fingertip.translation.z]
+    assert np.allclose(position, expected.translation(), atol=1e-9)  # m
+    assert all(t.parent_frame_id == topics.WORLD_FRAME for t in transforms.values())
+
+
+def test_images_are_jpegs_at_the_image_period_and_the_scene_is_written_once(run):
+    recording = run[0]
+    images = recording.on(topics.CAMERA_IMAGE)
+    assert [round(m.time_s, 6) for m in images] == pytest.approx([0.0, 0.1, 0.2, 0.3])
+    assert images[0].value.format == "jpeg" and images[0].value.data[:2] == b"\xff\xd8"
+    assert len(recording.on(topics.SCENE)) == 1
+
+
+def test_bad_periods_and_joint_counts_are_refused_by_name():
+    sink = None  # never reached: the arguments are checked first
+    with pytest.raises(ValueError, match="joint_names needs 6 names, got 2"):
+        McapRecorder(sink, ["a", "b"])
+    with pytest.raises(ValueError, match="state_period must be > 0 s, got 0"):
+        McapRecorder(sink, list("abcdef"), state_period=0.0)
+    with pytest.raises(ValueError, match="image_period must be >= 0 s, got -1"):
+        McapRecorder(sink, list("abcdef"), image_period=-1.0)
