@@ -1,5 +1,12 @@
 """One agent episode in simulation: build the task's diagram with an AgentSystem, run the agent
-loop with the chosen variant and language model, and report the paper's metrics."""
+loop with the chosen variant and language model, and report the paper's metrics.
+
+Before the first decision the model's server is checked (`llm.check_client`: an
+OpenAI-compatible server must serve the model, answer, and take images unless the model is
+text-only); a failed check ends the episode at once with the reason, like any model failure.
+The episode has a wall-clock limit: model calls asked for after it are refused (and
+recorded), so the episode ends at its next decision.
+"""
 
 from __future__ import annotations
 
@@ -9,8 +16,8 @@ from collections.abc import Callable
 from pathlib import Path
 
 from physcap_drake.agent.agent_system import AGENT_PERIOD, AgentSystem
-from physcap_drake.agent.llm import make_llm
-from physcap_drake.agent.llm.base import CallRecord, LLMClient
+from physcap_drake.agent.llm import LLMError, ModelSettings, check_client, make_llm
+from physcap_drake.agent.llm.base import CallRecord, LLMClient, takes_images
 from physcap_drake.agent.llm.pointer_ask import pointer_ask
 from physcap_drake.agent.loop import AgentLoop, AgentMind, EpisodeOutcome
 from physcap_drake.agent.sandbox import SandboxLimits
@@ -26,6 +33,9 @@ from physcap_drake.tasks.episode import Episode, make_episode
 
 #: Robot execution time after which an episode is stopped, s (no task needs more).
 ROBOT_TIME_LIMIT = 900.0
+#: Wall-clock time after which an episode makes no more model calls, s (a slow local model
+#: takes about a minute a call; an episode makes up to about 30).
+WALL_TIME_LIMIT = 3600.0
 
 
 @dc.dataclass
@@ -51,7 +61,9 @@ class AgentRun:
             "model": self.model, "success": outcome.success, "reason": outcome.reason,
             "oi": outcome.oi, "robot_time_s": round(outcome.robot_time_s, 3),
             "wall_time_s": round(outcome.wall_time_s, 3), "code_blocks": len(outcome.steps),
-            "failure": outcome.failure, "llm_calls": len(self.calls),
+            "failure": outcome.failure, "failure_kind": outcome.failure_kind,
+            "llm_calls": len(self.calls),
+            "failed_llm_calls": sum(c.failed for c in self.calls),
             "input_tokens": sum(c.input_tokens for c in self.calls),
             "output_tokens": sum(c.output_tokens for c in self.calls),
             "llm_latency_s": round(sum(c.latency_s for c in self.calls), 3),
@@ -75,13 +87,15 @@ def drive_agent(simulator, system: AgentSystem, context, loop: AgentLoop) -> Age
     return mind
 
 
-def run_agent_episode(task: str, seed: int, *, agent: str = "physcap", llm: str = "reference",
+def run_agent_episode(task: str, seed: int, *, agent: str = "physcap",
+                      llm: str | ModelSettings = "reference",
                       model: str | None = None, meshcat=None,
                       limits: SandboxLimits | None = None, client: LLMClient | None = None,
                       on_entry: Callable[[TranscriptEntry], None] | None = None,
                       robot_time_limit: float = ROBOT_TIME_LIMIT,
                       pointer: str = "offline", sink: McapSink | None = None,
-                      scenario_file: str | Path | None = None) -> AgentRun:
+                      scenario_file: str | Path | None = None,
+                      wall_time_limit: float | None = WALL_TIME_LIMIT) -> AgentRun:
     """Runs one episode of `task` with layout `seed`. `llm` is a backend spec (see
     physcap_drake.agent.llm.factory); `client` overrides it with a ready client (it should
     be a RecordingClient for the calls to be reported). `on_entry` hears each transcript
@@ -90,11 +104,17 @@ def run_agent_episode(task: str, seed: int, *, agent: str = "physcap", llm: str 
     the model must take images). With a `sink`, the run is recorded to it (robot signals by
     an McapRecorder in the diagram, the agent's messages by an AgentRecording); the caller
     closes the sink. `scenario_file` replaces the task's own scenario (e.g. the same scene
-    with `station: !PiperCan`); a CAN station is released when the episode ends."""
+    with `station: !PiperCan`); a CAN station is released when the episode ends.
+    `wall_time_limit`: s of wall-clock time after which no model call is made (None: no
+    limit); `llm` may also be a `ModelSettings`."""
     if pointer not in ("offline", "vlm"):
         raise ValueError(f"pointer must be 'offline' or 'vlm', got {pointer!r}")
+    if wall_time_limit is not None and not wall_time_limit > 0:
+        raise ValueError(f"the wall-clock limit must be positive, got {wall_time_limit} s")
     variant = load_variant(agent)
     client = client or make_llm(llm, model, seed=seed)
+    if pointer == "vlm" and not takes_images(client):
+        raise ValueError("the vlm pointer needs a model that takes images (not --no-images)")
     episode = make_episode(task, seed, meshcat=meshcat, with_agent=True, sink=sink,
                            scenario_file=scenario_file)
     if pointer == "vlm":
@@ -129,8 +149,17 @@ def run_agent_episode(task: str, seed: int, *, agent: str = "physcap", llm: str 
     system.attach(loop, lambda: episode.api.robot_time,
                   recording.on_observe if recording is not None else None)
     start = time.monotonic()
+    if wall_time_limit is not None and hasattr(client, "stop_calls_at"):
+        client.stop_calls_at(start + wall_time_limit, f"the episode's wall-clock limit of "
+                             f"{wall_time_limit:g} s has passed; no more model calls")
     try:
-        mind = drive_agent(simulator, system, agent_context, loop)
+        try:
+            check_client(client)
+        except LLMError as error:
+            mind = loop.stop_before_start(str(error))
+            system.set_mind(agent_context, mind)
+        else:
+            mind = drive_agent(simulator, system, agent_context, loop)
     finally:
         episode.close()
     outcome = loop.outcome(mind, time.monotonic() - start)
