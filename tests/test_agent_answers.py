@@ -119,8 +119,8 @@ def test_a_malformed_answer_is_repaired_with_the_problem_stated():
 
 def test_after_two_repairs_the_agent_fails_with_the_reason():
     model = ScriptedModel("nope", "still nope", "{broken", VALID)
-    with pytest.raises(AgentAnswerError, match="the coder gave no valid answer in 3 "
-                                               "attempt") as error:
+    with pytest.raises(AgentAnswerError, match=r"the coder \(scripted model scripted-1\) gave "
+                                               "no valid answer in 3 attempt") as error:
         ask_structured(model, REQUEST, CoderAnswer, repairs=2)
     assert "not valid JSON" in error.value.problem
     assert len(model.texts) == 1  # the fourth answer was never asked for

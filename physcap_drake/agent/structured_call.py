@@ -18,14 +18,17 @@ from collections.abc import Callable
 
 from pydantic import BaseModel, ValidationError
 
-from physcap_drake.agent.llm.base import LLMClient, LLMRequest
+from physcap_drake.agent.llm.base import LLMClient, LLMRequest, label, one_line
 
 
 class AgentAnswerError(RuntimeError):
-    """An agent gave no usable answer within its repair attempts."""
+    """An agent gave no usable answer within its repair attempts. `model`: which model
+    (and server) answered, as `llm.base.label` names it."""
 
-    def __init__(self, role: str, attempts: int, problem: str):
-        super().__init__(f"the {role} gave no valid answer in {attempts} attempt(s): {problem}")
+    def __init__(self, role: str, attempts: int, problem: str, model: str = ""):
+        by = f" ({model})" if model else ""
+        super().__init__(f"the {role}{by} gave no valid answer in {attempts} attempt(s): "
+                         f"{one_line(problem, 600)}")
         self.role = role
         self.problem = problem
 
@@ -102,7 +105,7 @@ def ask_structured[Answer: BaseModel](
                         f"{text[:2000]}\n\nProblem: {problem}\nAnswer again with one valid "
                         "JSON object only."),
                 context=request.context | {"repair": problem})
-    raise AgentAnswerError(request.role, repairs + 1, problem)
+    raise AgentAnswerError(request.role, repairs + 1, problem, label(llm))
 
 
 _FENCED = re.compile(r"```[ \t]*(?:python3?|py)?[ \t]*\n(.*?)\n[ \t]*```",

@@ -175,3 +175,12 @@ def innermost(client: LLMClient) -> LLMClient:
     while isinstance(client, ClientLayer):
         client = client.inner
     return client
+
+
+def label(client: LLMClient, role: str = "") -> str:
+    """How messages name a client: its backend's own words (a server's URL and the model)
+    when it has them, else its name and model; then the role asking, if given."""
+    backend = innermost(client)
+    if hasattr(backend, "where"):
+        return backend.where(role)
+    return f"{backend.name} model {backend.model}" + (f", role {role!r}" if role else "")

@@ -28,6 +28,7 @@ from physcap_drake.agent.llm.base import (
     LLMRequest,
     LLMResponse,
     LLMTimeout,
+    label,
     one_line,
 )
 
@@ -39,7 +40,7 @@ class PendingCall:
         self.request = request
         self.deadline_s = deadline_s
         self.deadline = time.monotonic() + deadline_s
-        self._where = f"{client.name} model {client.model}, role {request.role!r}"
+        self._where = label(client, request.role)
         self._done = threading.Event()
         self._response: LLMResponse | None = None
         self._error: LLMError | None = None

@@ -19,6 +19,7 @@ from physcap_drake.agent.llm.base import (
     LLMRequest,
     LLMResponse,
     TransientLLMError,
+    label,
 )
 
 
@@ -82,8 +83,9 @@ class RetryingClient(ClientLayer):
                 last_error = err
                 continue
             return dc.replace(response, latency_s=time.perf_counter() - start)
+        where = label(self.inner, request.role)
+        last = str(last_error).removeprefix(f"{where}: ")
         raise LLMError(
-            f"{self.inner.name} backend, model {self.inner.model}, role {request.role!r}: "
-            f"giving up after {self.attempts} attempt(s); last error: "
-            f"{type(last_error).__name__}: {last_error}"
+            f"{where}: giving up after {self.attempts} attempt(s); last error: "
+            f"{type(last_error).__name__}: {last}"
         ) from last_error

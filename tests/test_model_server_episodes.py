@@ -1,0 +1,68 @@
+"""Whole episodes through a local fake OpenAI-compatible server (tests/fake_model_server.py):
+one that faults recover from, and `physcap run` ending on a server failure with exit 3, its
+folder written and its replay ending the same way."""
+
+from __future__ import annotations
+
+import json
+
+from fake_model_server import FakeModelServer, Faults
+from typer.testing import CliRunner
+
+from physcap_drake.agent.episode_runner import run_agent_episode
+from physcap_drake.agent.llm import make_llm
+from physcap_drake.cli import app
+
+runner = CliRunner()
+
+
+def test_an_episode_through_faulty_code_and_a_faulty_server_is_solved():
+    faults = (Faults(1.0, ("code_millimetres", "code_unknown_function"), roles=("coder",),
+                     times=2),
+              Faults(1.0, ("html", "prose_bracket"), roles=("planner",), times=2))
+    with FakeModelServer(*faults, seed=0) as server, server.tap():
+        client = make_llm(f"openai-compatible:{server.url}", server.model, seed=0,
+                          sleep=lambda s: None)
+        run = run_agent_episode("identify_empty_can", 0, client=client)
+    summary = run.summary()
+    assert summary["success"] is True and summary["failure"] == "", summary
+    steps = run.outcome.steps
+    assert [s.ok for s in steps] == [False, False, True, True]  # two faulty blocks rewritten
+    assert steps[0].touched == steps[1].touched == 0
+    assert summary["oi"] == 1  # the one weighing that touched a can; not the failed blocks
+    assert len(server.injected) == 4
+    coder_prompts = [r.prompt for r in run.calls if r.role == "coder"]
+    assert "# The last code block failed" in coder_prompts[1]
+    assert "# The last code block failed" in coder_prompts[2]
+    assert "# The last code block failed" not in coder_prompts[3]
+
+
+def test_a_lasting_server_failure_exits_3_with_one_line_and_the_run_replays_the_same(tmp_path):
+    out, again = tmp_path / "run", tmp_path / "replayed"
+    with FakeModelServer(Faults(1.0, ("unavailable",), roles=("coder",))) as server, \
+            server.tap():
+        result = runner.invoke(app, [
+            "run", "--task", "identify_empty_can", "--seed", "0", "--quiet",
+            "--llm", f"openai-compatible:{server.url}", "--model", server.model,
+            "--retries", "1", "--out", str(out)])
+    assert result.exit_code == 3, result.output
+    reason = (f"openai-compatible server {server.url}, model fake-vlm, role 'coder': giving "
+              "up after 2 attempt(s); last error: TransientLLMError: openai-compatible server")
+    error_lines = [line for line in result.stderr.splitlines() if line.strip()]
+    assert len(error_lines) == 1 and reason in error_lines[0], result.stderr
+    assert "Traceback" not in result.output + result.stderr
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["failure_kind"] == "model" and reason in summary["failure"]
+    calls = [json.loads(line) for line in (out / "calls.jsonl").read_text().splitlines()]
+    assert [c["role"] for c in calls] == ["planner", "prioritizer", "coder"]
+    assert calls[-1]["error_type"] == "LLMError" and calls[-1]["attempts"] == 2
+
+    replay = runner.invoke(app, ["run", "--task", "identify_empty_can", "--seed", "0",
+                                 "--quiet", "--llm", f"replay:{out / 'calls.jsonl'}",
+                                 "--out", str(again)])
+    assert replay.exit_code == 3, replay.output
+    replayed = json.loads((again / "summary.json").read_text())
+    for key in ("success", "failure", "failure_kind", "oi", "code_blocks", "llm_calls"):
+        assert replayed[key] == summary[key], key
+    assert (again / "transcript.md").read_text().replace(str(again), "") == (
+        out / "transcript.md").read_text().replace(str(out), "")
