@@ -95,6 +95,7 @@ def run_agent_episode(task: str, seed: int, *, agent: str = "physcap",
                       robot_time_limit: float = ROBOT_TIME_LIMIT,
                       pointer: str = "offline", sink: McapSink | None = None,
                       scenario_file: str | Path | None = None,
+                      on_start: Callable[[Episode], None] | None = None,
                       wall_time_limit: float | None = WALL_TIME_LIMIT) -> AgentRun:
     """Runs one episode of `task` with layout `seed`. `llm` is a backend spec (see
     physcap_drake.agent.llm.factory); `client` overrides it with a ready client (it should
@@ -105,8 +106,10 @@ def run_agent_episode(task: str, seed: int, *, agent: str = "physcap",
     an McapRecorder in the diagram, the agent's messages by an AgentRecording); the caller
     closes the sink. `scenario_file` replaces the task's own scenario (e.g. the same scene
     with `station: !PiperCan`); a CAN station is released when the episode ends.
-    `wall_time_limit`: s of wall-clock time after which no model call is made (None: no
-    limit); `llm` may also be a `ModelSettings`."""
+    `on_start(episode)` is called once the episode is built and its simulator initialized,
+    before the agent's first decision (a live viewer paces the simulator and frames its
+    view there). `wall_time_limit`: s of wall-clock time after which no model call is made
+    (None: no limit); `llm` may also be a `ModelSettings`."""
     if pointer not in ("offline", "vlm"):
         raise ValueError(f"pointer must be 'offline' or 'vlm', got {pointer!r}")
     if wall_time_limit is not None and not wall_time_limit > 0:
@@ -148,11 +151,13 @@ def run_agent_episode(task: str, seed: int, *, agent: str = "physcap",
                      on_phase=on_phase)
     system.attach(loop, lambda: episode.api.robot_time,
                   recording.on_observe if recording is not None else None)
-    start = time.monotonic()
-    if wall_time_limit is not None and hasattr(client, "stop_calls_at"):
-        client.stop_calls_at(start + wall_time_limit, f"the episode's wall-clock limit of "
-                             f"{wall_time_limit:g} s has passed; no more model calls")
     try:
+        if on_start is not None:
+            on_start(episode)
+        start = time.monotonic()
+        if wall_time_limit is not None and hasattr(client, "stop_calls_at"):
+            client.stop_calls_at(start + wall_time_limit, f"the episode's wall-clock limit "
+                                 f"of {wall_time_limit:g} s has passed; no more model calls")
         try:
             check_client(client)
         except LLMError as error:

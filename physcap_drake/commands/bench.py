@@ -20,8 +20,11 @@ app = typer.Typer(help="Benchmarks that print figures.", no_args_is_help=True)
 @app.command("station")
 def station(json_path: Annotated[Path | None, typer.Option(
         "--json", help="Also write the results to this JSON file.")] = None) -> None:
-    """Real-time factor of the simulated station: holding home, a six-joint sweep, and
-    holding a 0.35 kg can in the gripper."""
+    """Real-time factor of the simulated station.
+
+    Three cases: holding home, a six-joint sweep, and holding a 0.35 kg can in the
+    gripper (with how far it slipped).
+    """
     results = []
     for case in CASES:
         with sim_progress(f"bench {case}", DURATION) as progress:
@@ -46,8 +49,11 @@ def pick_place(
     json_path: Annotated[Path | None, typer.Option(
         "--json", help="Also write the results to this JSON file.")] = None,
 ) -> None:
-    """Pick a can from random places on the table and put it on the tray: success count,
-    mean robot execution time and the worst fingertip error at the end of a goto_pose."""
+    """Pick and place a can from random places.
+
+    Picks the can from random places on the table and puts it on the tray: success count,
+    mean robot execution time and the worst fingertip error at the end of a goto_pose.
+    """
     results = []
     with trial_progress("pick and place", trials) as advance:
         for trial in range(trials):
@@ -73,8 +79,11 @@ def can_loop(
     json_path: Annotated[Path | None, typer.Option(
         "--json", help="Also write the results to this JSON file.")] = None,
 ) -> None:
-    """Period jitter of the CAN station's command loop over the virtual bus, against the
-    emulator, while the arm sweeps in real time: p50_ms, p99_ms (target 1000 / rate)."""
+    """Period jitter of the CAN station's command loop.
+
+    Streams commands over the virtual bus to the emulator while the arm sweeps in real
+    time, and reports the loop period's p50_ms and p99_ms (target 1000 / rate).
+    """
     with sim_progress("bench can-loop", seconds) as progress:
         result = run_can_loop(seconds, rate, progress)
     console.print(f"control loop at {result.control_rate_hz:g} Hz over {result.cycles} "
