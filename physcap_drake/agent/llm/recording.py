@@ -136,8 +136,8 @@ class RecordingClient(ClientLayer):
                                     "has passed")
             response = self.inner.complete(request)
         except LLMError as error:
-            self._keep(failure_record(request, error, self.model, time.perf_counter() - start,
-                                      self._attempts()))
+            latency = getattr(error, "recorded_latency_s", time.perf_counter() - start)
+            self._keep(failure_record(request, error, self.model, latency, self._attempts()))
             raise
         wall_s = time.perf_counter() - start
         if response.latency_s <= 0.0:

@@ -93,7 +93,9 @@ class ReplayClient:
             self._served[role] = index + 1
         self._local.attempts = record.attempts
         if record.failed:
-            raise ERROR_CLASSES[record.error_type](record.error)
+            error = ERROR_CLASSES[record.error_type](record.error)
+            error.recorded_latency_s = record.latency_s  # the recording keeps it
+            raise error
         return LLMResponse(
             text=record.response,
             model=record.model,
