@@ -43,6 +43,8 @@ def check_client(client: LLMClient, context_needed: int = CONTEXT_NEEDED) -> str
 
 
 class ServerCheck:
+    """One check of one server (see the module docstring); `run()` does it."""
+
     def __init__(self, client: OpenAICompatibleClient, context_needed: int):
         self.client = client
         self.context_needed = context_needed
