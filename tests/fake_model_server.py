@@ -324,15 +324,19 @@ def main(argv: list[str] | None = None) -> int:
                         help="share of coder answers with a faulty code block")
     parser.add_argument("--http-faults", type=float, default=0.0,
                         help="share of all answers with a transport or text fault")
+    parser.add_argument("--text-only", action="store_true",
+                        help="the server refuses images (as llama.cpp does) and the agent "
+                             "sends none (--no-images)")
     args = parser.parse_args(argv)
     solved = 0
     seeds = _seeds(args.seeds)
     for seed in seeds:
         faults = [Faults(args.coder_faults, CODE_FAULTS, roles=("coder",)),
                   Faults(args.http_faults, tuple(k for k in HTTP_FAULTS if k != "trickle"))]
-        with FakeModelServer(*faults, seed=seed) as server, server.tap():
+        text_only = "llamacpp" if args.text_only else None
+        with FakeModelServer(*faults, seed=seed, text_only=text_only) as server, server.tap():
             client = make_llm(f"openai-compatible:{server.url}", server.model, seed=seed,
-                              timeout_s=30, sleep=lambda s: None)
+                              timeout_s=30, sleep=lambda s: None, images=not args.text_only)
             start = time.monotonic()
             run = run_agent_episode(args.task, seed, agent=args.agent, client=client)
             summary = run.summary()
@@ -344,7 +348,8 @@ def main(argv: list[str] | None = None) -> int:
               f"failure {summary['failure']!r}, wall {time.monotonic() - start:.0f} s",
               flush=True)
     print(f"solved {solved} of {len(seeds)} with {args.coder_faults:.0%} faulty coder answers "
-          f"and {args.http_faults:.0%} transport/text faults")
+          f"and {args.http_faults:.0%} transport/text faults"
+          + (", text only" if args.text_only else ""))
     return 0
 
 
