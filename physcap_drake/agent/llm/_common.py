@@ -9,7 +9,7 @@ import importlib
 import json
 import re
 import time
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from types import ModuleType
 from typing import Any
 
@@ -136,6 +136,26 @@ MIN_ROOM_TOKENS = 2048
 MAX_ROOM_TOKENS = 16384
 #: How often one call may be asked again with more room.
 ROOM_RETRIES = 3
+
+
+def with_room[Answer](ask: Callable[[int | None], Answer],
+                     cut_at: Callable[[Answer], int | None], first: int | None, cap: int,
+                     where: str) -> Answer:
+    """`ask(room)` (room: output tokens, None for the server's default, starting at
+    `first`) until an answer is not cut off; `cut_at(answer)` is the tokens a cut-off answer
+    used (0 if unknown), None for a whole one. The room grows by `more_room` up to `cap`;
+    an answer still cut off then is an LLMError (`cut_off_error`)."""
+    room = first
+    for _ in range(ROOM_RETRIES + 1):
+        answer = ask(room)
+        used = cut_at(answer)
+        if used is None:
+            return answer
+        grown = more_room(room, used, cap)
+        if grown is None:
+            break
+        room = grown
+    raise cut_off_error(where, used, room)
 
 
 def more_room(room: int | None, used: int, cap: int) -> int | None:

@@ -17,12 +17,11 @@ from typing import Any
 from physcap_drake.agent.llm import _common
 from physcap_drake.agent.llm._common import (
     LLMConfigError,
-    cut_off_error,
     import_sdk,
-    more_room,
     status_error,
     strip_code_fence,
     with_json_instruction,
+    with_room,
 )
 from physcap_drake.agent.llm.base import (
     LLMError,
@@ -102,21 +101,11 @@ class AnthropicClient:
     def complete(self, request: LLMRequest) -> LLMResponse:
         where = f"anthropic model {self.model}, role {request.role!r}"
         start = time.perf_counter()
-        room = self.max_tokens
-        for _ in range(_common.ROOM_RETRIES + 1):
-            message = self._ask(request, room, where)
-            if getattr(message, "stop_reason", None) != "max_tokens":
-                break
-            used = int(getattr(getattr(message, "usage", None), "output_tokens", 0) or 0)
-            grown = more_room(room, used, self.max_room_tokens)
-            if grown is None:
-                raise cut_off_error(where, used, room)
-            room = grown
-        else:
-            raise cut_off_error(where, used, room)
+        message = with_room(lambda room: self._ask(request, room, where), _cut_tokens,
+                            self.max_tokens, self.max_room_tokens, where)
         return self._response(message, request, where, time.perf_counter() - start)
 
-    def _ask(self, request: LLMRequest, room: int, where: str) -> Any:
+    def _ask(self, request: LLMRequest, room: int | None, where: str) -> Any:
         sdk = self._sdk
         try:
             return self._client.messages.create(**self.build_params(request, room))
@@ -161,3 +150,10 @@ class AnthropicClient:
             output_tokens=int(getattr(usage, "output_tokens", 0) or 0),
             latency_s=latency,
         )
+
+
+def _cut_tokens(message: Any) -> int | None:
+    """The tokens of an answer that stopped at max_tokens; None for a whole one."""
+    if getattr(message, "stop_reason", None) != "max_tokens":
+        return None
+    return int(getattr(getattr(message, "usage", None), "output_tokens", 0) or 0)

@@ -123,6 +123,11 @@ def read_chat_answer(data: Any, where: str) -> ChatAnswer:
     )
 
 
+def cut_tokens(answer: ChatAnswer) -> int | None:
+    """The tokens an answer cut off at its length limit used; None for a whole answer."""
+    return answer.completion_tokens if answer.finish_reason == "length" else None
+
+
 def answer_text(answer: ChatAnswer, request: LLMRequest, where: str) -> str:
     """The text the caller gets: a fence around JSON removed; an empty answer is an
     LLMError saying why the model stopped (or what it refused)."""

@@ -28,7 +28,7 @@ import time
 from typing import Any
 
 from physcap_drake.agent.llm import _common
-from physcap_drake.agent.llm._common import LLMConfigError, cut_off_error, more_room
+from physcap_drake.agent.llm._common import LLMConfigError, with_room
 from physcap_drake.agent.llm.base import (
     LLMError,
     LLMRequest,
@@ -41,6 +41,7 @@ from physcap_drake.agent.llm.chat_format import (
     ChatAnswer,
     answer_text,
     chat_body,
+    cut_tokens,
     error_message,
     read_chat_answer,
 )
@@ -127,17 +128,10 @@ class OpenAICompatibleClient:
             raise LLMError(f"{where}: the request carries an image but the model is set up "
                            "as text-only (no images)")
         start = time.monotonic()
-        room = self.max_tokens
-        for _ in range(_common.ROOM_RETRIES + 1):
-            answer = self._ask(request, room, where, self.timeout_s - (time.monotonic() - start))
-            if answer.finish_reason != "length":
-                break
-            grown = more_room(room, answer.completion_tokens, self.max_room_tokens)
-            if grown is None:
-                raise cut_off_error(where, answer.completion_tokens, room)
-            room = grown
-        else:
-            raise cut_off_error(where, answer.completion_tokens, room)
+        answer = with_room(
+            lambda room: self._ask(request, room, where,
+                                   self.timeout_s - (time.monotonic() - start)),
+            cut_tokens, self.max_tokens, self.max_room_tokens, where)
         self._check_prompt_was_read(request, answer, where)
         return LLMResponse(text=answer_text(answer, request, where),
                            model=answer.model or self.model,

@@ -16,12 +16,11 @@ from typing import Any
 from physcap_drake.agent.llm import _common
 from physcap_drake.agent.llm._common import (
     LLMConfigError,
-    cut_off_error,
     import_sdk,
     is_transient_status,
-    more_room,
     retry_after_from_google_details,
     retry_after_from_headers,
+    with_room,
 )
 from physcap_drake.agent.llm.base import (
     LLMError,
@@ -139,18 +138,8 @@ class GeminiClient:
     def complete(self, request: LLMRequest) -> LLMResponse:
         start = time.perf_counter()
         where = f"gemini model {self.model}, role {request.role!r}"
-        room = self.max_tokens
-        for _ in range(_common.ROOM_RETRIES + 1):
-            response = self._ask(request, room)
-            if not _cut_off(response):
-                break
-            used = _usage_count(response, "candidates_token_count")
-            grown = more_room(room, used, self.max_room_tokens)
-            if grown is None:
-                raise cut_off_error(where, used, room)
-            room = grown
-        else:
-            raise cut_off_error(where, used, room)
+        response = with_room(lambda room: self._ask(request, room), _cut_tokens,
+                             self.max_tokens, self.max_room_tokens, where)
         latency = time.perf_counter() - start
         text = self._text_of(response, request)
         input_tokens = _usage_count(response, "prompt_token_count")
@@ -232,11 +221,13 @@ class GeminiClient:
         return TransientLLMError(message, retry_after_s=hint)
 
 
-def _cut_off(response: Any) -> bool:
-    """Whether the answer stopped at its output limit."""
+def _cut_tokens(response: Any) -> int | None:
+    """The tokens of an answer that stopped at its output limit; None for a whole one."""
     candidates = getattr(response, "candidates", None) or []
     reason = getattr(candidates[0], "finish_reason", None) if candidates else None
-    return "MAX_TOKENS" in str(reason or "")
+    if "MAX_TOKENS" not in str(reason or ""):
+        return None
+    return _usage_count(response, "candidates_token_count")
 
 
 def _usage_count(response: Any, field: str) -> int:

@@ -17,10 +17,9 @@ from typing import Any
 from physcap_drake.agent.llm import _common
 from physcap_drake.agent.llm._common import (
     LLMConfigError,
-    cut_off_error,
     import_sdk,
-    more_room,
     status_error,
+    with_room,
 )
 from physcap_drake.agent.llm.base import (
     LLMError,
@@ -36,6 +35,7 @@ from physcap_drake.agent.llm.chat_format import (
     SchemaMode,
     answer_text,
     chat_body,
+    cut_tokens,
     read_chat_answer,
 )
 
@@ -92,17 +92,8 @@ class OpenAIClient:
     def complete(self, request: LLMRequest) -> LLMResponse:
         where = f"{self.name} model {self.model}, role {request.role!r}"
         start = time.perf_counter()
-        room = self.max_tokens
-        for _ in range(_common.ROOM_RETRIES + 1):
-            answer = self._ask(request, room, where)
-            if answer.finish_reason != "length":
-                break
-            grown = more_room(room, answer.completion_tokens, self.max_room_tokens)
-            if grown is None:
-                raise cut_off_error(where, answer.completion_tokens, room)
-            room = grown
-        else:
-            raise cut_off_error(where, answer.completion_tokens, room)
+        answer = with_room(lambda room: self._ask(request, room, where), cut_tokens,
+                           self.max_tokens, self.max_room_tokens, where)
         return LLMResponse(
             text=answer_text(answer, request, where),
             model=answer.model or self.model,
