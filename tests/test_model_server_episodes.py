@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 
+import pytest
 from fake_model_server import FakeModelServer, Faults
 from typer.testing import CliRunner
 
@@ -70,3 +71,28 @@ def test_a_lasting_server_failure_exits_3_with_one_line_and_the_run_replays_the_
         return (folder / "transcript.md").read_text().partition("## Outcome")[0]
 
     assert story(again) == story(out) and "giving up after 2 attempt(s)" in story(out)
+
+
+@pytest.mark.parametrize(("fault", "said"), [
+    ("html", "HTTP 200 but the body is an HTML page"),
+    ("cut_body", "HTTP 200 but the body is cut short or not JSON"),
+    ("trickle", "no complete answer within 1 s"),
+])
+def test_a_broken_server_ends_the_run_with_exit_3_and_its_folder_written(fault, said,
+                                                                         tmp_path):
+    with FakeModelServer(Faults(1.0, (fault,), roles=("planner",)), trickle_pieces=4,
+                         trickle_gap_s=0.6) as server, server.tap():
+        result = runner.invoke(app, [
+            "run", "--task", "identify_empty_can", "--quiet", "--llm",
+            f"openai-compatible:{server.url}", "--model", server.model, "--retries", "1",
+            "--timeout", "1", "--out", str(tmp_path)])
+    assert result.exit_code == 3, result.output
+    lines = [line for line in result.stderr.splitlines() if line.strip()]
+    assert len(lines) == 1 and "Traceback" not in result.output + result.stderr
+    assert lines[0].startswith(f"error: openai-compatible server {server.url}, model "
+                               "fake-vlm, role 'planner': giving up after 2 attempt(s)")
+    assert said in lines[0]
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    assert summary["failure_kind"] == "model" and summary["failed_llm_calls"] == 1
+    (call,) = [json.loads(line) for line in (tmp_path / "calls.jsonl").read_text().splitlines()]
+    assert call["error"] == lines[0].removeprefix("error: ")

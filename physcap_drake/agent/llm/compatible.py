@@ -116,9 +116,11 @@ class OpenAICompatibleClient:
                         deadline_s or self.timeout_s, where)
 
     def post(self, path: str, body: dict[str, Any], where: str,
-             deadline_s: float | None = None) -> Reply:
+             deadline_s: float | None = None, limit_s: float | None = None) -> Reply:
+        """POST `body` to `path` within `deadline_s` (default: the client's timeout); a
+        timeout names `limit_s` (default: the deadline)."""
         return exchange(self.endpoint, "POST", path, body, self._headers,
-                        deadline_s or self.timeout_s, where)
+                        deadline_s or self.timeout_s, where, limit_s)
 
     # --- one call ---------------------------------------------------------------------------
 
@@ -149,7 +151,7 @@ class OpenAICompatibleClient:
         body = self.body(request, room)
         if deadline_s <= 0:
             raise LLMTimeout(f"{where}: no complete answer within {self.timeout_s:g} s")
-        reply = self.post("/chat/completions", body, where, deadline_s)
+        reply = self.post("/chat/completions", body, where, deadline_s, self.timeout_s)
         if reply.status != 200:
             raise self._status_error(reply, request, where)
         return read_chat_answer(reply.json(where), where)

@@ -86,10 +86,12 @@ class Reply:
 
 
 def exchange(endpoint: Endpoint, method: str, path: str, body: dict[str, Any] | None,
-             headers: dict[str, str], deadline_s: float, where: str) -> Reply:
+             headers: dict[str, str], deadline_s: float, where: str,
+             limit_s: float | None = None) -> Reply:
     """Sends one request to `endpoint.prefix + path` and reads the whole answer within
-    `deadline_s` seconds in all. Raises LLMTimeout when the time is up, TransientLLMError
-    when the server cannot be reached or the connection breaks or the body is cut short."""
+    `deadline_s` seconds in all. Raises LLMTimeout when the time is up (naming `limit_s`,
+    the caller's whole limit, if given), TransientLLMError when the server cannot be reached
+    or the connection breaks or the body is cut short."""
     start = time.monotonic()
 
     def left() -> float:
@@ -130,7 +132,8 @@ def exchange(endpoint: Endpoint, method: str, path: str, body: dict[str, Any] | 
                      b"".join(parts))
     except TimeoutError:
         got = f"; {received} bytes of the answer had come" if received else ""
-        raise LLMTimeout(f"{where}: no complete answer within {deadline_s:g} s{got}") from None
+        raise LLMTimeout(f"{where}: no complete answer within {limit_s or deadline_s:g} s"
+                         f"{got}") from None
     except http.client.IncompleteRead as error:
         raise TransientLLMError(f"{where}: the answer was cut short ({len(error.partial)} "
                                 f"bytes came, more were announced)") from None
