@@ -92,17 +92,42 @@ def test_code_in_a_markdown_fence_runs_without_the_fence():
 
 
 def test_failed_blocks_beyond_the_budget_end_the_episode_saying_why():
-    coder = Coder(["robot_do()"] * 4, final=[False] * 4)
+    coder = Coder([f"robot_do_{i}()" for i in range(4)], final=[False] * 4)
     mind = run_episode(loop_with(coder, StandInArm(), block_retries=2))
     assert mind.phase == "failed" and mind.failure_kind == "code"
     assert len(mind.steps) == 3 and len(coder.requests) == 3
-    assert mind.failure.startswith("code block 2 failed and the episode's 2 retries of "
+    assert mind.failure.startswith("code block 2 failed and the episode's 2 rewrites of "
                                    "failed blocks are used up: exception: NameError")
     assert mind.oi == 0
 
 
+def test_an_exploration_that_failed_after_moving_goes_back_to_the_planner():
+    coder = Coder(["goto_pose([0.3, 0.0, 0.2])\nrobot_do()", "home_pose()"],
+                  final=[False, True])
+    mind = run_episode(loop_with(coder, StandInArm()))
+    assert mind.phase == "done" and mind.steps[0].moved and not mind.steps[0].ok
+    assert "# The last code block failed" not in coder.requests[1].prompt
+    assert "stopped with an error: exception: NameError" in coder.requests[1].prompt
+    assert mind.retries == 0
+
+
+def test_a_rewrite_repeating_the_failed_block_goes_back_to_the_planner():
+    refused = "goto_pose([300.0, 0.0, 50.0])"
+    coder = Coder([refused, refused, "home_pose()"])
+    mind = run_episode(loop_with(coder, StandInArm()))
+    assert (mind.phase, mind.failure) == ("done", "")
+    assert [(s.ok, s.retry) for s in mind.steps] == [(False, False), (False, True),
+                                                     (True, False)]
+    assert "# The last code block failed" in coder.requests[1].prompt
+    third = coder.requests[2].prompt
+    assert "# The last code block failed" not in third
+    assert third.count("stopped with an error before the robot moved: exception: "
+                       "SkillRefused") == 2
+    assert mind.retries == 1
+
+
 def test_at_the_step_limit_the_failure_names_the_last_blocks_error():
-    coder = Coder(["robot_do()"] * 3, final=[False] * 3)
+    coder = Coder([f"robot_do_{i}()" for i in range(3)], final=[False] * 3)
     loop = loop_with(coder, StandInArm(), block_retries=10)
     loop.variant.max_steps = 2
     mind = run_episode(loop)

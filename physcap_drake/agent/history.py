@@ -21,6 +21,7 @@ class StepRecord:
     robot_time_s: robot execution time when the block ended.
     moved: whether the robot moved at all during the block (robot time advanced).
     touched: interactions with objects the block made (see agent.interactions).
+    retry: the block rewrites the one before it, which failed, for the same step.
     """
 
     index: int
@@ -37,6 +38,7 @@ class StepRecord:
     robot_time_s: float
     moved: bool = True
     touched: int = 0
+    retry: bool = False
 
     def as_context(self) -> dict:
         """The record as the agents see it (the code itself is left out: its effect is)."""

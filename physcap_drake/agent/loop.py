@@ -17,9 +17,14 @@ block, when the success check passes (the check is ground truth and is never sho
 agents; it only stops the episode), at the step limit, the robot-time limit, or when an agent
 gives no usable answer: the mind is then "done" or "failed".
 
-A code block that fails (final blocks included) goes back to the coder with its error and its
-code, for the same step, as long as the episode's budget of retries lasts (`block_retries`);
-then the episode ends with the last block's error. An episode that ends early says why in
+A code block that fails goes back to the coder with its error and its code, to be written
+again for the same step (`rewrite_wanted`), as long as the episode's budget of rewrites lasts
+(`block_retries`): a final block always, an exploration only when it failed before the robot
+moved (a fault of the code: syntax, an unknown function, a refused argument; after a motion
+the planner decides again, seeing the error). A rewrite that repeats the failed code and
+fails the same way is not rewritten again: the planner decides afresh, seeing both errors.
+Beyond the budget the episode ends with the last block's error. An episode that ends early
+says why in
 `failure`, and what kind of reason it is in `failure_kind`: "model" (a model or its server
 failed: no usable answer, an error that retries did not cure), "limit" (steps, robot time,
 the wall clock), "code" (failed code blocks beyond the budget), "arm" (an arm fault) or
@@ -83,10 +88,12 @@ class Decision:
 
 @dc.dataclass(frozen=True)
 class PendingBlock:
-    """A code block written at an event, to run before the next one."""
+    """A code block written at an event, to run before the next one (`retry`: a rewrite of
+    the block before it, which failed)."""
 
     decision: Decision
     answer: CoderAnswer
+    retry: bool = False
 
 
 @dc.dataclass(frozen=True)
@@ -99,6 +106,7 @@ class RanBlock:
     robot_time_s: float
     moved: bool = True
     touched: int = 0
+    retry: bool = False
 
 
 @dc.dataclass(frozen=True)
@@ -200,9 +208,11 @@ class AgentLoop:
         if stop is not None:
             return self._end(mind, stop)
         failed = mind.steps[-1] if mind.steps and not mind.steps[-1].ok else None
+        if failed is not None and not rewrite_wanted(mind.steps):
+            failed = None  # the planner decides again, with the error in the history
         if failed is not None and mind.retries >= self._block_retries:
             return self._end(mind, f"code block {failed.index} failed and the episode's "
-                             f"{self._block_retries} retries of failed blocks are used up: "
+                             f"{self._block_retries} rewrites of failed blocks are used up: "
                              f"{failed.error}", kind="code")
         try:
             context = AgentContext(self.task, observation, tuple(self.api.knowledge.entries),
@@ -228,7 +238,8 @@ class AgentLoop:
             "target": decision.candidate.name if decision.candidate else "",
             "retry": failed is not None})
         self._phase("executing", mind)
-        return dc.replace(mind, phase="executing", pending=PendingBlock(decision, answer))
+        return dc.replace(mind, phase="executing",
+                          pending=PendingBlock(decision, answer, failed is not None))
 
     # --- between events ------------------------------------------------------------------
 
@@ -284,7 +295,7 @@ class AgentLoop:
             return self._end(mind, f"arm fault: {outcome.error}", kind="arm")
         return dc.replace(mind, phase="deciding", ran=RanBlock(
             pending.decision, pending.answer, outcome, api.robot_time, moved,
-            self._interactions.count))
+            self._interactions.count, pending.retry))
 
     def outcome(self, mind: AgentMind, wall_time_s: float) -> EpisodeOutcome:
         """The episode's result once the mind is done or failed (or interrupted)."""
@@ -311,7 +322,8 @@ class AgentLoop:
             f"{outcome.kind}: {outcome.error}", stdout=outcome.stdout,
             appeared=tuple(n for n in after.names() if n not in before.names()),
             disappeared=tuple(n for n in before.names() if n not in after.names()),
-            robot_time_s=ran.robot_time_s, moved=ran.moved, touched=ran.touched)
+            robot_time_s=ran.robot_time_s, moved=ran.moved, touched=ran.touched,
+            retry=ran.retry)
         return dc.replace(mind, steps=(*mind.steps, step), ran=None,
                           last_decision=decision)
 
@@ -424,6 +436,17 @@ class AgentLoop:
             self.api.wait(SAFE_HOLD)
         except SkillError as error:
             self._note(mind, "error", f"could not bring the arm to rest: {error}")
+
+
+def rewrite_wanted(steps: tuple[StepRecord, ...]) -> bool:
+    """Whether the last block, which failed, should go back to the coder to be written
+    again (see the module docstring): a final block, or an exploration that failed before
+    the robot moved; not when it was itself a rewrite repeating the failed code and error."""
+    failed = steps[-1]
+    if failed.retry and len(steps) > 1 and (steps[-2].code, steps[-2].error) == (
+            failed.code, failed.error):
+        return False
+    return failed.kind == "final" or not failed.moved
 
 
 def _describe(decision: Decision) -> str:
