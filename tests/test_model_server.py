@@ -28,7 +28,7 @@ from physcap_drake.agent.structured_call import ask_structured
 from physcap_drake.perception.jpeg import encode_jpeg
 from physcap_drake.tasks.registry import TASKS
 
-CANS = tuple(ObjectInView(f"{color} can", "can", color, straw, "", x, 240.0)
+CANS = tuple(ObjectInView(f"{color} can", "can", color, straw, "", 0.12, x, 240.0)
              for color, straw, x in (("red", True, 100.0), ("blue", False, 250.0),
                                      ("green", True, 400.0), ("yellow", False, 550.0)))
 JPEG = encode_jpeg(np.zeros((480, 640, 3), np.uint8))

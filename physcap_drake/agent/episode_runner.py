@@ -95,6 +95,7 @@ def run_agent_episode(task: str, seed: int, *, agent: str = "physcap",
                       robot_time_limit: float = ROBOT_TIME_LIMIT,
                       pointer: str = "offline", sink: McapSink | None = None,
                       scenario_file: str | Path | None = None,
+                      perception: str = "label", judge: str = "simulator",
                       on_start: Callable[[Episode], None] | None = None,
                       wall_time_limit: float | None = WALL_TIME_LIMIT) -> AgentRun:
     """Runs one episode of `task` with layout `seed`. `llm` is a backend spec (see
@@ -106,6 +107,9 @@ def run_agent_episode(task: str, seed: int, *, agent: str = "physcap",
     an McapRecorder in the diagram, the agent's messages by an AgentRecording); the caller
     closes the sink. `scenario_file` replaces the task's own scenario (e.g. the same scene
     with `station: !PiperCan`); a CAN station is released when the episode ends.
+    `perception`: "rgbd" (from the colour and depth images alone) or "label" (the
+    simulator's perfect segmenter); `judge`: "simulator" (ground truth) or "perception"
+    (the final camera view); see tasks.episode.
     `on_start(episode)` is called once the episode is built and its simulator initialized,
     before the agent's first decision (a live viewer paces the simulator and frames its
     view there). `wall_time_limit`: s of wall-clock time after which no model call is made
@@ -119,9 +123,9 @@ def run_agent_episode(task: str, seed: int, *, agent: str = "physcap",
     if pointer == "vlm" and not takes_images(client):
         raise ValueError("the vlm pointer needs a model that takes images (not --no-images)")
     episode = make_episode(task, seed, meshcat=meshcat, with_agent=True, sink=sink,
-                           scenario_file=scenario_file)
+                           scenario_file=scenario_file, perception=perception, judge=judge)
     if pointer == "vlm":
-        episode.api.use_locator(ObjectLocator(episode.api.locator.camera,
+        episode.api.use_locator(ObjectLocator(episode.api.locator.perception,
                                               VlmPointer(pointer_ask(client))))
     simulator, system = episode.api.simulator, episode.robot.agent
     root = simulator.get_mutable_context()
@@ -165,9 +169,10 @@ def run_agent_episode(task: str, seed: int, *, agent: str = "physcap",
             system.set_mind(agent_context, mind)
         else:
             mind = drive_agent(simulator, system, agent_context, loop)
+        # Judged before the station is released: a camera judge still needs its camera.
+        outcome = loop.outcome(mind, time.monotonic() - start)
     finally:
         episode.close()
-    outcome = loop.outcome(mind, time.monotonic() - start)
     run = AgentRun(task, variant.name, seed, getattr(client, "name", llm),
                    getattr(client, "model", model or ""), outcome, transcript,
                    list(getattr(client, "records", [])), episode)

@@ -12,13 +12,16 @@ import typer
 from pydrake.common.yaml import yaml_dump_typed
 from rich.table import Table
 
+from physcap_drake.commands.calibrate_camera import calibrate_camera
 from physcap_drake.commands.common import console, save_json, trial_progress
 from physcap_drake.physx import calibration as cal
 from physcap_drake.physx.stiffness_levels import StiffnessThresholds, load_thresholds
 from physcap_drake.resources import make_package_map, stations_dir
 from physcap_drake.scenario import load_scenario
 
-app = typer.Typer(help="Validate and calibrate the physical probes.", no_args_is_help=True)
+app = typer.Typer(help="Validate and calibrate the physical probes and the camera.",
+                  no_args_is_help=True)
+app.command("camera")(calibrate_camera)
 
 Trials = Annotated[int, typer.Option("--trials", min=1, help="Trials per specimen.")]
 Seed = Annotated[int, typer.Option("--seed", min=0, help="Seed of the perturbations.")]

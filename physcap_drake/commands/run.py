@@ -88,9 +88,16 @@ def run(task: Annotated[str, typer.Option("--task", help=f"One of: {', '.join(TA
             "must set up the same task), e.g. stations/identify_empty_can_piper_can.yaml "
             "(over CAN).")] = None,
         pointer: Annotated[str, typer.Option(
-            "--pointer", help="How get_object_pose finds objects: offline (simulated "
-                              "segmenter) or vlm (the model points; needs an image model).")
-                           ] = "offline",
+            "--pointer", help="How get_object_pose finds objects: offline (phrases resolved "
+                              "against the perceived objects) or vlm (the model points; "
+                              "needs an image model).")] = "offline",
+        perception: Annotated[str, typer.Option(
+            "--perception", help="What sees the objects: rgbd (colour and depth images "
+                                 "alone, the camera emulated as a RealSense in simulation) "
+                                 "or label (the simulator's perfect segmenter).")] = "label",
+        judge: Annotated[str, typer.Option(
+            "--judge", help="Who decides success: simulator (ground truth) or perception "
+                            "(the final camera view).")] = "simulator",
         llm: Llm = "reference",
         model: Model = None,
         vertex_project: VertexProject = None,
@@ -161,7 +168,8 @@ def run(task: Annotated[str, typer.Option("--task", help=f"One of: {', '.join(TA
         console.print(f"[bold]{task}[/], seed {seed}, agent {escape(agent)}: "
                       f"{escape(TASKS[task].prompt)}")
     options = dict(agent=agent, client=client, meshcat=viewer, pointer=pointer,
-                   scenario_file=scenario, on_entry=printer, on_start=on_start)
+                   perception=perception, judge=judge, scenario_file=scenario,
+                   on_entry=printer, on_start=on_start)
     if episode_timeout is not None:
         options["wall_time_limit"] = episode_timeout
     try:
