@@ -184,7 +184,17 @@ def test_a_small_context_window_is_found_at_start():
                                            f"need about {CONTEXT_NEEDED}"):
             check_client(client_for(server))
     with FakeModelServer(context_window=32768) as server, server.tap():
-        assert "context window 32768 tokens" in check_client(client_for(server))
+        found = check_client(client_for(server))
+        assert "context window 32768 tokens" in found and "warning" not in found
+
+
+def test_a_server_that_does_not_say_its_context_window_gets_a_warning():
+    with FakeModelServer() as server, server.tap():  # as Ollama: GET /models has no window
+        found = check_client(client_for(server))
+    assert found.startswith(f"openai-compatible server {server.url}: model fake-vlm listed")
+    assert (f"warning: the server does not say its context window; it must hold about "
+            f"{CONTEXT_NEEDED} tokens") in found
+    assert "OLLAMA_CONTEXT_LENGTH=16384" in found
 
 
 def test_a_prompt_the_server_cut_silently_is_an_error_about_the_context_window():

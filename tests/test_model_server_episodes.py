@@ -34,6 +34,10 @@ def test_an_episode_through_faulty_code_and_a_faulty_server_is_solved():
     assert steps[0].touched == steps[1].touched == 0
     assert summary["oi"] == 1  # the one weighing that touched a can; not the failed blocks
     assert [kind for _, kind in server.injected].count("code_unknown_function") == 2
+    first = run.transcript.entries[0]
+    assert (first.kind, first.step) == ("model", -1)
+    assert first.text.startswith(f"model server: openai-compatible server {server.url}")
+    assert "warning: the server does not say its context window" in first.text
     coder_prompts = [r.prompt for r in run.calls if r.role == "coder"]
     assert "# The last code block failed" in coder_prompts[1]
     assert "# The last code block failed" not in coder_prompts[2]

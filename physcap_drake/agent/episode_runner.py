@@ -3,7 +3,9 @@ loop with the chosen variant and language model, and report the paper's metrics.
 
 Before the first decision the model's server is checked (`llm.check_client`: an
 OpenAI-compatible server must serve the model, answer, and take images unless the model is
-text-only); a failed check ends the episode at once with the reason, like any model failure.
+text-only); what it found opens the transcript (with a warning when the server does not say
+its context window), and a failed check ends the episode at once with the reason, like any
+model failure.
 The episode has a wall-clock limit: model calls asked for after it are refused (and
 recorded), so the episode ends at its next decision.
 """
@@ -163,7 +165,9 @@ def run_agent_episode(task: str, seed: int, *, agent: str = "physcap",
             client.stop_calls_at(start + wall_time_limit, f"the episode's wall-clock limit "
                                  f"of {wall_time_limit:g} s has passed; no more model calls")
         try:
-            check_client(client)
+            found = check_client(client)
+            if found:
+                transcript.add("model", -1, episode.api.robot_time, f"model server: {found}")
         except LLMError as error:
             mind = loop.stop_before_start(str(error))
             system.set_mind(agent_context, mind)

@@ -72,7 +72,9 @@ def evaluate(
                          schema_mode=schema_mode, images=images, temperature=temperature,
                          llm_seed=llm_seed, max_tokens=max_tokens, api_key_env=api_key_env)
     # A bad --llm or an unfit server fails here, not in every episode.
-    check_server_or_exit(choice.client(seed=0))
+    found = check_server_or_exit(choice.client(seed=0))
+    if found:
+        console.print(f"model server: {escape(found)}", soft_wrap=True)
     settings = choice.settings()
     specs = make_grid(task_names, agent_names, trials)
     todo = pending(specs, out)

@@ -4,6 +4,7 @@ For an OpenAI-compatible server (`check_client` does nothing for other backends)
 1. GET /models: the model must be among those served (else the error lists them); the
    model's context window, where the server says it (vLLM `max_model_len`, llama.cpp's
    `n_ctx` from /props, `context_length` and the like), must hold the agent's prompts;
+   where it does not (Ollama), the check's line carries a warning;
 2. one tiny request, with a tiny image unless the model is set up as text-only: it must be
    answered. A refused image with the same request answered without it means a text-only
    model; a refused response_format means another --schema-mode.
@@ -64,6 +65,8 @@ class ServerCheck:
                     "with a larger one (vLLM: --max-model-len; llama.cpp: --ctx-size; Ollama: "
                     "OLLAMA_CONTEXT_LENGTH)")
             found.append(f"context window {tokens} tokens")
+        else:
+            found.append(unknown_window_warning(self.context_needed))
         self._tiny_request()
         found.append("answers" + ("" if self.client.takes_images else " (text only)"))
         return f"{self.client.server}: " + ", ".join(f for f in found if f)
@@ -139,6 +142,13 @@ class ServerCheck:
                              json_schema=_TINY_SCHEMA)
         body = self.client.body(request, max_tokens=64)
         return self.client.post("/chat/completions", body, self.where, self.deadline_s)
+
+
+def unknown_window_warning(context_needed: int) -> str:
+    """What the check says of a server that does not tell its context window (Ollama)."""
+    return (f"warning: the server does not say its context window; it must hold about "
+            f"{context_needed} tokens (Ollama's default of 2048 to 4096 tokens cuts longer "
+            "prompts silently: start it with OLLAMA_CONTEXT_LENGTH=16384)")
 
 
 def tiny_jpeg() -> bytes:
