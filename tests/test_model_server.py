@@ -178,6 +178,29 @@ def test_a_request_with_an_image_for_a_text_only_model_is_refused_before_sending
     assert server.chat_requests() == []
 
 
+@pytest.mark.parametrize("fault", ["html", "cut_body", "unavailable", "rate_limit"])
+def test_a_passing_fault_at_the_start_up_check_is_retried_not_misread(fault):
+    with FakeModelServer(Faults(1.0, (fault,), roles=("check",), times=1)) as server, \
+            server.tap():
+        found = check_client(client_for(server, attempts=2))
+    assert server.injected == [("check", fault)]
+    assert "answers" in found and "text only" not in found
+    checks = server.chat_requests()
+    assert len(checks) == 2 and all(isinstance(c["messages"][1]["content"], list)
+                                    for c in checks)  # both with the image
+
+
+def test_a_lasting_fault_at_the_start_up_check_gives_up_naming_the_server():
+    with FakeModelServer(Faults(1.0, ("unavailable",), roles=("check",))) as server, \
+            server.tap():
+        with pytest.raises(LLMError) as caught:
+            check_client(client_for(server, attempts=3))
+    assert str(caught.value) == (
+        f"start-up check of openai-compatible server {server.url}, model fake-vlm: giving up "
+        "after 3 attempt(s); last error: TransientLLMError: a tiny request: HTTP 503: "
+        "overloaded")
+
+
 def test_a_small_context_window_is_found_at_start():
     with FakeModelServer(context_window=4096) as server, server.tap():
         with pytest.raises(LLMError, match=f"context window is 4096 tokens .*max_model_len.*"

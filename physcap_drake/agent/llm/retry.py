@@ -70,6 +70,10 @@ class RetryingClient(ClientLayer):
             delay = max(delay, retry_after_s)
         return min(delay, self.max_delay_s)
 
+    def pause(self, seconds: float) -> None:
+        """Waits as this client waits between attempts (`sleep`)."""
+        self._sleep(seconds)
+
     def complete(self, request: LLMRequest) -> LLMResponse:
         start = time.perf_counter()
         last_error: TransientLLMError | None = None

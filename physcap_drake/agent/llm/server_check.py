@@ -9,17 +9,30 @@ For an OpenAI-compatible server (`check_client` does nothing for other backends)
    answered. A refused image with the same request answered without it means a text-only
    model; a refused response_format means another --schema-mode.
 
-Every problem is an LLMError naming the server, on one line, saying what to change.
+A passing failure (a 429 or 5xx, an HTML page or a cut body with HTTP 200, a broken
+connection, a timeout) is retried as the client's own calls are (its `RetryingClient`: the
+same number of attempts and waits). Every problem is an LLMError naming the server, on one
+line, saying what to change.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from physcap_drake.agent.llm.base import LLMClient, LLMError, LLMRequest, innermost, one_line
+from physcap_drake.agent.llm._common import is_transient_status, status_error
+from physcap_drake.agent.llm.base import (
+    ClientLayer,
+    LLMClient,
+    LLMError,
+    LLMRequest,
+    TransientLLMError,
+    innermost,
+    one_line,
+)
 from physcap_drake.agent.llm.chat_format import error_message, read_chat_answer
-from physcap_drake.agent.llm.compatible import OpenAICompatibleClient
+from physcap_drake.agent.llm.compatible import IMAGE_REFUSAL, OpenAICompatibleClient
 from physcap_drake.agent.llm.http_json import Reply
+from physcap_drake.agent.llm.retry import RetryingClient
 
 #: The context window the agent's prompts need, tokens: its longest prompts (about 5000
 #: tokens late in an episode, JSON schema included), an image (up to about 1500) and an answer
@@ -40,7 +53,29 @@ def check_client(client: LLMClient, context_needed: int = CONTEXT_NEEDED) -> str
     backend = innermost(client)
     if not isinstance(backend, OpenAICompatibleClient):
         return ""
-    return ServerCheck(backend, context_needed).run()
+    check = ServerCheck(backend, context_needed)
+    retrying = _retrying_layer(client)
+    if retrying is None:
+        return check.run()
+    last_error: TransientLLMError | None = None
+    for attempt in range(1, retrying.attempts + 1):
+        if last_error is not None:
+            retrying.pause(retrying.delay_before_retry(attempt - 1, last_error.retry_after_s))
+        try:
+            return check.run()
+        except TransientLLMError as error:
+            last_error = error
+    last = str(last_error).removeprefix(f"{check.where}: ")
+    raise LLMError(f"{check.where}: giving up after {retrying.attempts} attempt(s); last "
+                   f"error: {type(last_error).__name__}: {last}") from last_error
+
+
+def _retrying_layer(client: LLMClient) -> RetryingClient | None:
+    while isinstance(client, ClientLayer):
+        if isinstance(client, RetryingClient):
+            return client
+        client = client.inner
+    return None
 
 
 class ServerCheck:
@@ -78,8 +113,8 @@ class ServerCheck:
         if reply.status in (404, 405, 501):
             return "no model list (GET /models unsupported)"
         if reply.status != 200:
-            raise LLMError(f"{self.where}: GET /models answered HTTP {reply.status}: "
-                           f"{one_line(_message(reply, self.where), 200)}")
+            raise status_error(f"{self.where}: GET /models", reply.status,
+                               one_line(_message(reply, self.where), 200), reply.headers)
         data = reply.json(self.where)
         entries = data.get("data") if isinstance(data, dict) else None
         if not isinstance(entries, list):
@@ -126,7 +161,8 @@ class ServerCheck:
             read_chat_answer(reply.json(self.where), self.where)
             return
         message = one_line(_message(reply, self.where), 200)
-        if images and self._ask(()).status == 200:
+        refused = not is_transient_status(reply.status) or IMAGE_REFUSAL.search(message)
+        if images and refused and self._ask(()).status == 200:
             raise LLMError(f"{self.where}: a request with an image was refused (HTTP "
                            f"{reply.status}: {message}) and the same without it answered: "
                            "the model takes no images; run with --no-images")
@@ -134,7 +170,8 @@ class ServerCheck:
             raise LLMError(f"{self.where}: HTTP {reply.status}: {message}; the server does "
                            f"not take --schema-mode {self.client.schema_mode}: try json_object "
                            "or none")
-        raise LLMError(f"{self.where}: a tiny request failed: HTTP {reply.status}: {message}")
+        raise status_error(f"{self.where}: a tiny request", reply.status, message,
+                           reply.headers)
 
     def _ask(self, images: tuple[bytes, ...]) -> Reply:
         request = LLMRequest(role="check", system="Answer with JSON only.",
