@@ -24,11 +24,10 @@ moved (a fault of the code: syntax, an unknown function, a refused argument; aft
 the planner decides again, seeing the error). A rewrite that repeats the failed code and
 fails the same way is not rewritten again: the planner decides afresh, seeing both errors.
 Beyond the budget the episode ends with the last block's error. An episode that ends early
-says why in
-`failure`, and what kind of reason it is in `failure_kind`: "model" (a model or its server
-failed: no usable answer, an error that retries did not cure), "limit" (steps, robot time,
-the wall clock), "code" (failed code blocks beyond the budget), "arm" (an arm fault) or
-"internal".
+says why in `failure`, and what kind of reason it is in `failure_kind`: "model" (a model or
+its server failed: no usable answer, an error that retries did not cure), "limit" (steps,
+robot time, the wall clock), "code" (failed code blocks beyond the budget), "arm" (an arm
+fault) or "internal".
 
 OI counts interactions with objects made while exploring (a grasp or probe that touched an
 object, as the robot reports it: see `interactions`), not code blocks.
