@@ -25,7 +25,6 @@ from physcap_drake.agent.llm.base import (
     LLMClient,
     LLMError,
     LLMRequest,
-    TransientLLMError,
     innermost,
     one_line,
 )
@@ -55,19 +54,7 @@ def check_client(client: LLMClient, context_needed: int = CONTEXT_NEEDED) -> str
         return ""
     check = ServerCheck(backend, context_needed)
     retrying = _retrying_layer(client)
-    if retrying is None:
-        return check.run()
-    last_error: TransientLLMError | None = None
-    for attempt in range(1, retrying.attempts + 1):
-        if last_error is not None:
-            retrying.pause(retrying.delay_before_retry(attempt - 1, last_error.retry_after_s))
-        try:
-            return check.run()
-        except TransientLLMError as error:
-            last_error = error
-    last = str(last_error).removeprefix(f"{check.where}: ")
-    raise LLMError(f"{check.where}: giving up after {retrying.attempts} attempt(s); last "
-                   f"error: {type(last_error).__name__}: {last}") from last_error
+    return check.run() if retrying is None else retrying.retried(check.run, check.where)
 
 
 def _retrying_layer(client: LLMClient) -> RetryingClient | None:
