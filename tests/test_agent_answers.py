@@ -14,7 +14,7 @@ from physcap_drake.agent.schemas import (
     PrioritizerAnswer,
     check_reordering,
 )
-from physcap_drake.agent.structured_call import AgentAnswerError, ask_structured, extract_json
+from physcap_drake.agent.structured_call import AgentAnswerError, ask_structured, parse_answer
 
 
 def _candidate(name: str, action: str = "get_mass") -> Candidate:
@@ -64,10 +64,29 @@ def test_an_insufficient_plan_must_propose_explorations():
                       exploration_candidates=[CANDIDATES[0], CANDIDATES[0]])
 
 
-def test_json_is_found_inside_fences_and_prose():
-    assert extract_json('Sure!\n```json\n{"a": [1, 2]}\n```') == {"a": [1, 2]}
-    with pytest.raises(ValueError, match="no JSON"):
-        extract_json("I cannot help with that.")
+CODE = {"thought": "weigh it", "code": "home_pose()"}
+
+
+@pytest.mark.parametrize("text", [
+    "Sure!\n```json\n" + json.dumps(CODE) + "\n```",
+    # prose with brackets (and a JSON list, and a smaller object) before the answer
+    "Here is my answer [as asked] with [1, 2] and {\"note\": 1}:\n" + json.dumps(CODE)
+    + "\nHope this helps {really}.",
+    "[" + json.dumps(CODE) + "]",
+])
+def test_the_answer_is_found_where_it_is(text):
+    assert parse_answer(text, CoderAnswer) == CoderAnswer(**CODE)
+
+
+def test_parse_problems_say_what_is_wrong():
+    with pytest.raises(ValueError, match="no JSON object"):
+        parse_answer("I cannot help with that [sorry].", CoderAnswer)
+    with pytest.raises(ValueError, match="character 4 is not valid JSON .*cut off"):
+        parse_answer('OK: {"thought": "t", "code": "home_po', CoderAnswer)
+    # of several objects none of which fits, the largest one's problem is reported
+    with pytest.raises(ValueError, match="code") as error:
+        parse_answer('{"a": 1} then {"thought": "a longer object"}', CoderAnswer)
+    assert "Field required" in str(error.value)
 
 
 class ScriptedModel:
@@ -100,8 +119,8 @@ def test_a_malformed_answer_is_repaired_with_the_problem_stated():
 
 def test_after_two_repairs_the_agent_fails_with_the_reason():
     model = ScriptedModel("nope", "still nope", "{broken", VALID)
-    with pytest.raises(AgentAnswerError, match="the coder gave no valid answer in 3 "
-                                               "attempt") as error:
+    with pytest.raises(AgentAnswerError, match=r"the coder \(scripted model scripted-1\) gave "
+                                               "no valid answer in 3 attempt") as error:
         ask_structured(model, REQUEST, CoderAnswer, repairs=2)
     assert "not valid JSON" in error.value.problem
     assert len(model.texts) == 1  # the fourth answer was never asked for

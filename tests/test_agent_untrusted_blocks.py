@@ -134,7 +134,8 @@ HOSTILE = [
 
 def test_hostile_blocks_end_with_a_reason_the_next_model_call_reads():
     arm = StandInArm()
-    loop, coder = make_loop([block for block, _ in HOSTILE] + ["print('done')\n"], arm)
+    loop, coder = make_loop([block for block, _ in HOSTILE] + ["print('done')\n"], arm,
+                            block_retries=len(HOSTILE))
     mind = run_episode(loop)
     assert mind.phase == "done" and mind.failure == ""
     steps = mind.steps

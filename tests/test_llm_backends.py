@@ -29,6 +29,8 @@ from physcap_drake.agent.llm import (  # noqa: E402
     VALID_SPECS,
     AnthropicClient,
     CallRecord,
+    DeadlineClient,
+    EpisodeTimeUp,
     GeminiClient,
     LLMConfigError,
     LLMError,
@@ -36,6 +38,7 @@ from physcap_drake.agent.llm import (  # noqa: E402
     LLMResponse,
     LLMTimeout,
     OpenAIClient,
+    OpenAICompatibleClient,
     RecordingClient,
     ReplayClient,
     ReplayMiss,
@@ -317,14 +320,18 @@ def test_openai_text_only_request_uses_plain_string_content():
     assert server.body()["messages"] == [{"role": "user", "content": "Say hello."}]
 
 
-def test_openai_compatible_server_without_key_gets_a_placeholder():
-    backend = OpenAIClient(model="qwen2.5-vl", base_url="http://localhost:8000/v1")
-    assert backend.name == "openai-compatible"
-    assert backend._client.api_key == "not-needed"
-    assert backend._client.max_retries == 0
-    assert str(backend._client.base_url).startswith("http://localhost:8000/v1")
+def test_openai_compatible_settings_are_checked_when_built():
+    backend = OpenAICompatibleClient("http://localhost:8000/v1/", "qwen2.5-vl")
+    assert (backend.name, backend.base_url) == ("openai-compatible", "http://localhost:8000/v1")
+    assert "Authorization" not in backend._headers
     with pytest.raises(LLMConfigError, match="schema_mode"):
-        OpenAIClient(base_url="http://localhost:8000/v1", schema_mode="grammar")  # type: ignore[arg-type]
+        OpenAICompatibleClient("http://localhost:8000/v1", "m", schema_mode="grammar")
+    with pytest.raises(LLMConfigError, match="http://host:port/v1"):
+        OpenAICompatibleClient("localhost:8000/v1", "m")
+    with pytest.raises(LLMConfigError, match="--model"):
+        OpenAICompatibleClient("http://localhost:8000/v1", "")
+    with pytest.raises(LLMConfigError, match="schema_mode"):
+        OpenAIClient(api_key="k", schema_mode="grammar")  # type: ignore[arg-type]
 
 
 # --- failures and retries, for every backend -----------------------------------------------
@@ -503,7 +510,7 @@ def test_recording_round_trip_and_callback(tmp_path):
     assert RecordingClient.load_jsonl(path) == client.records
 
 
-def test_recording_keeps_no_record_of_failures_and_fills_missing_latency():
+def test_recording_keeps_failures_too_and_fills_missing_latency(tmp_path):
     class NoLatency(ScriptedClient):
         def complete(self, request: LLMRequest) -> LLMResponse:
             return LLMResponse(text="x", model=self.model)
@@ -512,10 +519,33 @@ def test_recording_keeps_no_record_of_failures_and_fills_missing_latency():
     assert client.complete(make_request()).latency_s > 0
     assert client.records[0].latency_s > 0
 
-    failing = RecordingClient(ScriptedClient(LLMError("bad request")))
-    with pytest.raises(LLMError):
+    failing = RecordingClient(RetryingClient(ScriptedClient(LLMTimeout("slow"), LLMError(
+        "HTTP 400: bad request")), sleep=lambda s: None))
+    with pytest.raises(LLMError, match="400"):
         failing.complete(make_request())
-    assert failing.records == []
+    (record,) = failing.records
+    assert (record.failed, record.error_type, record.response) == (True, "LLMError", "")
+    assert record.error == "HTTP 400: bad request" and record.attempts == 2
+    # ... and a replay of the recording fails the same way, at the same call.
+    replay = ReplayClient(load_jsonl(save_jsonl(failing.records, tmp_path / "f.jsonl")))
+    with pytest.raises(LLMError, match="HTTP 400: bad request") as again:
+        replay.complete(make_request())
+    assert type(again.value) is LLMError
+
+
+def test_calls_after_the_episode_deadline_are_refused_and_recorded(tmp_path):
+    import time
+
+    client = RecordingClient(ScriptedClient())
+    client.stop_calls_at(time.monotonic() - 1.0, "the episode's wall-clock limit of 5 s "
+                         "has passed")
+    with pytest.raises(EpisodeTimeUp, match="limit of 5 s"):
+        client.complete(make_request())
+    assert client.inner.calls == 0
+    assert client.records[0].error_type == "EpisodeTimeUp"
+    replay = ReplayClient(load_jsonl(save_jsonl(client.records, tmp_path / "t.jsonl")))
+    with pytest.raises(EpisodeTimeUp, match="limit of 5 s"):
+        replay.complete(make_request())
 
 
 def test_load_jsonl_names_the_bad_line(tmp_path):
@@ -635,8 +665,10 @@ def test_factory_rejects_bad_specs_and_options():
         make_llm("openai-compatible:")
     with pytest.raises(ValueError, match="model name"):
         make_llm("openai-compatible:http://localhost:8000/v1")
-    with pytest.raises(ValueError, match="temperature"):
-        make_llm("openai", api_key="k", temperature=0.3)
+    with pytest.raises(ValueError, match="top_k"):
+        make_llm("openai", api_key="k", top_k=3)
+    with pytest.raises(ValueError, match="does not take option.* seed"):
+        make_llm("anthropic", api_key="k", sampling_seed=3)
     with pytest.raises(ValueError, match="replay:<path.jsonl>"):
         make_llm("replay:")
 
@@ -645,14 +677,22 @@ def test_factory_layers_remote_backends():
     records: list[CallRecord] = []
     server = Server(status(429), openai_ok())
     sdk = openai.OpenAI(api_key="k", http_client=server.http())
-    client = make_llm("openai-compatible:http://localhost:8000/v1", model="llava",
-                      client=sdk, sleep=lambda s: None, attempts=2, on_record=records.append)
+    client = make_llm("openai", model="gpt-4.1", client=sdk, sleep=lambda s: None,
+                      attempts=2, on_record=records.append, timeout_s=7, temperature=0.2,
+                      sampling_seed=11)
     assert isinstance(client, RecordingClient)
     assert isinstance(client.inner, RetryingClient) and client.inner.attempts == 2
-    assert (client.name, client.model) == ("openai-compatible", "llava")
+    assert isinstance(client.inner.inner, DeadlineClient)
+    assert client.inner.inner.deadline_s == 7
+    assert (client.name, client.model) == ("openai", "gpt-4.1")
     client.complete(make_request())
-    assert server.body(1)["model"] == "llava"
+    body = server.body(1)
+    assert (body["model"], body["temperature"], body["seed"]) == ("gpt-4.1", 0.2, 11)
     assert records[0].attempts == 2 and records[0].model == "gpt-4.1-mini"
+    compatible = make_llm("openai-compatible:http://localhost:8000/v1", model="llava",
+                          images=False, timeout_s=3)
+    assert compatible.takes_images is False and compatible.name == "openai-compatible"
+    assert make_llm("reference", images=False).takes_images is False
 
 
 def test_factory_replay_and_reference(tmp_path, monkeypatch):
@@ -676,3 +716,64 @@ def test_factory_replay_and_reference(tmp_path, monkeypatch):
     assert isinstance(reference.inner, FakeReasoner) and reference.inner.seed == 7
     with pytest.raises(ValueError, match="reference backend does not take"):
         make_llm("reference", api_key="k")
+
+
+# --- whatever a server sends -----------------------------------------------------------------
+
+
+def html_page(request: httpx.Request) -> httpx.Response:
+    return httpx.Response(200, text="<html><body><h1>502 Bad Gateway</h1></body></html>",
+                          headers={"content-type": "text/html"})
+
+
+def cut_body(request: httpx.Request) -> httpx.Response:
+    return httpx.Response(200, content=b'{"id": "x", "choices": [{"index": 0, "mess',
+                          headers={"content-type": "application/json"})
+
+
+@pytest.mark.parametrize("backend_name", sorted(BACKENDS))
+def test_an_html_page_or_a_cut_body_with_http_200_is_retried_then_reported(backend_name):
+    make, answer = BACKENDS[backend_name]
+    server = Server(html_page, cut_body, answer())
+    client, _ = retrying(make(server))
+    assert client.complete(make_request()).text == ANSWER and client.last_attempts == 3
+    server = Server(html_page)
+    client, _ = retrying(make(server), attempts=2)
+    with pytest.raises(LLMError, match="giving up after 2 attempt") as caught:
+        client.complete(make_request())
+    assert backend_name in str(caught.value) and "not" in str(caught.value)
+
+
+def _cut_then_whole(backend_name: str) -> list:
+    """A first answer cut off at its output limit, then a whole one."""
+    if backend_name == "openai":
+        cut = openai_ok(text='{"suffi', tokens_out=40)
+        body = json.loads(cut(None).content)
+        body["choices"][0]["finish_reason"] = "length"
+    elif backend_name == "anthropic":
+        body = json.loads(anthropic_ok(text='{"suffi', tokens_out=40)(None).content)
+        body["stop_reason"] = "max_tokens"
+    else:
+        body = json.loads(gemini_ok(text='{"suffi', tokens_out=40)(None).content)
+        body["candidates"][0]["finishReason"] = "MAX_TOKENS"
+    return [ok(body), BACKENDS[backend_name][1]()]
+
+
+ROOM_FIELDS = {"openai": lambda b: b.get("max_tokens"),
+               "anthropic": lambda b: b["max_tokens"],
+               "gemini": lambda b: b.get("generationConfig", {}).get("maxOutputTokens")}
+
+
+@pytest.mark.parametrize("backend_name", sorted(BACKENDS))
+def test_a_cut_answer_is_asked_again_with_more_room(backend_name):
+    make, _ = BACKENDS[backend_name]
+    server = Server(*_cut_then_whole(backend_name))
+    response = make(server).complete(make_request())
+    assert response.text == ANSWER
+    first, second = (ROOM_FIELDS[backend_name](server.body(i)) for i in (0, 1))
+    assert second is not None and second > (first or 0) and second >= 2048
+    # At the cap, it is an error that says what happened, not broken JSON for a repair.
+    server = Server(*_cut_then_whole(backend_name)[:1])
+    with pytest.raises(LLMError, match="cut off .*'length'") as caught:
+        make(server, max_room_tokens=4096).complete(make_request())
+    assert not isinstance(caught.value, TransientLLMError)

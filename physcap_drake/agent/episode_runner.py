@@ -1,5 +1,14 @@
 """One agent episode in simulation: build the task's diagram with an AgentSystem, run the agent
-loop with the chosen variant and language model, and report the paper's metrics."""
+loop with the chosen variant and language model, and report the paper's metrics.
+
+Before the first decision the model's server is checked (`llm.check_client`: an
+OpenAI-compatible server must serve the model, answer, and take images unless the model is
+text-only); what it found opens the transcript (with a warning when the server does not say
+its context window), and a failed check ends the episode at once with the reason, like any
+model failure.
+The episode has a wall-clock limit: model calls asked for after it are refused (and
+recorded), so the episode ends at its next decision.
+"""
 
 from __future__ import annotations
 
@@ -9,8 +18,8 @@ from collections.abc import Callable
 from pathlib import Path
 
 from physcap_drake.agent.agent_system import AGENT_PERIOD, AgentSystem
-from physcap_drake.agent.llm import make_llm
-from physcap_drake.agent.llm.base import CallRecord, LLMClient
+from physcap_drake.agent.llm import LLMError, ModelSettings, check_client, make_llm
+from physcap_drake.agent.llm.base import CallRecord, LLMClient, takes_images
 from physcap_drake.agent.llm.pointer_ask import pointer_ask
 from physcap_drake.agent.loop import AgentLoop, AgentMind, EpisodeOutcome
 from physcap_drake.agent.sandbox import SandboxLimits
@@ -27,6 +36,9 @@ from physcap_drake.tasks.episode import Episode, make_episode
 
 #: Robot execution time after which an episode is stopped, s (no task needs more).
 ROBOT_TIME_LIMIT = 900.0
+#: Wall-clock time after which an episode makes no more model calls, s (a slow local model
+#: takes about a minute a call; an episode makes up to about 30).
+WALL_TIME_LIMIT = 3600.0
 
 
 @dc.dataclass
@@ -52,7 +64,9 @@ class AgentRun:
             "model": self.model, "success": outcome.success, "reason": outcome.reason,
             "oi": outcome.oi, "robot_time_s": round(outcome.robot_time_s, 3),
             "wall_time_s": round(outcome.wall_time_s, 3), "code_blocks": len(outcome.steps),
-            "failure": outcome.failure, "llm_calls": len(self.calls),
+            "failure": outcome.failure, "failure_kind": outcome.failure_kind,
+            "llm_calls": len(self.calls),
+            "failed_llm_calls": sum(c.failed for c in self.calls),
             "input_tokens": sum(c.input_tokens for c in self.calls),
             "output_tokens": sum(c.output_tokens for c in self.calls),
             "llm_latency_s": round(sum(c.latency_s for c in self.calls), 3),
@@ -75,7 +89,8 @@ def drive_agent(clock: Clock, system: AgentSystem, context, loop: AgentLoop) -> 
     return mind
 
 
-def run_agent_episode(task: str, seed: int, *, agent: str = "physcap", llm: str = "reference",
+def run_agent_episode(task: str, seed: int, *, agent: str = "physcap",
+                      llm: str | ModelSettings = "reference",
                       model: str | None = None, meshcat=None,
                       limits: SandboxLimits | None = None, client: LLMClient | None = None,
                       on_entry: Callable[[TranscriptEntry], None] | None = None,
@@ -83,7 +98,8 @@ def run_agent_episode(task: str, seed: int, *, agent: str = "physcap", llm: str 
                       pointer: str = "offline", sink: McapSink | None = None,
                       scenario_file: str | Path | None = None,
                       perception: str = "label", judge: str = "simulator",
-                      on_start: Callable[[Episode], None] | None = None) -> AgentRun:
+                      on_start: Callable[[Episode], None] | None = None,
+                      wall_time_limit: float | None = WALL_TIME_LIMIT) -> AgentRun:
     """Runs one episode of `task` with layout `seed`. `llm` is a backend spec (see
     physcap_drake.agent.llm.factory); `client` overrides it with a ready client (it should
     be a RecordingClient for the calls to be reported). `on_entry` hears each transcript
@@ -98,11 +114,16 @@ def run_agent_episode(task: str, seed: int, *, agent: str = "physcap", llm: str 
     (the final camera view); see tasks.episode.
     `on_start(episode)` is called once the episode is built and its simulator initialized,
     before the agent's first decision (a live viewer paces the simulator and frames its
-    view there)."""
+    view there). `wall_time_limit`: s of wall-clock time after which no model call is made
+    (None: no limit); `llm` may also be a `ModelSettings`."""
     if pointer not in ("offline", "vlm"):
         raise ValueError(f"pointer must be 'offline' or 'vlm', got {pointer!r}")
+    if wall_time_limit is not None and not wall_time_limit > 0:
+        raise ValueError(f"the wall-clock limit must be positive, got {wall_time_limit} s")
     variant = load_variant(agent)
     client = client or make_llm(llm, model, seed=seed)
+    if pointer == "vlm" and not takes_images(client):
+        raise ValueError("the vlm pointer needs a model that takes images (not --no-images)")
     episode = make_episode(task, seed, meshcat=meshcat, with_agent=True, sink=sink,
                            scenario_file=scenario_file, perception=perception, judge=judge)
     if pointer == "vlm":
@@ -140,7 +161,18 @@ def run_agent_episode(task: str, seed: int, *, agent: str = "physcap", llm: str 
         if on_start is not None:
             on_start(episode)
         start = time.monotonic()
-        mind = drive_agent(clock, system, agent_context, loop)
+        if wall_time_limit is not None and hasattr(client, "stop_calls_at"):
+            client.stop_calls_at(start + wall_time_limit, f"the episode's wall-clock limit "
+                                 f"of {wall_time_limit:g} s has passed; no more model calls")
+        try:
+            found = check_client(client)
+            if found:
+                transcript.add("model", -1, episode.api.robot_time, f"model server: {found}")
+        except LLMError as error:
+            mind = loop.stop_before_start(str(error))
+            system.set_mind(agent_context, mind)
+        else:
+            mind = drive_agent(clock, system, agent_context, loop)
         # Judged before the station is released: a camera judge still needs its camera.
         outcome = loop.outcome(mind, time.monotonic() - start)
     finally:

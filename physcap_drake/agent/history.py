@@ -19,6 +19,9 @@ class StepRecord:
     stdout: what it printed. appeared / disappeared: objects the perception module found
     in view after the block but not before, and the reverse.
     robot_time_s: robot execution time when the block ended.
+    moved: whether the robot moved at all during the block (robot time advanced).
+    touched: interactions with objects the block made (see agent.interactions).
+    retry: the block rewrites the one before it, which failed, for the same step.
     """
 
     index: int
@@ -33,6 +36,9 @@ class StepRecord:
     appeared: tuple[str, ...]
     disappeared: tuple[str, ...]
     robot_time_s: float
+    moved: bool = True
+    touched: int = 0
+    retry: bool = False
 
     def as_context(self) -> dict:
         """The record as the agents see it (the code itself is left out: its effect is)."""
@@ -43,8 +49,9 @@ class StepRecord:
 
     def as_text(self) -> str:
         what = f"{self.action} on '{self.target}'" if self.target else "task code"
-        lines = [f"- Code block {self.index} ({self.kind}: {what}): "
-                 + ("ran to its end" if self.ok else f"stopped with an error: {self.error}")]
+        ended = ("ran to its end" if self.ok else "stopped with an error"
+                 + ("" if self.moved else " before the robot moved") + f": {self.error}")
+        lines = [f"- Code block {self.index} ({self.kind}: {what}): {ended}"]
         if self.stdout.strip():
             lines.append("  printed: " + self.stdout[-STDOUT_IN_PROMPT:].strip()
                          .replace("\n", "\n           "))

@@ -17,6 +17,21 @@ block, when the success check passes (the check is ground truth and is never sho
 agents; it only stops the episode), at the step limit, the robot-time limit, or when an agent
 gives no usable answer: the mind is then "done" or "failed".
 
+A code block that fails goes back to the coder with its error and its code, to be written
+again for the same step (`rewrite_wanted`), as long as the episode's budget of rewrites lasts
+(`block_retries`): a final block always, an exploration only when it failed before the robot
+moved (a fault of the code: syntax, an unknown function, a refused argument; after a motion
+the planner decides again, seeing the error). A rewrite that repeats the failed code and
+fails the same way is not rewritten again: the planner decides afresh, seeing both errors.
+Beyond the budget the episode ends with the last block's error. An episode that ends early
+says why in `failure`, and what kind of reason it is in `failure_kind`: "model" (a model or
+its server failed: no usable answer, an error that retries did not cure), "limit" (steps,
+robot time, the wall clock), "code" (failed code blocks beyond the budget), "arm" (an arm
+fault) or "internal".
+
+OI counts interactions with objects made while exploring (a grasp or probe that touched an
+object, as the robot reports it: see `interactions`), not code blocks.
+
 A code block is untrusted input: each robot call it makes is checked in the parent before
 it reaches the RobotAPI (`code_api`), and its budgets are checked per call (API calls, wall
 time, robot time before each motion: at most what is left of the episode's, and what it
@@ -35,7 +50,8 @@ import numpy as np
 
 from physcap_drake.agent.code_api import CodeAPI
 from physcap_drake.agent.history import StepRecord
-from physcap_drake.agent.llm.base import LLMClient, LLMError
+from physcap_drake.agent.interactions import InteractionCounter
+from physcap_drake.agent.llm.base import EpisodeTimeUp, LLMClient, LLMError, takes_images
 from physcap_drake.agent.observation import Observation
 from physcap_drake.agent.prompts import AgentContext, PromptBook
 from physcap_drake.agent.sandbox import CodeOutcome, Meters, SandboxLimits, run_sandboxed
@@ -47,7 +63,7 @@ from physcap_drake.agent.schemas import (
     PrioritizerAnswer,
     check_reordering,
 )
-from physcap_drake.agent.structured_call import AgentAnswerError, ask_structured
+from physcap_drake.agent.structured_call import AgentAnswerError, ask_structured, unfence_code
 from physcap_drake.agent.transcript import Transcript
 from physcap_drake.agent.variant import AgentVariant
 from physcap_drake.control.errors import ArmFault, SkillError
@@ -55,6 +71,8 @@ from physcap_drake.robot_api import RobotAPI
 
 #: How long the arm holds still after a code block stopped with an error, s.
 SAFE_HOLD = 0.5
+#: How many failed code blocks one episode may send back to the coder to be written again.
+BLOCK_RETRIES = 4
 
 
 @dc.dataclass(frozen=True)
@@ -69,10 +87,12 @@ class Decision:
 
 @dc.dataclass(frozen=True)
 class PendingBlock:
-    """A code block written at an event, to run before the next one."""
+    """A code block written at an event, to run before the next one (`retry`: a rewrite of
+    the block before it, which failed)."""
 
     decision: Decision
     answer: CoderAnswer
+    retry: bool = False
 
 
 @dc.dataclass(frozen=True)
@@ -83,6 +103,9 @@ class RanBlock:
     answer: CoderAnswer
     outcome: CodeOutcome
     robot_time_s: float
+    moved: bool = True
+    touched: int = 0
+    retry: bool = False
 
 
 @dc.dataclass(frozen=True)
@@ -93,6 +116,9 @@ class AgentMind:
     waits to run), "done" or "failed". steps: the code blocks run so far. queue: the
     enumerator's remaining candidates (None until it has listed them). known: knowledge
     entries already in the transcript. observation: the last look at the scene.
+    last_decision: what the last code block was for (a failed block is written again for
+    it). retries: failed blocks written again so far. failure / failure_kind: why the
+    episode ended early, and what kind of reason that is (see the module docstring).
     """
 
     phase: str = "idle"
@@ -103,11 +129,15 @@ class AgentMind:
     pending: PendingBlock | None = None
     ran: RanBlock | None = None
     failure: str = ""
+    last_decision: Decision | None = None
+    retries: int = 0
+    failure_kind: str = ""
 
     @property
     def oi(self) -> int:
-        """Exploratory object interactions: code blocks run to explore."""
-        return sum(step.kind == "explore" for step in self.steps)
+        """Exploratory object interactions: grasps and probes that touched an object, in
+        the code blocks run to explore."""
+        return sum(step.touched for step in self.steps if step.kind == "explore")
 
     @property
     def over(self) -> bool:
@@ -117,8 +147,9 @@ class AgentMind:
 @dc.dataclass
 class EpisodeOutcome:
     """How the episode went. success: the task's check (None if no check was given).
-    oi: exploratory object interactions (code blocks run to explore). failure: why the
-    agent stopped early ("" if it finished)."""
+    oi: exploratory object interactions (grasps and probes that touched an object while
+    exploring). failure: why the agent stopped early ("" if it finished); failure_kind: see
+    the loop's module docstring."""
 
     success: bool | None
     reason: str
@@ -127,6 +158,7 @@ class EpisodeOutcome:
     wall_time_s: float
     steps: list[StepRecord]
     failure: str = ""
+    failure_kind: str = ""
 
 
 class AgentLoop:
@@ -136,23 +168,28 @@ class AgentLoop:
     check(): the task's ground-truth check (an object with .success and .reason), used only
     to stop the episode. robot_time_limit: s. on_phase(phase, steps, oi): hears each change
     of phase ("observing", "planning", "prioritizing", "coding", "executing", "done",
-    "failed").
+    "failed"). block_retries: failed code blocks the coder may write again per episode.
+    Without `prompts`, requests carry the camera image unless the model takes none.
     """
 
     def __init__(self, *, task: str, variant: AgentVariant, llm: LLMClient, api: RobotAPI,
                  check: Callable | None = None, seed: int = 0,
                  limits: SandboxLimits | None = None, prompts: PromptBook | None = None,
                  robot_time_limit: float = 900.0, transcript: Transcript | None = None,
-                 on_phase: Callable[[str, int, int], None] | None = None):
+                 on_phase: Callable[[str, int, int], None] | None = None,
+                 block_retries: int = BLOCK_RETRIES):
         self.task, self.variant, self.llm, self.api = task, variant, llm, api
         self._check = check
         self._seed = seed
         self._limits = limits or SandboxLimits()
-        self._prompts = prompts or PromptBook()
+        self._prompts = prompts or PromptBook(images=takes_images(llm))
         self._robot_time_limit = robot_time_limit
         self.transcript = transcript or Transcript()
         self._on_phase = on_phase
+        self._block_retries = block_retries
         self._code_api = CodeAPI(api, physx=variant.physx_api)
+        self._interactions = InteractionCounter(api)
+        self._functions = self._interactions.wrap(self._code_api.functions())
 
     # --- at an event ---------------------------------------------------------------------
 
@@ -169,21 +206,39 @@ class AgentLoop:
         stop = self._stop_reason(mind)
         if stop is not None:
             return self._end(mind, stop)
+        failed = mind.steps[-1] if mind.steps and not mind.steps[-1].ok else None
+        if failed is not None and not rewrite_wanted(mind.steps):
+            failed = None  # the planner decides again, with the error in the history
+        if failed is not None and mind.retries >= self._block_retries:
+            return self._end(mind, f"code block {failed.index} failed and the episode's "
+                             f"{self._block_retries} rewrites of failed blocks are used up: "
+                             f"{failed.error}", kind="code")
         try:
             context = AgentContext(self.task, observation, tuple(self.api.knowledge.entries),
                                    mind.steps)
-            decision, mind = self._decide(context, mind)
-            self._note(mind, "decision", _describe(decision), {
-                "kind": decision.kind, "reason": decision.reason,
+            if failed is not None and mind.last_decision is not None:
+                decision = mind.last_decision
+                mind = dc.replace(mind, retries=mind.retries + 1)
+                text = f"write code block {failed.index} again ({failed.error})"
+            else:
+                failed = None
+                decision, mind = self._decide(context, mind)
+                text = _describe(decision)
+            self._note(mind, "decision", text, {
+                "kind": decision.kind, "reason": decision.reason, "retry": failed is not None,
                 "candidate": decision.candidate.model_dump() if decision.candidate else None})
-            answer = self._write_code(context, decision, mind)
+            answer = self._write_code(context, decision, mind, failed)
+        except EpisodeTimeUp as error:
+            return self._end(mind, str(error), kind="limit")
         except (AgentAnswerError, LLMError) as error:
-            return self._end(mind, str(error))
+            return self._end(mind, str(error), kind="model")
         self._note(mind, "code", answer.code, {
             "thought": answer.thought, "code": answer.code, "decision": decision.kind,
-            "target": decision.candidate.name if decision.candidate else ""})
+            "target": decision.candidate.name if decision.candidate else "",
+            "retry": failed is not None})
         self._phase("executing", mind)
-        return dc.replace(mind, phase="executing", pending=PendingBlock(decision, answer))
+        return dc.replace(mind, phase="executing",
+                          pending=PendingBlock(decision, answer, failed is not None))
 
     # --- between events ------------------------------------------------------------------
 
@@ -199,26 +254,36 @@ class AgentLoop:
             return self.fault(mind, fault)
         except Exception as error:  # noqa: BLE001 - the last line of defence, see above
             return self._end(dc.replace(mind, pending=None), "the agent could not take in "
-                             f"what the code block did ({type(error).__name__}: {error})")
+                             f"what the code block did ({type(error).__name__}: {error})",
+                             kind="internal")
+
+    def stop_before_start(self, problem: str) -> AgentMind:
+        """The mind of an episode that ends before its first decision because the model or
+        its server failed (e.g. the start-up check)."""
+        return self._end(AgentMind(phase="deciding"), problem, kind="model")
 
     def fault(self, mind: AgentMind, fault: ArmFault) -> AgentMind:
         """Ends the episode on an arm fault (raised by the station while time advanced)."""
-        return self._end(dc.replace(mind, pending=None), f"arm fault: {fault}")
+        return self._end(dc.replace(mind, pending=None), f"arm fault: {fault}", kind="arm")
 
     def _run_block(self, mind: AgentMind) -> AgentMind:
         pending = mind.pending
         api = self.api
+        started = api.robot_time
+        self._interactions.reset()
         # The block's robot-time budget is what is left of the episode's, checked before
         # each motion; an arm fault stops the code at once (it never gets to catch it).
         outcome: CodeOutcome = run_sandboxed(
-            pending.answer.code, self._code_api.functions(), self._limits,
+            pending.answer.code, self._functions, self._limits,
             meters=Meters(lambda: api.robot_time, api.knowledge.size_chars),
             robot_time_s=max(self._robot_time_limit - api.robot_time, 0.0), fatal=(ArmFault,))
+        moved = api.robot_time > started
         if outcome.stdout.strip():
             self._note(mind, "output", outcome.stdout, {"stdout": outcome.stdout})
         if not outcome.ok:
-            self._note(mind, "error", f"{outcome.kind}: {outcome.error}",
-                       {"kind": outcome.kind, "error": outcome.error})
+            self._note(mind, "error", f"{outcome.kind}: {outcome.error}"
+                       + ("" if moved else " (before the robot moved)"),
+                       {"kind": outcome.kind, "error": outcome.error, "moved": moved})
             if outcome.kind != "fault":  # after a fault the arm holds; nothing may move it
                 self._make_safe(mind)
         entries = api.knowledge.entries
@@ -226,9 +291,10 @@ class AgentLoop:
             self._note(mind, "measurement", entry.describe(), dc.asdict(entry))
         mind = dc.replace(mind, pending=None, known=len(entries))
         if outcome.kind == "fault":
-            return self._end(mind, f"arm fault: {outcome.error}")
+            return self._end(mind, f"arm fault: {outcome.error}", kind="arm")
         return dc.replace(mind, phase="deciding", ran=RanBlock(
-            pending.decision, pending.answer, outcome, api.robot_time))
+            pending.decision, pending.answer, outcome, api.robot_time, moved,
+            self._interactions.count, pending.retry))
 
     def outcome(self, mind: AgentMind, wall_time_s: float) -> EpisodeOutcome:
         """The episode's result once the mind is done or failed (or interrupted)."""
@@ -237,7 +303,7 @@ class AgentLoop:
             success=None if check is None else bool(check.success),
             reason="" if check is None else check.reason, oi=mind.oi,
             robot_time_s=self.api.robot_time, wall_time_s=wall_time_s,
-            steps=list(mind.steps), failure=mind.failure)
+            steps=list(mind.steps), failure=mind.failure, failure_kind=mind.failure_kind)
 
     # --- the steps of thinking -----------------------------------------------------------
 
@@ -255,14 +321,16 @@ class AgentLoop:
             f"{outcome.kind}: {outcome.error}", stdout=outcome.stdout,
             appeared=tuple(n for n in after.names() if n not in before.names()),
             disappeared=tuple(n for n in before.names() if n not in after.names()),
-            robot_time_s=ran.robot_time_s)
-        return dc.replace(mind, steps=(*mind.steps, step), ran=None)
+            robot_time_s=ran.robot_time_s, moved=ran.moved, touched=ran.touched,
+            retry=ran.retry)
+        return dc.replace(mind, steps=(*mind.steps, step), ran=None,
+                          last_decision=decision)
 
     def _stop_reason(self, mind: AgentMind) -> tuple[str, str] | None:
         """(how, why) the episode ends now, or None: how is "done" or "failed"."""
         if mind.steps:
             last = mind.steps[-1]
-            if last.kind == "final":
+            if last.kind == "final" and last.ok:
                 return "done", ""
             if (self.variant.stop_on_success and self._check is not None
                     and self._check().success):
@@ -275,14 +343,20 @@ class AgentLoop:
             return "failed", f"step limit reached ({self.variant.max_steps} code blocks)"
         return None
 
-    def _end(self, mind: AgentMind, stop) -> AgentMind:
+    def _end(self, mind: AgentMind, stop, kind: str = "") -> AgentMind:
+        """Ends the episode: `stop` is (how, why) from _stop_reason (a limit) or the reason
+        of a failure of `kind` (see the module docstring)."""
         how, failure = stop if isinstance(stop, tuple) else ("failed", stop)
+        kind = (kind or "limit") if failure else ""
+        if kind == "limit" and mind.steps and not mind.steps[-1].ok:
+            failure += f"; the last code block failed: {mind.steps[-1].error}"
         if failure:
             self._note(mind, "error", f"episode stopped: {failure}")
         check = self._check() if self._check is not None else None
         if check is not None:
             self._note(mind, "result", f"success: {check.success} ({check.reason})")
-        mind = dc.replace(mind, phase="failed" if failure else how, failure=failure)
+        mind = dc.replace(mind, phase="failed" if failure else how, failure=failure,
+                          failure_kind=kind)
         self._phase(mind.phase, mind)
         return mind
 
@@ -343,15 +417,17 @@ class AgentLoop:
             answer.model_dump())
         return ordered
 
-    def _write_code(self, context: AgentContext, decision: Decision,
-                    mind: AgentMind) -> CoderAnswer:
+    def _write_code(self, context: AgentContext, decision: Decision, mind: AgentMind,
+                    failed: StepRecord | None = None) -> CoderAnswer:
+        """The coder's block for `decision` (`failed`: the block for it that just failed).
+        Code the model wrapped in a Markdown fence is taken out of it."""
         self._phase("coding", mind)
         request = self._prompts.coder(context, self._code_api.describe(),
                                       self._code_api.names(), decision.kind,
-                                      decision.candidate, decision.reason)
+                                      decision.candidate, decision.reason, failed)
         answer, _ = ask_structured(self.llm, request, CoderAnswer,
                                    repairs=self.variant.repair_attempts)
-        return answer
+        return answer.model_copy(update={"code": unfence_code(answer.code)})
 
     def _make_safe(self, mind: AgentMind) -> None:
         """After a code block stopped early: the arm holds where its last motion ended."""
@@ -359,6 +435,17 @@ class AgentLoop:
             self.api.wait(SAFE_HOLD)
         except SkillError as error:
             self._note(mind, "error", f"could not bring the arm to rest: {error}")
+
+
+def rewrite_wanted(steps: tuple[StepRecord, ...]) -> bool:
+    """Whether the last block, which failed, should go back to the coder to be written
+    again (see the module docstring): a final block, or an exploration that failed before
+    the robot moved; not when it was itself a rewrite repeating the failed code and error."""
+    failed = steps[-1]
+    if failed.retry and len(steps) > 1 and (steps[-2].code, steps[-2].error) == (
+            failed.code, failed.error):
+        return False
+    return failed.kind == "final" or not failed.moved
 
 
 def _describe(decision: Decision) -> str:

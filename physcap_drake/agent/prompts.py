@@ -3,6 +3,10 @@
 Templates use `$name` placeholders (string.Template); a missing value is an error, never
 silently left blank. Each request carries the rendered text (for remote models) and the same
 content as structured data in `context` (for the offline reference reasoner).
+
+With `images=False` (a text-only model) requests carry no camera image: the prompts say so
+(`view_text` instead of `view_image`) and describe the scene in words (`scene_text`: the
+objects with where they appear in the image) next to the objects list.
 """
 
 from __future__ import annotations
@@ -12,6 +16,8 @@ import json
 from pathlib import Path
 from string import Template
 
+import cv2
+import numpy as np
 from pydantic import BaseModel
 
 from physcap_drake.agent.history import StepRecord, history_text
@@ -60,10 +66,12 @@ def schema_text(model: type[BaseModel]) -> str:
 
 
 class PromptBook:
-    """The templates of one prompt folder, and the requests built from them."""
+    """The templates of one prompt folder, and the requests built from them (with the camera
+    image, or for a text-only model without it: see the module docstring)."""
 
-    def __init__(self, folder: Path | None = None):
+    def __init__(self, folder: Path | None = None, images: bool = True):
         self.folder = folder or agents_dir() / "prompts"
+        self.images = images
         self._cache: dict[str, Template] = {}
 
     def render(self, template: str, **values: str) -> str:
@@ -79,16 +87,24 @@ class PromptBook:
                            f"${error.args[0]}") from None
 
     def _context_text(self, ctx: AgentContext) -> str:
+        scene = "" if self.images else "\n" + self.render(
+            "scene_text", description=scene_description(ctx.observation)) + "\n"
         return self.render("context", task=ctx.task, objects=ctx.observation.as_text(),
-                           knowledge=ctx.knowledge_text(), history=history_text(
-                               list(ctx.history)))
+                           scene=scene, knowledge=ctx.knowledge_text(),
+                           history=history_text(list(ctx.history)))
+
+    def _seeing(self) -> dict[str, str]:
+        """How the system texts speak of what the model sees."""
+        if self.images:
+            return {"view": self.render("view_image"), "picture": "the image"}
+        return {"view": self.render("view_text"), "picture": "the scene description"}
 
     def _request(self, role: str, system: str, ctx: AgentContext, extra_text: str,
                  schema: type[BaseModel], mode: str, **extra_context) -> LLMRequest:
         prompt = self._context_text(ctx) + (f"\n\n{extra_text}" if extra_text else "")
         context = ctx.as_context() | {"mode": mode} | extra_context
         return LLMRequest(role=role, system=system, prompt=prompt,
-                          images=(ctx.observation.jpeg,),
+                          images=(ctx.observation.jpeg,) if self.images else (),
                           json_schema=schema.model_json_schema(), context=context)
 
     def planner(self, ctx: AgentContext, mode: str) -> LLMRequest:
@@ -96,20 +112,23 @@ class PromptBook:
         "enumerator" (PlannerAnswer listing every candidate)."""
         schema = JointPlannerAnswer if mode == "joint_planner" else PlannerAnswer
         system = self.render(mode, abilities=self.render("abilities"),
-                             schema=schema_text(schema))
+                             schema=schema_text(schema), **self._seeing())
         return self._request("planner", system, ctx, "", schema, mode)
 
     def prioritizer(self, ctx: AgentContext, candidates: list[Candidate]) -> LLMRequest:
         listing = json.dumps([c.model_dump() for c in candidates], indent=1)
-        system = self.render("prioritizer", schema=schema_text(PrioritizerAnswer))
+        system = self.render("prioritizer", schema=schema_text(PrioritizerAnswer),
+                             **self._seeing())
         return self._request("prioritizer", system, ctx, f"# Candidates\n{listing}",
                              PrioritizerAnswer, "prioritizer",
                              candidates=[c.model_dump() for c in candidates])
 
     def coder(self, ctx: AgentContext, api_text: str, functions: list[str], mode: str,
-              candidate: Candidate | None = None, reason: str = "") -> LLMRequest:
+              candidate: Candidate | None = None, reason: str = "",
+              failed: StepRecord | None = None) -> LLMRequest:
         """mode: "explore" (one candidate), "final" (finish the task) or "task" (next step
-        of the task, vision-only coder)."""
+        of the task, vision-only coder). `failed`: the code block for this same step that
+        just failed (its error and code go with the request, to be fixed)."""
         if mode == "explore":
             if candidate is None:
                 raise ValueError("an exploration code block needs its candidate")
@@ -124,4 +143,43 @@ class PromptBook:
         extra = {"functions": functions, "reason": reason}
         if candidate is not None:
             extra["candidate"] = candidate.model_dump()
-        return self._request("coder", system, ctx, "", CoderAnswer, mode, **extra)
+        retry_text = ""
+        if failed is not None:
+            retry_text = self.render(
+                "coder_retry", index=str(failed.index),
+                what=f"{failed.action} on '{failed.target}'" if failed.target else "task code",
+                when="" if failed.moved else " before the robot moved", error=failed.error,
+                code=failed.code)
+            extra["failed_block"] = {"index": failed.index, "error": failed.error}
+        return self._request("coder", system, ctx, retry_text, CoderAnswer, mode, **extra)
+
+
+def scene_description(observation: Observation) -> str:
+    """The camera's view in words, for a text-only model: the perception module's own
+    description when it gives one, else each object with where it appears in the image."""
+    given = getattr(observation, "scene_description", "")
+    if given:
+        return given
+    if not observation.objects:
+        return "no objects on the table."
+    width, height = jpeg_size(observation.jpeg)
+    places = [f"the {o.name} ({_place(o.image_x / width, o.image_y / height)})"
+              for o in observation.objects]
+    return (f"{len(places)} object{'s' if len(places) > 1 else ''} on the table; from left to "
+            f"right in the image: {', '.join(places)}.")
+
+
+def _place(x: float, y: float) -> str:
+    """Where a point at fractions (x, y) of the image's width and height lies in it, in
+    words ("upper left", "centre", "lower right", ...)."""
+    across = "left" if x < 1 / 3 else "right" if x > 2 / 3 else ""
+    down = "upper" if y < 1 / 3 else "lower" if y > 2 / 3 else ""
+    return " ".join(w for w in (down, across) if w) or "centre"
+
+
+def jpeg_size(jpeg: bytes) -> tuple[int, int]:
+    """(width, height) of a JPEG image in pixels."""
+    image = cv2.imdecode(np.frombuffer(jpeg, np.uint8), cv2.IMREAD_GRAYSCALE)
+    if image is None:
+        raise ValueError("the camera image is not a readable JPEG")
+    return image.shape[1], image.shape[0]

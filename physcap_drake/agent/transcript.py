@@ -17,7 +17,7 @@ from collections.abc import Callable
 from typing import Any
 
 #: Entry kinds, in the order they typically appear in one step.
-KINDS = ("observation", "planner", "prioritizer", "decision", "code", "output", "error",
+KINDS = ("model", "observation", "planner", "prioritizer", "decision", "code", "output", "error",
          "measurement", "result")
 
 

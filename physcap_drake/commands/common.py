@@ -25,8 +25,9 @@ from physcap_drake.scenario_errors import ScenarioError
 console = Console(soft_wrap=True)
 error_console = Console(stderr=True, soft_wrap=True)
 
-#: Exit code for bad input (a missing file, a file of the wrong kind, a bad name or value).
-BAD_INPUT = 2
+#: Exit codes: the task was solved; it was not; bad input (a missing file, a file of the wrong
+#: kind, a bad name or value); a model or its server failed (see README).
+SOLVED, NOT_SOLVED, BAD_INPUT, MODEL_FAILURE = 0, 1, 2, 3
 
 
 def print_error(message: str) -> None:

@@ -14,18 +14,32 @@ from physcap_drake.agent.transcript import TranscriptEntry, entry_text
 from physcap_drake.agent.variant import variant_names
 from physcap_drake.can.link import StartupError
 from physcap_drake.commands.common import (
+    BAD_INPUT,
+    MODEL_FAILURE,
+    NOT_SOLVED,
+    SOLVED,
     console,
     error_console,
     fail,
     load_scenario_or_exit,
     make_meshcat,
+    print_error,
     save_json,
 )
 from physcap_drake.commands.live_view import hold_open, pace_in_real_time
 from physcap_drake.commands.model_options import (
+    ApiKeyEnv,
+    EpisodeTimeout,
+    Images,
     Llm,
+    LlmSeed,
+    MaxTokens,
     Model,
     ModelChoice,
+    Retries,
+    SchemaMode,
+    Temperature,
+    Timeout,
     VertexLocation,
     VertexProject,
 )
@@ -88,6 +102,15 @@ def run(task: Annotated[str, typer.Option("--task", help=f"One of: {', '.join(TA
         model: Model = None,
         vertex_project: VertexProject = None,
         vertex_location: VertexLocation = None,
+        timeout: Timeout = None,
+        retries: Retries = None,
+        schema_mode: SchemaMode = None,
+        images: Images = True,
+        temperature: Temperature = None,
+        llm_seed: LlmSeed = None,
+        max_tokens: MaxTokens = None,
+        api_key_env: ApiKeyEnv = None,
+        episode_timeout: EpisodeTimeout = None,
         quiet: Annotated[bool, typer.Option("--quiet", help="Print only the summary.")] = False,
         json_path: Annotated[Path | None, typer.Option(
             "--json", metavar="FILE", help="Write the summary here.")] = None,
@@ -111,7 +134,8 @@ def run(task: Annotated[str, typer.Option("--task", help=f"One of: {', '.join(TA
 
     Prints the transcript as it goes (observations, the planner's and prioritizer's
     answers, each code block and its output, the measurements), then success, OI
-    (exploratory object interactions) and robot time. Exit code 1 if the task failed.
+    (exploratory object interactions) and robot time. Exit code 0 if the task was solved,
+    1 if not, 2 for bad input, 3 if the model or its server failed (one line says why).
     """
     if task not in TASKS:
         fail(f"unknown task {task!r}; one of {', '.join(TASKS)}")
@@ -126,7 +150,9 @@ def run(task: Annotated[str, typer.Option("--task", help=f"One of: {', '.join(TA
             check_scenario_task(task, load_scenario_or_exit(scenario).task.name, str(scenario))
         except ScenarioError as error:
             fail(str(error))
-    client = ModelChoice(llm, model, vertex_project, vertex_location).client(seed)
+    client = ModelChoice(llm, model, vertex_project, vertex_location, timeout, retries,
+                         schema_mode, images, temperature, llm_seed, max_tokens,
+                         api_key_env).client(seed)
     viewer = make_meshcat(live=meshcat) if (meshcat or meshcat_html) else None
 
     def on_start(episode) -> None:
@@ -144,6 +170,8 @@ def run(task: Annotated[str, typer.Option("--task", help=f"One of: {', '.join(TA
     options = dict(agent=agent, client=client, meshcat=viewer, pointer=pointer,
                    perception=perception, judge=judge, scenario_file=scenario,
                    on_entry=printer, on_start=on_start)
+    if episode_timeout is not None:
+        options["wall_time_limit"] = episode_timeout
     try:
         if out is None:
             result = run_agent_episode(task, seed, **options)
@@ -153,7 +181,9 @@ def run(task: Annotated[str, typer.Option("--task", help=f"One of: {', '.join(TA
                                     **options)
     except FileExistsError as error:
         fail(f"{error}; pass --overwrite to replace it")
-    except (ValueError, LLMError, ImportError, ConnectionError, StartupError) as error:
+    except LLMError as error:  # the episode ends on model failures; this is a last resort
+        fail(str(error), code=BAD_INPUT if isinstance(error, ValueError) else MODEL_FAILURE)
+    except (ValueError, ImportError, ConnectionError, StartupError) as error:
         fail(str(error))
     except KeyboardInterrupt:
         where = f"; the recording so far is in {out}" if out is not None else ""
@@ -171,8 +201,16 @@ def run(task: Annotated[str, typer.Option("--task", help=f"One of: {', '.join(TA
             viewer.StopRecording()
             viewer.PublishRecording()
         hold_open(viewer, hold)
-    if not result.summary()["success"]:
-        raise typer.Exit(code=1)
+    raise typer.Exit(code=exit_code(result.summary()))
+
+
+def exit_code(summary: dict) -> int:
+    """0 solved, 1 not solved, 3 the model or its server failed (said on stderr, one
+    line)."""
+    if summary["failure_kind"] == "model":
+        print_error(summary["failure"])
+        return MODEL_FAILURE
+    return SOLVED if summary["success"] else NOT_SOLVED
 
 
 def _report(summary: dict, json_path: Path | None, out: Path | None) -> None:

@@ -9,7 +9,7 @@ import importlib
 import json
 import re
 import time
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from types import ModuleType
 from typing import Any
 
@@ -127,3 +127,51 @@ def status_error(where: str, status: int, message: str,
     if status in (408, 504):
         return LLMTimeout(text, retry_after_s=hint)
     return TransientLLMError(text, retry_after_s=hint)
+
+
+#: A cut answer (finish reason "length") is asked again with more room for output: at least
+#: this many tokens, twice what was used, up to the client's cap.
+MIN_ROOM_TOKENS = 2048
+#: The default cap of that room (tokens of answer).
+MAX_ROOM_TOKENS = 16384
+#: How often one call may be asked again with more room.
+ROOM_RETRIES = 3
+
+
+def with_room[Answer](ask: Callable[[int | None], Answer],
+                     cut_at: Callable[[Answer], int | None], first: int | None, cap: int,
+                     where: str) -> Answer:
+    """`ask(room)` (room: output tokens, None for the server's default, starting at
+    `first`) until an answer is not cut off; `cut_at(answer)` is the tokens a cut-off answer
+    used (0 if unknown), None for a whole one. The room grows by `more_room` up to `cap`;
+    an answer still cut off then is an LLMError (`cut_off_error`)."""
+    room = first
+    for _ in range(ROOM_RETRIES + 1):
+        answer = ask(room)
+        used = cut_at(answer)
+        if used is None:
+            return answer
+        grown = more_room(room, used, cap)
+        if grown is None:
+            break
+        room = grown
+    raise cut_off_error(where, used, room)
+
+
+def more_room(room: int | None, used: int, cap: int) -> int | None:
+    """The output-token room to ask a cut answer again with (`room` was the last one, None
+    for the server's default; `used` the tokens the cut answer took), or None when the room
+    cannot grow any more."""
+    if room is not None and room >= cap:
+        return None
+    return min(max(2 * (room or 0), 2 * used, MIN_ROOM_TOKENS), cap)
+
+
+def cut_off_error(where: str, used: int, room: int | None) -> LLMError:
+    """The error for an answer still cut off when the room could grow no more."""
+    room_text = f"room for {room} tokens" if room else "the server's default room"
+    used_text = f"{used} tokens" if used else "an unknown number of tokens"
+    return LLMError(
+        f"{where}: the answer was cut off (finish reason 'length') after {used_text}, even "
+        f"with {room_text}; the model's context window may be too small for the prompt, or "
+        "allow longer answers (--max-tokens)")

@@ -35,6 +35,23 @@ class LLMTimeout(TransientLLMError):
     """The model did not answer within the configured timeout."""
 
 
+class EpisodeTimeUp(LLMError):
+    """A call was not made because the episode's wall-clock limit had passed (never retried;
+    recorded like any failed call, so a replay stops at the same place)."""
+
+
+#: The error classes a recorded failure may name; a replay raises the same class again.
+ERROR_CLASSES: dict[str, type[LLMError]] = {
+    cls.__name__: cls for cls in (LLMError, TransientLLMError, LLMTimeout, EpisodeTimeUp)}
+
+
+def one_line(text: str, limit: int = 300) -> str:
+    """`text` on one line (runs of whitespace made one space), cut to `limit` characters
+    with an ellipsis: for quoting what a server sent inside an error message."""
+    flat = " ".join(str(text).split())
+    return flat if len(flat) <= limit else flat[: limit - 1] + "…"
+
+
 @dc.dataclass(frozen=True)
 class LLMRequest:
     """One call to a language model.
@@ -78,7 +95,11 @@ class LLMResponse:
 class CallRecord:
     """One recorded call: who asked, which model answered, the full prompt and response,
     latency (s), token counts, the number of images, the request key, and how many attempts
-    the call took (retries included)."""
+    the call took (retries included).
+
+    A failed call is recorded too: `response` is empty, `error` the message of the error the
+    caller got and `error_type` its class (see ERROR_CLASSES); a replay raises it again.
+    """
 
     role: str
     model: str
@@ -91,19 +112,33 @@ class CallRecord:
     images: int
     key: str
     attempts: int = 1
+    error: str = ""
+    error_type: str = ""
+
+    @property
+    def failed(self) -> bool:
+        return bool(self.error_type)
 
     def to_json(self) -> dict[str, Any]:
         return dc.asdict(self)
 
     @classmethod
     def from_json(cls, data: dict[str, Any]) -> CallRecord:
-        return cls(**data)
+        record = cls(**data)
+        if record.error_type and record.error_type not in ERROR_CLASSES:
+            raise ValueError(f"unknown error_type {record.error_type!r}; one of "
+                             f"{', '.join(ERROR_CLASSES)}")
+        return record
 
 
 class LLMClient(Protocol):
     """What a backend provides. `name` is the backend ("gemini", "reference", ...) and
     `model` the model it calls; `complete` sends one request and returns the answer, raising
-    TransientLLMError / LLMTimeout for failures worth retrying and LLMError otherwise."""
+    TransientLLMError / LLMTimeout for failures worth retrying and LLMError otherwise.
+
+    Optional: `takes_images` (False for a text-only model: requests then carry no image;
+    `takes_images(client)` reads it, default True) and `check()` (a start-up check of the
+    server, see `server_check`)."""
 
     name: str
     model: str
@@ -112,7 +147,8 @@ class LLMClient(Protocol):
 
 
 class ClientLayer:
-    """Base of clients that wrap another (`inner`): they report its backend name and model."""
+    """Base of clients that wrap another (`inner`): they report its backend name, model and
+    whether it takes images."""
 
     inner: LLMClient
 
@@ -123,3 +159,28 @@ class ClientLayer:
     @property
     def model(self) -> str:
         return self.inner.model
+
+    @property
+    def takes_images(self) -> bool:
+        return takes_images(self.inner)
+
+
+def takes_images(client: LLMClient) -> bool:
+    """Whether requests to `client` may carry images (True unless it says otherwise)."""
+    return bool(getattr(client, "takes_images", True))
+
+
+def innermost(client: LLMClient) -> LLMClient:
+    """The backend at the bottom of a stack of client layers."""
+    while isinstance(client, ClientLayer):
+        client = client.inner
+    return client
+
+
+def label(client: LLMClient, role: str = "") -> str:
+    """How messages name a client: its backend's own words (a server's URL and the model)
+    when it has them, else its name and model; then the role asking, if given."""
+    backend = innermost(client)
+    if hasattr(backend, "where"):
+        return backend.where(role)
+    return f"{backend.name} model {backend.model}" + (f", role {role!r}" if role else "")

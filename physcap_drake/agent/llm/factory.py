@@ -7,10 +7,12 @@ Specs:
   anthropic                      Claude via the anthropic SDK
   openai                         OpenAI via the openai SDK
   openai-compatible:<base_url>   an OpenAI-compatible server, e.g. http://localhost:8000/v1
+                                 (plain HTTP; a key only with api_key / --api-key-env)
   replay:<path.jsonl>            answers replayed from a recording
 
-Remote backends are wrapped in a `RetryingClient`; every client is wrapped in a
-`RecordingClient`, the outermost layer, whose `records` hold the calls made.
+A remote backend is wrapped in a `DeadlineClient` (the total deadline of each attempt) and a
+`RetryingClient`; every client is wrapped in a `RecordingClient`, the outermost layer, whose
+`records` hold the calls made (failed ones too).
 """
 
 from __future__ import annotations
@@ -21,11 +23,14 @@ from typing import Any
 
 from physcap_drake.agent.llm.anthropic_backend import AnthropicClient
 from physcap_drake.agent.llm.base import LLMClient
+from physcap_drake.agent.llm.compatible import OpenAICompatibleClient
+from physcap_drake.agent.llm.deadline import DeadlineClient
 from physcap_drake.agent.llm.gemini import GeminiClient
 from physcap_drake.agent.llm.openai_backend import OpenAIClient
 from physcap_drake.agent.llm.recording import RecordingClient
 from physcap_drake.agent.llm.replay import ReplayClient
 from physcap_drake.agent.llm.retry import RetryingClient
+from physcap_drake.agent.llm.settings import DEFAULT_TIMEOUT_S, ModelSettings
 
 VALID_SPECS = (
     "reference",
@@ -46,23 +51,32 @@ _REMOTE: dict[str, type] = {
 }
 
 
-def make_llm(spec: str, model: str | None = None, **options: Any) -> LLMClient:
-    """Build the client named by `spec` (see the module docstring).
+def make_llm(spec: str | ModelSettings, model: str | None = None, **options: Any) -> LLMClient:
+    """Build the client named by `spec` (see the module docstring), or described by a
+    `ModelSettings` (whose own model and options are used; `options` may add more).
 
     `model` overrides the backend's default model; the offline backends (reference,
     replay) ignore it. `options` go where they belong:
       attempts, base_delay_s, max_delay_s, sleep -> RetryingClient (remote backends only);
+      timeout_s -> the backend and the DeadlineClient (remote backends only);
       on_record -> RecordingClient;
+      images=False -> a text-only model: requests carry no image (any backend);
       seed -> the reference reasoner (ignored by the others, so callers may always pass it);
-      anything else -> the backend's constructor (api_key, timeout_s, vertex_project,
-      vertex_location, max_tokens, schema_mode, client, ...); an option the backend does
-      not take is a ValueError naming the ones it does.
+      sampling_seed -> the model's own sampling seed (backend option `seed`);
+      anything else -> the backend's constructor (api_key, vertex_project, vertex_location,
+      max_tokens, schema_mode, temperature, client, ...); an option the backend does not
+      take is a ValueError naming the ones it does.
     """
+    if isinstance(spec, ModelSettings):
+        return make_llm(spec.llm, spec.model or model, **spec.options(), **options)
     spec = spec.strip()
     kind, _, argument = spec.partition(":")
     retry_options = {k: options.pop(k) for k in RETRY_OPTIONS if k in options}
     recording_options = {k: options.pop(k) for k in RECORDING_OPTIONS if k in options}
     seed = options.pop("seed", 0)
+    images = bool(options.pop("images", True))
+    if "sampling_seed" in options:
+        options["seed"] = options.pop("sampling_seed")
 
     inner: LLMClient
     if kind == "reference" and not argument:
@@ -74,8 +88,7 @@ def make_llm(spec: str, model: str | None = None, **options: Any) -> LLMClient:
         _reject_options(kind, options, ())
         inner = ReplayClient.from_jsonl(argument)
     elif kind in _REMOTE and not argument:
-        inner = RetryingClient(_make_remote(_REMOTE[kind], kind, model, options),
-                               **retry_options)
+        inner = _remote_stack(_REMOTE[kind], kind, model, options, retry_options)
     elif kind == "openai-compatible":
         if not argument:
             raise ValueError(
@@ -84,18 +97,30 @@ def make_llm(spec: str, model: str | None = None, **options: Any) -> LLMClient:
             )
         if model is None:
             raise ValueError(
-                "an OpenAI-compatible server needs the model name it serves: pass model="
+                "an OpenAI-compatible server needs the model name it serves: pass model= "
+                "(--model NAME)"
             )
         if "base_url" in options:
             raise ValueError("give the base URL in the spec, not also as base_url=")
         options["base_url"] = argument
-        inner = RetryingClient(_make_remote(OpenAIClient, kind, model, options),
-                               **retry_options)
+        options["images"] = images
+        inner = _remote_stack(OpenAICompatibleClient, kind, model, options, retry_options)
     else:
         raise ValueError(
             f"unknown language-model spec {spec!r}; valid specs are: {', '.join(VALID_SPECS)}"
         )
-    return RecordingClient(inner, **recording_options)
+    return RecordingClient(inner, takes_images=None if images else False,
+                           **recording_options)
+
+
+def _remote_stack(cls: type, kind: str, model: str | None, options: dict[str, Any],
+                  retry_options: dict[str, Any]) -> LLMClient:
+    """Backend, total deadline per attempt, retries."""
+    timeout_s = float(options.setdefault("timeout_s", DEFAULT_TIMEOUT_S))
+    if not timeout_s > 0:
+        raise ValueError(f"the call timeout must be positive, got {timeout_s:g} s")
+    backend = _make_remote(cls, kind, model, options)
+    return RetryingClient(DeadlineClient(backend, timeout_s), **retry_options)
 
 
 def _make_reference(seed: int) -> LLMClient:
@@ -106,9 +131,10 @@ def _make_reference(seed: int) -> LLMClient:
 
 def _make_remote(cls: type, kind: str, model: str | None, options: dict[str, Any]) -> LLMClient:
     accepted = [
-        name for name in inspect.signature(cls).parameters if name not in ("self", "model")
+        name for name in inspect.signature(cls).parameters
+        if name not in ("self", "model", "base_url")
     ]
-    _reject_options(kind, options, accepted)
+    _reject_options(kind, {k: v for k, v in options.items() if k != "base_url"}, accepted)
     if model is not None:
         options["model"] = model
     return cls(**options)
@@ -120,5 +146,5 @@ def _reject_options(kind: str, options: dict[str, Any], accepted: Any) -> None:
         takes = ", ".join(accepted) if accepted else "no backend options"
         raise ValueError(
             f"the {kind} backend does not take option(s) {', '.join(unknown)}; it takes: "
-            f"{takes} (plus {', '.join(RETRY_OPTIONS + RECORDING_OPTIONS)}, seed)"
+            f"{takes} (plus {', '.join(RETRY_OPTIONS + RECORDING_OPTIONS)}, images, seed)"
         )

@@ -3,7 +3,8 @@
 Vertex AI is used when both a project and a location are given (credentials come from
 Application Default Credentials, or `credentials=`); otherwise an API key is needed, from the
 argument or the GEMINI_API_KEY / GOOGLE_API_KEY environment variables. The SDK's own retries
-are switched off for every request: `RetryingClient` is the retry layer.
+are switched off for every request: `RetryingClient` is the retry layer. An answer cut off
+at its output limit (finish reason MAX_TOKENS) is asked again with more room.
 """
 
 from __future__ import annotations
@@ -12,12 +13,14 @@ import os
 import time
 from typing import Any
 
+from physcap_drake.agent.llm import _common
 from physcap_drake.agent.llm._common import (
     LLMConfigError,
     import_sdk,
     is_transient_status,
     retry_after_from_google_details,
     retry_after_from_headers,
+    with_room,
 )
 from physcap_drake.agent.llm.base import (
     LLMError,
@@ -25,6 +28,7 @@ from physcap_drake.agent.llm.base import (
     LLMResponse,
     LLMTimeout,
     TransientLLMError,
+    one_line,
 )
 
 API_KEY_VARIABLES = ("GEMINI_API_KEY", "GOOGLE_API_KEY")
@@ -50,9 +54,15 @@ class GeminiClient:
         timeout_s: float = 60,
         client: Any = None,
         credentials: Any = None,
+        temperature: float | None = None,
+        seed: int | None = None,
+        max_tokens: int | None = None,
+        max_room_tokens: int = _common.MAX_ROOM_TOKENS,
     ):
         self.model = model
         self.timeout_s = float(timeout_s)
+        self.temperature, self.seed = temperature, seed
+        self.max_tokens, self.max_room_tokens = max_tokens, int(max_room_tokens)
         self._genai = import_sdk("google.genai", "google-genai")
         self._types = import_sdk("google.genai.types", "google-genai")
         self._errors = import_sdk("google.genai.errors", "google-genai")
@@ -97,10 +107,15 @@ class GeminiClient:
             retry_options=types.HttpRetryOptions(attempts=1),
         )
 
-    def build_config(self, request: LLMRequest) -> Any:
-        """The GenerateContentConfig for a request."""
+    def build_config(self, request: LLMRequest, max_tokens: int | None = None) -> Any:
+        """The GenerateContentConfig for a request (`max_tokens`: room for the answer, None
+        for the model's default)."""
         types = self._types
         config: dict[str, Any] = {"http_options": self._http_options()}
+        for key, value in (("temperature", self.temperature), ("seed", self.seed),
+                           ("max_output_tokens", max_tokens)):
+            if value is not None:
+                config[key] = value
         if request.system:
             config["system_instruction"] = request.system
         if request.json_schema is not None:
@@ -122,11 +137,29 @@ class GeminiClient:
 
     def complete(self, request: LLMRequest) -> LLMResponse:
         start = time.perf_counter()
+        where = f"gemini model {self.model}, role {request.role!r}"
+        response = with_room(lambda room: self._ask(request, room), _cut_tokens,
+                             self.max_tokens, self.max_room_tokens, where)
+        latency = time.perf_counter() - start
+        text = self._text_of(response, request)
+        input_tokens = _usage_count(response, "prompt_token_count")
+        # Thinking models bill their thoughts as output.
+        output_tokens = (_usage_count(response, "candidates_token_count")
+                         + _usage_count(response, "thoughts_token_count"))
+        return LLMResponse(
+            text=text,
+            model=getattr(response, "model_version", None) or self.model,
+            input_tokens=input_tokens,
+            output_tokens=output_tokens,
+            latency_s=latency,
+        )
+
+    def _ask(self, request: LLMRequest, room: int | None) -> Any:
         try:
-            response = self._client.models.generate_content(
+            return self._client.models.generate_content(
                 model=self.model,
                 contents=self.build_contents(request),
-                config=self.build_config(request),
+                config=self.build_config(request, room),
             )
         except self._errors.APIError as err:
             raise self._map_api_error(err, request) from err
@@ -140,20 +173,11 @@ class GeminiClient:
                 f"gemini model {self.model}, role {request.role!r}: connection failed: "
                 f"{type(err).__name__}: {err}"
             ) from err
-        latency = time.perf_counter() - start
-        text = self._text_of(response, request)
-        usage = getattr(response, "usage_metadata", None)
-        input_tokens = int(getattr(usage, "prompt_token_count", 0) or 0)
-        output_tokens = int(getattr(usage, "candidates_token_count", 0) or 0)
-        # Thinking models bill their thoughts as output.
-        output_tokens += int(getattr(usage, "thoughts_token_count", 0) or 0)
-        return LLMResponse(
-            text=text,
-            model=getattr(response, "model_version", None) or self.model,
-            input_tokens=input_tokens,
-            output_tokens=output_tokens,
-            latency_s=latency,
-        )
+        except ValueError as err:  # a body that is not JSON (the SDK decodes it itself)
+            raise TransientLLMError(
+                f"gemini model {self.model}, role {request.role!r}: the answer is not JSON: "
+                f"{one_line(str(err), 200)}"
+            ) from err
 
     def _text_of(self, response: Any, request: LLMRequest) -> str:
         """Join the answer's text parts (skipping thoughts); an empty answer is an error
@@ -195,3 +219,17 @@ class GeminiClient:
         if status == 408 or status == 504:
             return LLMTimeout(message, retry_after_s=hint)
         return TransientLLMError(message, retry_after_s=hint)
+
+
+def _cut_tokens(response: Any) -> int | None:
+    """The tokens of an answer that stopped at its output limit; None for a whole one."""
+    candidates = getattr(response, "candidates", None) or []
+    reason = getattr(candidates[0], "finish_reason", None) if candidates else None
+    if "MAX_TOKENS" not in str(reason or ""):
+        return None
+    return _usage_count(response, "candidates_token_count")
+
+
+def _usage_count(response: Any, field: str) -> int:
+    usage = getattr(response, "usage_metadata", None)
+    return int(getattr(usage, field, 0) or 0)

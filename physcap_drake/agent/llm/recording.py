@@ -1,9 +1,14 @@
-"""Writing down every successful language-model call as a `CallRecord`.
+"""Writing down every language-model call as a `CallRecord`, answered or failed.
 
 `RecordingClient` sits outermost (around a `RetryingClient` when there is one), so a record
-holds the answer the agent actually got, the wall time it waited and how many attempts it
-took. Records are kept in memory, can be saved as JSON Lines and loaded back for replay, and
-each one is also handed to an optional `on_record` callback as soon as it exists.
+holds the answer (or the error) the agent actually got, the wall time it waited and how many
+attempts it took. Records are kept in memory, can be saved as JSON Lines and loaded back for
+replay, and each one is also handed to an optional `on_record` callback as soon as it exists.
+Because failures are recorded too, a replay of a run that ended on a server error ends the
+same way, at the same call.
+
+The outermost layer also keeps the episode's wall-clock limit (`stop_calls_at`): a call asked
+for after it is refused with EpisodeTimeUp, and recorded like any other failure.
 """
 
 from __future__ import annotations
@@ -16,7 +21,16 @@ import time
 from collections.abc import Callable, Iterable
 from pathlib import Path
 
-from physcap_drake.agent.llm.base import CallRecord, ClientLayer, LLMClient, LLMRequest, LLMResponse
+from physcap_drake.agent.llm.base import (
+    ERROR_CLASSES,
+    CallRecord,
+    ClientLayer,
+    EpisodeTimeUp,
+    LLMClient,
+    LLMError,
+    LLMRequest,
+    LLMResponse,
+)
 
 
 def make_record(request: LLMRequest, response: LLMResponse, attempts: int = 1) -> CallRecord:
@@ -34,6 +48,18 @@ def make_record(request: LLMRequest, response: LLMResponse, attempts: int = 1) -
         key=request.key(),
         attempts=attempts,
     )
+
+
+def failure_record(request: LLMRequest, error: LLMError, model: str, latency_s: float,
+                   attempts: int = 1) -> CallRecord:
+    """The record of a request that failed with `error` (its class, or the nearest recorded
+    base class, is kept for the replay)."""
+    error_type = next(cls.__name__ for cls in type(error).__mro__
+                      if cls.__name__ in ERROR_CLASSES)
+    return CallRecord(role=request.role, model=model, system=request.system,
+                      prompt=request.prompt, response="", latency_s=latency_s, input_tokens=0,
+                      output_tokens=0, images=len(request.images), key=request.key(),
+                      attempts=attempts, error=str(error), error_type=error_type)
 
 
 def save_jsonl(records: Iterable[CallRecord], path: str | os.PathLike[str]) -> Path:
@@ -66,38 +92,67 @@ def load_jsonl(path: str | os.PathLike[str]) -> list[CallRecord]:
 
 
 class RecordingClient(ClientLayer):
-    """Wraps a client and records each successful call.
+    """Wraps a client and records each call, answered or failed (with an LLMError; the
+    error goes on to the caller after it was recorded).
 
     The record's latency is the response's `latency_s` when the inner client reports one
     (a `RetryingClient` reports the whole call including waits, a replay reports the
     recorded value), otherwise the wall time measured here. The attempt count is read from
     the inner client's `last_attempts` when it has one (a `RetryingClient` or a replay),
-    otherwise 1. Failed calls raise and leave no record.
+    otherwise 1. `takes_images=False` marks a text-only model whatever the backend says
+    (None: the backend's own word).
     """
 
     def __init__(
         self,
         inner: LLMClient,
         on_record: Callable[[CallRecord], None] | None = None,
+        takes_images: bool | None = None,
     ):
         self.inner = inner
         self.on_record = on_record
+        self._takes_images = takes_images
         self.records: list[CallRecord] = []
         self._lock = threading.Lock()
+        self._stop_at: float | None = None
+        self._limit_text = ""
+
+    @property
+    def takes_images(self) -> bool:
+        if self._takes_images is not None:
+            return self._takes_images
+        return super().takes_images
+
+    def stop_calls_at(self, deadline: float | None, limit_text: str = "") -> None:
+        """Refuse calls asked for after `deadline` (time.monotonic(); None: never) with
+        EpisodeTimeUp, whose message is `limit_text` (what the limit is)."""
+        self._stop_at, self._limit_text = deadline, limit_text
 
     def complete(self, request: LLMRequest) -> LLMResponse:
         start = time.perf_counter()
-        response = self.inner.complete(request)
+        try:
+            if self._stop_at is not None and time.monotonic() >= self._stop_at:
+                raise EpisodeTimeUp(self._limit_text or "the episode's wall-clock limit "
+                                    "has passed")
+            response = self.inner.complete(request)
+        except LLMError as error:
+            latency = getattr(error, "recorded_latency_s", time.perf_counter() - start)
+            self._keep(failure_record(request, error, self.model, latency, self._attempts()))
+            raise
         wall_s = time.perf_counter() - start
         if response.latency_s <= 0.0:
             response = dc.replace(response, latency_s=wall_s)
-        attempts = max(1, int(getattr(self.inner, "last_attempts", 1) or 1))
-        record = make_record(request, response, attempts)
+        self._keep(make_record(request, response, self._attempts()))
+        return response
+
+    def _attempts(self) -> int:
+        return max(1, int(getattr(self.inner, "last_attempts", 1) or 1))
+
+    def _keep(self, record: CallRecord) -> None:
         with self._lock:
             self.records.append(record)
         if self.on_record is not None:
             self.on_record(record)
-        return response
 
     def save_jsonl(self, path: str | os.PathLike[str]) -> Path:
         """Write the records so far to `path` as JSON Lines."""

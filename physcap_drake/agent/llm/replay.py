@@ -3,7 +3,9 @@
 Each role has its own queue of recorded calls, consumed in order. A request must match the
 next recorded call of its role (same `LLMRequest.key()`: role, system text, prompt, schema
 and number of images); anything else is a `ReplayMiss`, so a run that drifts from the
-recording stops loudly instead of getting answers meant for other questions.
+recording stops loudly instead of getting answers meant for other questions. A recorded
+failure is raised again (the same error class and message), so a run that ended on a server
+error replays to the same end.
 """
 
 from __future__ import annotations
@@ -13,7 +15,13 @@ import threading
 from collections import defaultdict, deque
 from collections.abc import Iterable
 
-from physcap_drake.agent.llm.base import CallRecord, LLMError, LLMRequest, LLMResponse
+from physcap_drake.agent.llm.base import (
+    ERROR_CLASSES,
+    CallRecord,
+    LLMError,
+    LLMRequest,
+    LLMResponse,
+)
 from physcap_drake.agent.llm.recording import load_jsonl
 
 
@@ -38,7 +46,7 @@ def first_difference(expected: str, got: str) -> str | None:
 class ReplayClient:
     """Replays recorded calls. `name` is "replay"; `model` is the model of the first record
     (each answer carries its own record's model). Text, token counts, latency and attempt
-    count come from the record."""
+    count come from the record; a recorded failure raises its error again."""
 
     name = "replay"
 
@@ -84,6 +92,10 @@ class ReplayClient:
             queue.popleft()
             self._served[role] = index + 1
         self._local.attempts = record.attempts
+        if record.failed:
+            error = ERROR_CLASSES[record.error_type](record.error)
+            error.recorded_latency_s = record.latency_s  # the recording keeps it
+            raise error
         return LLMResponse(
             text=record.response,
             model=record.model,

@@ -19,6 +19,7 @@ from physcap_drake.agent.llm.base import (
     LLMRequest,
     LLMResponse,
     TransientLLMError,
+    label,
 )
 
 
@@ -69,21 +70,26 @@ class RetryingClient(ClientLayer):
             delay = max(delay, retry_after_s)
         return min(delay, self.max_delay_s)
 
-    def complete(self, request: LLMRequest) -> LLMResponse:
-        start = time.perf_counter()
+    def retried[T](self, call: Callable[[], T], where: str) -> T:
+        """`call()`, tried again after each TransientLLMError as the class docstring says;
+        the final LLMError names `where`."""
         last_error: TransientLLMError | None = None
         for attempt in range(1, self.attempts + 1):
             self._local.attempts = attempt
             if last_error is not None:
                 self._sleep(self.delay_before_retry(attempt - 1, last_error.retry_after_s))
             try:
-                response = self.inner.complete(request)
+                return call()
             except TransientLLMError as err:
                 last_error = err
-                continue
-            return dc.replace(response, latency_s=time.perf_counter() - start)
+        last = str(last_error).removeprefix(f"{where}: ")
         raise LLMError(
-            f"{self.inner.name} backend, model {self.inner.model}, role {request.role!r}: "
-            f"giving up after {self.attempts} attempt(s); last error: "
-            f"{type(last_error).__name__}: {last_error}"
+            f"{where}: giving up after {self.attempts} attempt(s); last error: "
+            f"{type(last_error).__name__}: {last}"
         ) from last_error
+
+    def complete(self, request: LLMRequest) -> LLMResponse:
+        start = time.perf_counter()
+        response = self.retried(lambda: self.inner.complete(request),
+                                label(self.inner, request.role))
+        return dc.replace(response, latency_s=time.perf_counter() - start)
