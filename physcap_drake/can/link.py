@@ -50,6 +50,7 @@ class LinkStatus:
     health: Health
     stale_since: float | None
     commands_sent: int
+    stale_count: int = 0
 
 
 class PiperLink:
@@ -74,6 +75,7 @@ class PiperLink:
         self._lower, self._upper = JOINT_LOWER.copy(), JOINT_UPPER.copy()
         self._stale_since: float | None = None
         self._commands_sent = 0
+        self._stale_count = 0
         self.firmware = ""
         self.torque_scale = (1.0,) * 6
         #: Start times of the last streaming cycles (monotonic s), for jitter figures.
@@ -175,7 +177,7 @@ class PiperLink:
     def status(self) -> LinkStatus:
         with self._lock:
             return LinkStatus(self.listener.health(time.monotonic()), self._stale_since,
-                              self._commands_sent)
+                              self._commands_sent, self._stale_count)
 
     # The streaming thread ----------------------------------------------------------------
 
@@ -198,6 +200,7 @@ class PiperLink:
             was_stale = self._stale_since is not None
             if health.stale and not was_stale:
                 self._stale_since = now
+                self._stale_count += 1
                 log.warning("arm feedback stale (%s): motion commands stopped, the arm "
                             "holds", health.reason)
             elif not health.stale and was_stale:
