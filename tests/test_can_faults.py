@@ -78,10 +78,11 @@ def test_a_steady_delay_keeps_the_feedback_stale_by_its_age(moving_rig):
 def test_one_percent_frame_loss_neither_stops_nor_spoils_a_motion(can_rig):
     can_rig.faults.set(loss=0.01)
     target = np.array([-0.6, 1.2, -1.0, 0.4, -0.5, 1.0])
+    trips = can_rig.link.status().stale_count
     can_rig.link.command(target, 0.08, 1.0)
-    stale = time_until(lambda: can_rig.link.status().health.stale, timeout=1.5)
-    assert stale == math.inf, can_rig.link.status().health.reason
-    np.testing.assert_allclose(can_rig.link.listener.snapshot().q, target, atol=1e-4)
+    assert wait_until(lambda: np.allclose(can_rig.link.listener.snapshot().q, target,
+                                          atol=1e-4), timeout=5.0)
+    assert can_rig.link.status().stale_count == trips, can_rig.link.status().health.reason
     assert can_rig.faults.counts["lost"] > 0  # the fault was really on
 
 
