@@ -128,3 +128,35 @@ def test_motors_that_never_enable_fail_start_up_naming_the_joints():
     finally:
         emulator.stop()
         peer.shutdown()
+
+
+def test_read_parameters_reports_what_the_arm_answers(can_rig):
+    parameters = can_rig.link.read_parameters()
+    assert sorted(parameters.limits) == [1, 2, 3, 4, 5, 6]
+    assert parameters.limits[3].min_angle == pytest.approx(np.radians(-170.0), abs=1e-3)
+    assert parameters.accelerations == {m: pytest.approx(5.0) for m in range(1, 7)}
+    assert parameters.end_limits.linear_speed == pytest.approx(0.5)
+    assert parameters.crash_levels == (0,) * 6
+    assert parameters.gripper.stroke_mm == 100  # set by start-up (0x47D)
+    assert can_rig.link.read_firmware() == "S-V1.8-2"
+
+
+def test_emergency_stop_then_clear_and_resume_on_a_closed_link(can_rig):
+    can_rig.link.emergency_stop()
+    assert can_rig.emulator.snapshot().arm_status == 1
+    assert wait_until(lambda: "emergency stop" in can_rig.link.status().health.fault)
+    with pytest.raises(RuntimeError, match="cuts the motors' power.*close the station"):
+        can_rig.link.resume()
+    can_rig.link.close()  # streaming stops; the arm holds, stopped
+    link = PiperLink(can.Bus(interface="virtual", channel=can_rig.link.config.channel),
+                     can_rig.link.config)
+    try:
+        assert link.clear_errors() == "emergency stop"  # clearing joint errors does not resume
+        link.resume()
+        arm = can_rig.emulator.snapshot()
+        assert arm.arm_status == 0 and not arm.enabled.any()  # motors off, standby
+        assert wait_until(lambda: not link.listener.health(time.monotonic()).fault)
+        link.start()  # enables and streams again
+        assert can_rig.emulator.snapshot().enabled.all()
+    finally:
+        link.close()
