@@ -51,6 +51,26 @@ class StartupError(RuntimeError):
 
 
 @dc.dataclass(frozen=True)
+class LinkSettings:
+    """What a PiperLink needs of a station's `PiperCan` config (the same names and units;
+    see station/can_config.py), as plain values another process can receive."""
+
+    interface: str = "socketcan"
+    channel: str = "can0"
+    control_rate: float = 200.0
+    firmware: str = ""
+    gripper_stroke_mm: int = 100
+    startup_timeout: float = 2.0
+    feedback_timeout: float = 0.05
+    max_feedback_loss: float = 0.05
+
+    @classmethod
+    def of(cls, config) -> LinkSettings:
+        """The settings of a `PiperCan` (or any object with these attributes)."""
+        return cls(**{f.name: getattr(config, f.name) for f in dc.fields(cls)})
+
+
+@dc.dataclass(frozen=True)
 class LinkStatus:
     """The streaming thread's view: health now, since when it is stale (monotonic s, None
     if not stale), how many motion commands were sent so far, and how often the feedback

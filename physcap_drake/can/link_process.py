@@ -1,0 +1,292 @@
+"""LinkProcess: a PiperLink streaming from a process of its own.
+
+The 200 Hz command stream must keep its period whatever the interpreter that runs the
+Drake diagram is doing (rendering a camera, collecting garbage, planning): nothing in that
+interpreter may stand between two frames to the arm. So the link lives in a child process
+(`child_process.ChildProcess`, a fresh interpreter), which opens the bus itself, runs the
+start-up sequence, streams, and runs the watchdog. The parent and the child share two
+blocks of memory (`shared_block.SharedBlock`, neither side ever waits for the other):
+
+- targets (parent -> child): joint positions (rad), gripper opening (m) and effort (N·m),
+  picked up at the start of every streaming cycle;
+- feedback (child -> parent): the latest feedback and the watchdog's verdict, published
+  every streaming cycle with the time it was published.
+
+Requests that are not periodic (start, fault drills, figures, close) go over a pipe. If
+the parent dies, the pipe closes and the child stops streaming (the arm holds) and exits.
+"""
+
+from __future__ import annotations
+
+import dataclasses as dc
+import gc
+import logging
+import socket
+import sys
+import time
+
+import numpy as np
+
+from physcap_drake.can import codec
+from physcap_drake.can.child_process import ChildProcess
+from physcap_drake.can.feedback import Health
+from physcap_drake.can.link import LinkSettings, LinkStatus, StartupError
+from physcap_drake.can.shared_block import Layout, SharedBlock
+
+log = logging.getLogger("physcap_drake.can")
+
+TARGETS = Layout({"q": 6, "gripper": 2})
+FEEDBACK = Layout({"published_at": 1, "q": 6, "v": 6, "torque": 6, "gripper": 2,
+                   "enabled": 6, "status": 7, "end_pose": 6, "stale": 1, "stale_since": 1,
+                   "commands_sent": 1, "stale_count": 1},
+                  texts=("reason", "fault"))
+#: How long the parent waits for the child's answer to a request (start-up has its own), s.
+REQUEST_TIMEOUT = 5.0
+#: The streaming process's GIL switch interval, s: its other threads (the bus reader) hand
+#: the interpreter back to the streaming thread within this (Python's default is 5 ms).
+SWITCH_INTERVAL = 0.0005
+
+
+@dc.dataclass(frozen=True)
+class LinkFeedback:
+    """The child's latest publication: when (monotonic s), joint positions (rad), speeds
+    (rad/s) and torques (N·m, firmware scaling applied), gripper opening (m) and effort
+    (N·m), drivers enabled, arm status (None before the first), end pose (m, rad), the
+    watchdog's verdict, since when the feedback is stale, commands sent, stale spells."""
+
+    published_at: float
+    q: np.ndarray
+    v: np.ndarray
+    torque: np.ndarray
+    gripper_opening: float
+    gripper_effort: float
+    enabled: np.ndarray
+    status: codec.ArmStatus | None
+    end_pose: np.ndarray
+    health: Health
+    stale_since: float | None
+    commands_sent: int
+    stale_count: int
+
+
+def open_bus(settings: LinkSettings):
+    """The python-can bus `settings` names; ConnectionError naming the fields if it fails."""
+    import can
+
+    try:
+        if settings.interface in ("slcan", "gs_usb"):
+            return can.Bus(interface=settings.interface, channel=settings.channel,
+                           bitrate=1_000_000)
+        return can.Bus(interface=settings.interface, channel=settings.channel)
+    except (OSError, can.CanError, ValueError) as error:
+        raise ConnectionError(f"station.interface {settings.interface!r}, station.channel "
+                              f"{settings.channel!r}: cannot open the CAN bus: {error}") from None
+
+
+class LinkProcess:
+    """The parent's handle (see module docstring); the process starts at once (it imports
+    while the caller does other things), the arm's start-up waits for `start()`.
+    `settings`: the link's; `bus_socket`: one end of a `socket_bus.socket_pair` to talk on
+    (an emulator holds the other), else the child opens the bus `settings` names; `faults`:
+    a `faults.FaultSettings` to damage what the link receives (emulated buses only; drills
+    change it with `set_faults`), drawn from a generator seeded with `seed`."""
+
+    def __init__(self, settings: LinkSettings, bus_socket: socket.socket | None = None,
+                 faults=None, seed: int = 0):
+        self.settings = settings
+        self._targets = SharedBlock(TARGETS)
+        self._feedback = SharedBlock(FEEDBACK)
+        bus_fd = None if bus_socket is None else bus_socket.fileno()
+        fds = (self._targets.fd, self._feedback.fd) + (() if bus_fd is None else (bus_fd,))
+        self._child = ChildProcess(
+            "physcap_drake.can.link_process:serve",
+            (settings, faults, seed, self._targets.fd, self._feedback.fd, bus_fd), fds,
+            name="piper-can-link")
+        if bus_socket is not None:
+            bus_socket.close()  # the child has its own copy
+        self._conn = self._child.conn
+        self._started = False
+        self._last: LinkFeedback | None = None
+        self.firmware = ""
+        self.torque_scale = (1.0,) * 6
+
+    @property
+    def started(self) -> bool:
+        return self._started
+
+    def start(self) -> LinkProcess:
+        """Runs the arm's start-up sequence in the streaming process and waits for its
+        first publication. Raises StartupError or ConnectionError with the child's words
+        (the process is closed then)."""
+        reply = self._request(("start",), timeout=self.settings.startup_timeout * 6 + 30.0)
+        self.firmware, self.torque_scale = reply
+        deadline = time.monotonic() + REQUEST_TIMEOUT
+        while self.feedback() is None:  # the first cycle publishes right after start-up
+            if time.monotonic() > deadline:
+                self.close()
+                raise StartupError("the CAN link process started but never published")
+            time.sleep(0.001)
+        self._started = True
+        return self
+
+    def _request(self, request: tuple, timeout: float = REQUEST_TIMEOUT):
+        if self._conn is None:
+            raise RuntimeError("the CAN link process is not running")
+        self._conn.send(request)
+        if not self._conn.poll(timeout):
+            raise StartupError(f"the CAN link process did not answer {request[0]!r} within "
+                               f"{timeout:.0f} s")
+        kind, value = self._conn.recv()
+        if kind == "ok":
+            return value
+        error_type = {"ConnectionError": ConnectionError}.get(kind, StartupError)
+        self.close()
+        raise error_type(value)
+
+    # Streaming ---------------------------------------------------------------------------
+
+    def command(self, q, opening: float, effort: float) -> None:
+        """The targets streamed from the next cycle on (rad; m; N·m), as PiperLink.command."""
+        self._targets.write({"q": np.asarray(q, dtype=float), "gripper": [opening, effort]})
+
+    def feedback(self) -> LinkFeedback | None:
+        """The latest consistent publication (the previous one if the child is mid-write;
+        None before the first)."""
+        reading = self._feedback.read()
+        if reading is not None and not np.isnan(reading["published_at"][0]):
+            self._last = _feedback_of(reading)
+        return self._last
+
+    def status(self) -> LinkStatus:
+        feedback = self.feedback()
+        if feedback is None:
+            return LinkStatus(Health(True, "no feedback yet", ""), None, 0, 0)
+        return LinkStatus(feedback.health, feedback.stale_since, feedback.commands_sent,
+                          feedback.stale_count)
+
+    # Requests ----------------------------------------------------------------------------
+
+    def set_faults(self, **changes) -> None:
+        """Changes the fault drill on the received frames (fields of FaultSettings)."""
+        self._request(("faults", changes))
+
+    def cycle_starts(self) -> list[float]:
+        """Start times of the last streaming cycles (monotonic s)."""
+        return self._request(("cycle_starts",))
+
+    def stale_reasons(self) -> list[str]:
+        return self._request(("stale_reasons",))
+
+    def close(self) -> None:
+        """Stops streaming (the arm holds its last target) and ends the process. Safe to
+        call twice."""
+        if self._conn is not None:
+            conn, self._conn = self._conn, None
+            try:
+                conn.send(("close",))
+                conn.poll(REQUEST_TIMEOUT)
+            except (OSError, EOFError):
+                pass
+            self._child.close()
+            self._targets.close()
+            self._feedback.close()
+
+
+def _feedback_of(r) -> LinkFeedback:
+    status = None if np.isnan(r["status"][0]) else codec.ArmStatus(
+        *(int(v) for v in r["status"]))
+    since = float(r["stale_since"][0])
+    return LinkFeedback(
+        float(r["published_at"][0]), r["q"], r["v"], r["torque"], float(r["gripper"][0]),
+        float(r["gripper"][1]), r["enabled"] > 0.5, status, r["end_pose"],
+        Health(bool(r["stale"][0] > 0.5), r["reason"], r["fault"]),
+        None if np.isnan(since) else since, int(r["commands_sent"][0]),
+        int(r["stale_count"][0]))
+
+
+# The child -------------------------------------------------------------------------------
+
+def serve(conn, settings: LinkSettings, faults, seed: int, targets_fd: int,
+          feedback_fd: int, bus_fd: int | None) -> None:
+    """The streaming process: serves the parent's requests until it says close or dies."""
+    from physcap_drake.can.faults import FaultyBus
+    from physcap_drake.can.link import PiperLink
+    from physcap_drake.can.socket_bus import SocketBus
+
+    logging.basicConfig(level=logging.WARNING, format="%(message)s")
+    sys.setswitchinterval(SWITCH_INTERVAL)
+    targets = SharedBlock(TARGETS, fd=targets_fd)
+    feedback = SharedBlock(FEEDBACK, fd=feedback_fd)
+    try:
+        bus = open_bus(settings) if bus_fd is None else SocketBus(
+            socket.socket(fileno=bus_fd), settings.channel)
+    except ConnectionError as error:
+        conn.recv()
+        conn.send(("ConnectionError", str(error)))
+        return
+    faulty = None
+    if bus_fd is not None:
+        bus = faulty = FaultyBus(bus, faults, seed=seed)
+    link: PiperLink | None = None
+
+    def on_cycle() -> None:
+        wanted = targets.read()
+        if wanted is not None and not np.isnan(wanted["q"]).any():
+            link.command(wanted["q"], wanted["gripper"][0], wanted["gripper"][1])
+        _publish(link, feedback)
+
+    link = PiperLink(bus, settings, on_cycle=on_cycle)
+    try:
+        while True:
+            try:
+                if not conn.poll(0.5):
+                    continue
+                kind, *args = conn.recv()
+            except (EOFError, OSError):
+                break  # the parent is gone: stop streaming, the arm holds
+            if kind == "close":
+                link.close()
+                conn.send(("ok", None))
+                break
+            conn.send(_answer(link, faulty, kind, args))
+    finally:
+        link.close()
+        targets.close()
+        feedback.close()
+
+
+def _answer(link, faulty, kind: str, args) -> tuple[str, object]:
+    try:
+        if kind == "start":
+            link.start()
+            gc.freeze()  # what start-up allocated is never collected again: shorter pauses
+            return "ok", (link.firmware, link.torque_scale)
+        if kind == "faults":
+            if faulty is None:
+                return "StartupError", "fault drills need the emulated bus (emulate: true)"
+            faulty.set(**args[0])
+            return "ok", None
+        if kind == "cycle_starts":
+            return "ok", list(link.cycle_starts)
+        if kind == "stale_reasons":
+            return "ok", list(link.stale_reasons)
+        return "StartupError", f"unknown request {kind!r}"
+    except ConnectionError as error:
+        return "ConnectionError", str(error)
+    except StartupError as error:
+        return "StartupError", str(error)
+
+
+def _publish(link, block: SharedBlock) -> None:
+    f = link.listener.snapshot()
+    status = link.status()
+    s = f.status
+    block.write({
+        "published_at": [time.monotonic()], "q": f.q, "v": f.v,
+        "torque": link.torques(f.current), "gripper": [f.gripper_opening, f.gripper_effort],
+        "enabled": f.enabled.astype(float),
+        "status": [np.nan] * 7 if s is None else dc.astuple(s), "end_pose": f.end_pose,
+        "stale": [float(status.health.stale)],
+        "stale_since": [np.nan if status.stale_since is None else status.stale_since],
+        "commands_sent": [status.commands_sent], "stale_count": [status.stale_count],
+    }, {"reason": status.health.reason, "fault": status.health.fault})

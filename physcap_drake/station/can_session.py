@@ -1,0 +1,85 @@
+"""CanSession: what a CAN station holds outside Drake, started only when asked.
+
+Building a CAN station connects to nothing, so a diagram can be built, drawn and
+inspected without powering the arm. `start()` (run by the PiperCanInterface's
+initialization event, or explicitly) connects: with `emulate: true` it first starts the
+emulated arm in its own process (`can.emulator_process`) on one end of a socket pair; then
+it starts the streaming process (`can.link_process`) on the other end, or on the bus the
+station names, and runs the arm's start-up sequence (firmware, limits, mode, enabling).
+`close()` stops streaming (the arm stays enabled and holds) and then the emulated arm.
+These are resources, like a socket; the station's state stays in its Contexts.
+"""
+
+from __future__ import annotations
+
+import atexit
+import dataclasses as dc
+
+from pydrake.common.yaml import yaml_dump_typed
+
+from physcap_drake.can.emulator_process import EmulatorProcess
+from physcap_drake.can.faults import FaultSettings
+from physcap_drake.can.link import LinkSettings
+from physcap_drake.can.link_process import LinkProcess
+from physcap_drake.can.socket_bus import socket_pair
+from physcap_drake.station.can_config import PiperCan
+
+#: The firmware version the emulated arm reports unless `station.firmware` says another.
+EMULATED_FIRMWARE = "S-V1.8-2"
+
+
+class CanSession:
+    """See module docstring. `world_size`: positions + velocities of the emulated world's
+    plant (the scene's copy of it), 0 without an emulator."""
+
+    def __init__(self, scenario, world_size: int = 0):
+        config: PiperCan = scenario.station
+        self.config = config
+        self._scenario_yaml = (yaml_dump_typed(dc.replace(scenario, station=config.emulated))
+                               if config.emulate else None)
+        #: The emulated plant's positions + velocities (the shared world block's size).
+        self.world_size = world_size
+        self.link: LinkProcess | None = None
+        self.emulator: EmulatorProcess | None = None
+        atexit.register(self.close)  # processes must not outlive the interpreter
+
+    @property
+    def started(self) -> bool:
+        return self.link is not None
+
+    def start(self) -> CanSession:
+        """Connects (see module docstring); does nothing if already started. Raises
+        ConnectionError / StartupError naming the bus and what failed (nothing is left
+        running then)."""
+        if self.started:
+            return self
+        config, link = self.config, None
+        try:
+            if not config.emulate:
+                link = LinkProcess(LinkSettings.of(config))
+            else:
+                emulator_end, link_end = socket_pair()
+                f = config.faults
+                # The streaming process imports while the emulated arm builds its world.
+                link = LinkProcess(LinkSettings.of(config), link_end,
+                                   FaultSettings(f.loss, f.delay, f.garble), seed=f.seed)
+                self.emulator = EmulatorProcess(
+                    emulator_end, self._scenario_yaml,
+                    gripper_max_effort=config.gripper_max_effort, state_size=self.world_size,
+                    firmware=config.firmware or EMULATED_FIRMWARE)
+            self.link = link.start()
+        except BaseException:
+            if link is not None:
+                link.close()
+            self.close()
+            raise
+        return self
+
+    def close(self) -> None:
+        """Stops streaming (the arm holds), then the emulated arm. Safe to call twice."""
+        link, emulator = self.link, self.emulator
+        self.link = self.emulator = None
+        if link is not None:
+            link.close()
+        if emulator is not None:
+            emulator.close()
