@@ -32,7 +32,8 @@ CAMERA_RATE = 10.0
 class CanLoopResult:
     """Periods between the starts of consecutive streaming cycles, ms (target 1000 /
     control_rate), over `cycles` cycles; `watchdog_trips`: how often the feedback went
-    stale (each stops motion until it recovers); `images`: camera images rendered."""
+    stale during the run (each stops motion until it recovers), and why; `images`: camera
+    images rendered; `realtime`: whether the streaming process got real-time scheduling."""
 
     control_rate_hz: float
     cycles: int
@@ -42,7 +43,9 @@ class CanLoopResult:
     mean_rate_hz: float
     commands_sent: int
     watchdog_trips: int
+    watchdog_reasons: list[str]
     images: int
+    realtime: bool
     wall_time_s: float
 
 
@@ -78,21 +81,26 @@ def _build(scenario, duration: float, camera_rate: float):
 
 
 def run_can_loop(duration: float = 5.0, control_rate: float = 200.0, on_progress=None, *,
-                 camera_rate: float = CAMERA_RATE) -> CanLoopResult:
+                 camera_rate: float = CAMERA_RATE,
+                 realtime_priority: int = PiperCan.realtime_priority) -> CanLoopResult:
     """Sweeps the arm for `duration` s (wall clock = sim time), rendering the camera at
-    `camera_rate` Hz (0: never), and measures the loop."""
+    `camera_rate` Hz (0: never), and measures the loop (its process scheduled real-time at
+    `realtime_priority`, 0: normally)."""
     scenario = load_scenario(stations_dir() / "piper_table.yaml")
     scenario.station = PiperCan(interface="virtual", channel=f"bench_can_{next(_runs)}",
-                                control_rate=control_rate, emulate=True)
+                                control_rate=control_rate, emulate=True,
+                                realtime_priority=realtime_priority)
     scenario.simulator_config.target_realtime_rate = 1.0
     diagram, station, camera = _build(scenario, duration, camera_rate)
     try:
         simulator = make_simulator(diagram, scenario)
         link = station.GetSubsystemByName("piper_can").link
-        first = len(link.cycle_starts)
+        first = len(link.cycle_starts())
+        trips = link.status().stale_count
         timing = advance(simulator, duration, on_progress=on_progress)
-        starts = np.array(list(link.cycle_starts)[first:])
+        starts = np.array(link.cycle_starts()[first:])
         status = link.status()
+        reasons = link.stale_reasons()
     finally:
         close_station(station)
     periods = np.diff(starts) * 1000.0
@@ -100,5 +108,7 @@ def run_can_loop(duration: float = 5.0, control_rate: float = 200.0, on_progress
         control_rate_hz=control_rate, cycles=len(periods),
         p50_ms=float(np.percentile(periods, 50)), p99_ms=float(np.percentile(periods, 99)),
         max_ms=float(periods.max()), mean_rate_hz=float(len(periods) / (starts[-1] - starts[0])),
-        commands_sent=status.commands_sent, watchdog_trips=getattr(status, "stale_count", -1),
-        images=0 if camera is None else camera.images, wall_time_s=timing.wall_time)
+        commands_sent=status.commands_sent, watchdog_trips=status.stale_count - trips,
+        watchdog_reasons=sorted(set(reasons[len(reasons) - (status.stale_count - trips):])),
+        images=0 if camera is None else camera.images, realtime=link.realtime,
+        wall_time_s=timing.wall_time)

@@ -43,11 +43,12 @@ class ChildProcess:
     def alive(self) -> bool:
         return self._process.poll() is None
 
-    def close(self) -> None:
-        """Closes the pipe (the child ends) and waits for it; kills it if it lingers."""
+    def close(self, timeout: float = EXIT_TIMEOUT) -> None:
+        """Closes the pipe (the child ends) and waits `timeout` s for it; kills it if it
+        lingers."""
         self.conn.close()
         try:
-            self._process.wait(timeout=EXIT_TIMEOUT)
+            self._process.wait(timeout=timeout)
         except subprocess.TimeoutExpired:
             self._process.kill()
             self._process.wait()

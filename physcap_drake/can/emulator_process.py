@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import logging
 import socket
+import time
 
 import numpy as np
 
@@ -37,26 +38,41 @@ class EmulatorProcess:
     a scenario with a `SimPiper` station (as YAML text) whose simulated station backs the
     arm, or None for the kinematic arm; `gripper_max_effort`: N·m at the simulated gripper's
     full force (see SimulatedMotion); `state_size`: the plant's positions + velocities (the
-    world block's size, 0 without a scenario); `firmware`: the version it reports. Raises
-    RuntimeError with the child's words if the emulated arm cannot start."""
+    world block's size, 0 without a scenario); `firmware`: the version it reports;
+    `realtime_priority`: its scheduling (see `can.realtime`, 0: normal). The process starts
+    at once and builds its world in the background; `wait_ready()` waits for it."""
 
     def __init__(self, bus_socket: socket.socket, scenario_yaml: str | None = None, *,
                  gripper_max_effort: float = 2.0, state_size: int = 0,
-                 firmware: str = "S-V1.8-2"):
+                 firmware: str = "S-V1.8-2", realtime_priority: int = 0):
         self._world = SharedBlock(world_layout(state_size)) if state_size else None
         world_fd = None if self._world is None else self._world.fd
         fds = (bus_socket.fileno(),) + (() if world_fd is None else (world_fd,))
         self._child = ChildProcess(
             "physcap_drake.can.emulator_process:serve",
             (bus_socket.fileno(), scenario_yaml, gripper_max_effort, firmware, world_fd,
-             state_size), fds, name="piper-emulator")
+             state_size, realtime_priority), fds, name="piper-emulator")
         bus_socket.close()  # the child has its own copy
         self._conn = self._child.conn
+        self._ready = False
+
+    def wait_ready(self) -> EmulatorProcess:
+        """Waits until the emulated arm runs (its world built, its first cycle published);
+        RuntimeError with the child's words if it cannot start (it is closed then)."""
+        if self._ready:
+            return self
         try:
             self._request(("ready",), timeout=START_TIMEOUT)
+            deadline = time.monotonic() + REQUEST_TIMEOUT
+            while self._world is not None and self.world() is None:  # its first cycle
+                if time.monotonic() > deadline:
+                    raise RuntimeError("the PiPER emulator process never published its world")
+                time.sleep(0.002)
         except BaseException:
             self.close()
             raise
+        self._ready = True
+        return self
 
     def _request(self, request: tuple, timeout: float = REQUEST_TIMEOUT):
         if self._conn is None:
@@ -94,21 +110,24 @@ class EmulatorProcess:
         """Stops the emulator (the emulated arm stops answering). Safe to call twice."""
         if self._conn is not None:
             conn, self._conn = self._conn, None
-            try:
-                conn.send(("close",))
-                conn.poll(REQUEST_TIMEOUT)
-            except (OSError, EOFError):
-                pass
-            self._child.close()
+            if self._ready:  # else it may still be building its world: no need to wait
+                try:
+                    conn.send(("close",))
+                    conn.poll(REQUEST_TIMEOUT)
+                except (OSError, EOFError):
+                    pass
+            self._child.close(timeout=5.0 if self._ready else 0.2)
             if self._world is not None:
                 self._world.close()
 
 
 def serve(conn, bus_fd: int, scenario_yaml: str | None, gripper_max_effort: float,
-          firmware: str, world_fd: int | None, state_size: int) -> None:
+          firmware: str, world_fd: int | None, state_size: int,
+          realtime_priority: int) -> None:
     """The emulated arm's process: runs until the parent says close or goes away."""
     from physcap_drake.can.emulator import PiperEmulator
     from physcap_drake.can.motion import KinematicMotion
+    from physcap_drake.can.realtime import use_realtime
     from physcap_drake.can.socket_bus import SocketBus
 
     logging.basicConfig(level=logging.WARNING, format="%(message)s")
@@ -132,6 +151,7 @@ def serve(conn, bus_fd: int, scenario_yaml: str | None, gripper_max_effort: floa
         world.write({"time": [motion.context.get_time()],
                      "state": plant.GetPositionsAndVelocities(motion.plant_context)})
 
+    use_realtime(realtime_priority, "the emulated PiPER")  # its firmware thread inherits it
     bus = SocketBus(socket.socket(fileno=bus_fd), "emulator")
     emulator = PiperEmulator(bus, firmware=firmware, motion=motion,
                              on_cycle=publish if world is not None else None).start()

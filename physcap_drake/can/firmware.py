@@ -68,6 +68,9 @@ class Firmware:
     def __init__(self, motion, firmware: str = "S-V1.8-2"):
         self.version = firmware
         self._dh = 1 if codec.parse_firmware(firmware) >= (1, 6, 3) else 0
+        #: Motor current per N·m of joint torque, with this firmware's scaling.
+        self._amps_per_nm = 1.0 / (np.array(codec.TORQUE_CONSTANT)
+                                   * np.array(codec.torque_scale(firmware)))
         self.motion = motion
         self.arm = EmulatedArm()
         q, opening = motion.initial_state()
@@ -351,7 +354,8 @@ class Firmware:
         self._check_collision(reading.external_torque)
         if arm.arm_status == TEACH_RECORD:
             self._teach.append(arm.q.copy())
-        arm.motion_status = int(self.planner.busy or np.max(np.abs(arm.q - arm.target)) > 1e-3)
+        arm.motion_status = int(self.planner.busy or float(np.max(np.abs(arm.q - arm.target)))
+                                > 1e-3)
         frames = self._feedback(dt)
         self._cycle += 1
         return frames
@@ -394,11 +398,10 @@ class Firmware:
         status = (codec.ENABLED if arm.gripper_enabled else 0) | codec.GRIPPER_HOMED
         frames.append(codec.encode_gripper_feedback(codec.GripperFeedback(
             arm.gripper_opening, arm.gripper_effort, status)))
-        scale = codec.torque_scale(self.version)
+        current = arm.torque * self._amps_per_nm
         for joint in range(6):
-            current = arm.torque[joint] / (codec.TORQUE_CONSTANT[joint] * scale[joint])
             frames.append(codec.encode_high_speed(joint, codec.HighSpeedFeedback(
-                arm.v[joint], current, arm.q[joint])))
+                arm.v[joint], current[joint], arm.q[joint])))
         if self._cycle % LOW_SPEED_DIVIDER == 0:
             for joint in range(6):
                 bits = (codec.ENABLED if arm.enabled[joint] else 0) | (

@@ -5,8 +5,10 @@ from __future__ import annotations
 
 import numpy as np
 
-#: Relative slack when comparing speeds with their limits (rounding of streamed targets).
+#: Relative slack when comparing speeds with their limits, and the absolute slack of a
+#: streamed step (rad): targets travel in 0.001° counts, so a step can be a count off.
 _SLACK = 1 + 1e-6
+_COUNT = 2 * np.pi / 360_000
 
 
 def step_towards(q: np.ndarray, v: np.ndarray, target: np.ndarray, previous_target: np.ndarray,
@@ -23,7 +25,7 @@ def step_towards(q: np.ndarray, v: np.ndarray, target: np.ndarray, previous_targ
     a_dt = np.maximum(a_max, 1e-6) * dt
     error = target - q
     step = target - previous_target
-    v_target = np.where(np.abs(step) <= v_max * dt * _SLACK, step / dt, 0.0)
+    v_target = np.where(np.abs(step) <= v_max * dt * _SLACK + _COUNT, step / dt, 0.0)
     duration = float(np.max(np.abs(error) / v_max))
     v_line = np.abs(error) / duration if duration > 0.0 else v_max
     # Fastest speed from which steps of a_max·dt still stop on the target (the sampled form
@@ -35,5 +37,6 @@ def step_towards(q: np.ndarray, v: np.ndarray, target: np.ndarray, previous_targ
     q_next = q + v_next * dt
     # A joint whose next step to the target is within both limits takes it exactly.
     v_step = error / dt
-    on_track = (np.abs(v_step) <= v_max * _SLACK) & (np.abs(v_step - v) <= a_dt * _SLACK)
+    on_track = ((np.abs(v_step) <= v_max * _SLACK + _COUNT / dt)
+                & (np.abs(v_step - v) <= a_dt * _SLACK + 2 * _COUNT / dt))
     return np.where(on_track, target, q_next), np.where(on_track, v_step, v_next)

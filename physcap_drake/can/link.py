@@ -17,8 +17,9 @@ The streaming thread is independent of whoever calls `command()`: a Drake simula
 stops while a language model thinks leaves the last target in place, and the arm keeps
 receiving it. Before sending, every cycle asks the watchdog: while the feedback is stale
 (see FeedbackListener.health) or the arm reports a fault, no motion command is sent and
-the arm holds its last target. Targets are clamped to the joint limits and their change per
-cycle to the firmware's speed limit before they are encoded. `close()` stops streaming and
+the arm holds its last target. Targets are clamped to the joint limits, and a target that
+jumps is approached within the firmware's joint speed and acceleration limits, before they
+are encoded. `close()` stops streaming and
 leaves the arm enabled and holding; the link never sends the resume (0x150 = 2) by itself.
 """
 
@@ -36,11 +37,16 @@ import numpy as np
 
 from physcap_drake.can import codec
 from physcap_drake.can.feedback import ArmParameters, FeedbackListener, Health
+from physcap_drake.can.joint_profile import step_towards
 from physcap_drake.kinematics.piper_dh import JOINT_LOWER, JOINT_UPPER
 
 log = logging.getLogger("physcap_drake.can")
 
 MAX_JOINT_SPEED = 3.0  # rad/s, the firmware's largest joint speed (0x474)
+MAX_JOINT_ACCELERATION = 5.0  # rad/s², the firmware's largest joint acceleration (0x475)
+#: A jump in the targets is streamed at this fraction of those limits, so the firmware,
+#: which plans with them, can follow each step exactly.
+STREAM_MARGIN = 0.9
 ENABLE_RETRY = 0.05  # s between enable commands during start-up
 #: Interval at which an unanswered query or action is asked again, s.
 QUERY_RETRY = 0.1
@@ -63,6 +69,7 @@ class LinkSettings:
     startup_timeout: float = 2.0
     feedback_timeout: float = 0.05
     max_feedback_loss: float = 0.05
+    realtime_priority: int = 0
 
     @classmethod
     def of(cls, config) -> LinkSettings:
@@ -102,7 +109,9 @@ class PiperLink:
         self._stop = threading.Event()
         self._lock = threading.Lock()
         self._target_q: np.ndarray | None = None
-        self._sent_q: np.ndarray | None = None
+        self._sent_q: np.ndarray | None = None  # the last streamed targets, rad
+        self._sent_v = np.zeros(6)  # their rate of change, rad/s
+        self._previous_target: np.ndarray | None = None
         self._gripper = codec.GripperCommand(0.0, 0.0)
         self._lower, self._upper = JOINT_LOWER.copy(), JOINT_UPPER.copy()
         self._stale_since: float | None = None
@@ -341,15 +350,22 @@ class PiperLink:
                 self._sent_q = None  # restart the rate limit from the measured position
 
     def _send_targets(self) -> None:
+        """Streams one step towards the latest target: a target that jumps is approached at
+        no more than the firmware's joint speed and acceleration (braking to stop on it),
+        so the arm can follow every streamed step as it comes."""
         with self._lock:
             target, gripper = self._target_q, self._gripper
             previous = self._sent_q
         if target is None:
             return
-        if previous is None:
-            previous = self.listener.snapshot().q
-        step = MAX_JOINT_SPEED * self._period
-        q = previous + np.clip(target - previous, -step, step)
+        if previous is None:  # (re)start from where the arm is, at rest
+            previous, self._sent_v = self.listener.snapshot().q, np.zeros(6)
+            self._previous_target = previous
+        q, self._sent_v = step_towards(previous, self._sent_v, target, self._previous_target,
+                                       np.full(6, STREAM_MARGIN * MAX_JOINT_SPEED),
+                                       np.full(6, STREAM_MARGIN * MAX_JOINT_ACCELERATION),
+                                       self._period)
+        self._previous_target = target
         for frame in codec.encode_joints(codec.JOINT_COMMAND, q):
             self._send(*frame)
         self._send(*codec.encode_gripper_command(gripper, stroke=self._stroke))

@@ -109,17 +109,25 @@ class LinkProcess:
         self._last: LinkFeedback | None = None
         self.firmware = ""
         self.torque_scale = (1.0,) * 6
+        #: Whether the streaming process got real-time scheduling (see `can.realtime`).
+        self.realtime = False
 
     @property
     def started(self) -> bool:
         return self._started
+
+    def wait_ready(self) -> LinkProcess:
+        """Waits until the process has imported what it needs and answers (it has not
+        opened the bus: `start()` does)."""
+        self._request(("ready",), timeout=REQUEST_TIMEOUT * 6)
+        return self
 
     def start(self) -> LinkProcess:
         """Runs the arm's start-up sequence in the streaming process and waits for its
         first publication. Raises StartupError or ConnectionError with the child's words
         (the process is closed then)."""
         reply = self._request(("start",), timeout=self.settings.startup_timeout * 6 + 30.0)
-        self.firmware, self.torque_scale = reply
+        self.firmware, self.torque_scale, self.realtime = reply
         deadline = time.monotonic() + REQUEST_TIMEOUT
         while self.feedback() is None:  # the first cycle publishes right after start-up
             if time.monotonic() > deadline:
@@ -184,10 +192,10 @@ class LinkProcess:
             conn, self._conn = self._conn, None
             try:
                 conn.send(("close",))
-                conn.poll(REQUEST_TIMEOUT)
+                conn.poll(REQUEST_TIMEOUT if self._started else 0.5)
             except (OSError, EOFError):
                 pass
-            self._child.close()
+            self._child.close(timeout=5.0 if self._started else 0.5)
             self._targets.close()
             self._feedback.close()
 
@@ -211,31 +219,36 @@ def serve(conn, settings: LinkSettings, faults, seed: int, targets_fd: int,
     """The streaming process: serves the parent's requests until it says close or dies."""
     from physcap_drake.can.faults import FaultyBus
     from physcap_drake.can.link import PiperLink
+    from physcap_drake.can.realtime import use_realtime
     from physcap_drake.can.socket_bus import SocketBus
 
     logging.basicConfig(level=logging.WARNING, format="%(message)s")
     sys.setswitchinterval(SWITCH_INTERVAL)
+    # Before any thread starts: the bus reader and the streaming thread inherit it.
+    realtime = use_realtime(settings.realtime_priority, "the CAN streaming process")
     targets = SharedBlock(TARGETS, fd=targets_fd)
     feedback = SharedBlock(FEEDBACK, fd=feedback_fd)
-    try:
-        bus = open_bus(settings) if bus_fd is None else SocketBus(
-            socket.socket(fileno=bus_fd), settings.channel)
-    except ConnectionError as error:
-        conn.recv()
-        conn.send(("ConnectionError", str(error)))
-        return
     faulty = None
-    if bus_fd is not None:
-        bus = faulty = FaultyBus(bus, faults, seed=seed)
+
+    def open_link() -> PiperLink:
+        """The bus is opened when the parent asks to start, not before."""
+        nonlocal faulty
+        if bus_fd is None:
+            bus = open_bus(settings)
+        else:
+            bus = faulty = FaultyBus(SocketBus(socket.socket(fileno=bus_fd), settings.channel),
+                                     faults, seed=seed)
+
+        def on_cycle() -> None:
+            wanted = targets.read()
+            if wanted is not None and not np.isnan(wanted["q"]).any():
+                link.command(wanted["q"], wanted["gripper"][0], wanted["gripper"][1])
+            _publish(link, feedback)
+
+        link = PiperLink(bus, settings, on_cycle=on_cycle)
+        return link
+
     link: PiperLink | None = None
-
-    def on_cycle() -> None:
-        wanted = targets.read()
-        if wanted is not None and not np.isnan(wanted["q"]).any():
-            link.command(wanted["q"], wanted["gripper"][0], wanted["gripper"][1])
-        _publish(link, feedback)
-
-    link = PiperLink(bus, settings, on_cycle=on_cycle)
     try:
         while True:
             try:
@@ -245,22 +258,32 @@ def serve(conn, settings: LinkSettings, faults, seed: int, targets_fd: int,
             except (EOFError, OSError):
                 break  # the parent is gone: stop streaming, the arm holds
             if kind == "close":
-                link.close()
                 conn.send(("ok", None))
                 break
-            conn.send(_answer(link, faulty, kind, args))
+            if kind == "start":
+                try:
+                    link = link or open_link()
+                except ConnectionError as error:
+                    conn.send(("ConnectionError", str(error)))
+                    continue
+            conn.send(_answer(link, faulty, kind, args, realtime))
     finally:
-        link.close()
+        if link is not None:
+            link.close()
         targets.close()
         feedback.close()
 
 
-def _answer(link, faulty, kind: str, args) -> tuple[str, object]:
+def _answer(link, faulty, kind: str, args, realtime: bool) -> tuple[str, object]:
+    if kind == "ready":
+        return "ok", None
+    if link is None:
+        return "StartupError", f"{kind!r} before the link started"
     try:
         if kind == "start":
             link.start()
             gc.freeze()  # what start-up allocated is never collected again: shorter pauses
-            return "ok", (link.firmware, link.torque_scale)
+            return "ok", (link.firmware, link.torque_scale, realtime)
         if kind == "faults":
             if faulty is None:
                 return "StartupError", "fault drills need the emulated bus (emulate: true)"

@@ -76,7 +76,7 @@ class Planner:
     def busy(self) -> bool:
         """Whether a plan is running or the reference has not reached its target."""
         return (self._plan is not None or bool(self._replay)
-                or not np.allclose(self.arm.reference, self.arm.target, atol=1e-6))
+                or float(np.max(np.abs(self.arm.reference - self.arm.target))) > 1e-6)
 
     # The cycle ----------------------------------------------------------------------------
 
@@ -87,7 +87,7 @@ class Planner:
             return 0
         if self._plan is not None:
             return self._path_step(dt)
-        if self._replay and np.allclose(arm.reference, arm.target, atol=1e-6):
+        if self._replay and float(np.max(np.abs(arm.reference - arm.target))) <= 1e-6:
             arm.target = self._replay.pop(0)
             self._previous_target = arm.reference.copy()
         v_max = arm.max_speed * (1.0 if fast else self._speed_scale())

@@ -25,6 +25,9 @@ from physcap_drake.station import ports
 #: Payload of the end-load settings 0 (empty), 1 (half), 2 (full), kg: the PiPER's rated
 #: payload is 1.5 kg.
 LOAD_MASS = {0: 0.0, 1: 0.75, 2: 1.5}
+#: The simulated joint interpolator's acceleration bound in the emulated world, rad/s²: far
+#: above anything the emulated firmware plans, so the interpolator just passes it on.
+PASS_THROUGH_ACCELERATION = 1000.0
 GRAVITY = 9.81
 
 
@@ -42,6 +45,14 @@ class SimulatedMotion:
     def __init__(self, scenario, *, gripper_max_effort: float):
         from physcap_drake.station.sim_station import MakeSimStation
 
+        # The emulated firmware (`can.planner`) plans the joint reference; the simulated
+        # station's own joint interpolator only has to pass it on. Bounding its acceleration
+        # as well would filter the reference a second time (the firmware's 5 ms steps are
+        # sampled at the plant's 4 ms), so the world is built with that bound lifted.
+        servo = scenario.station.joint_servo
+        scenario = dc.replace(scenario, station=dc.replace(
+            scenario.station, joint_servo=dc.replace(
+                servo, max_acceleration=PASS_THROUGH_ACCELERATION)))
         self.station = MakeSimStation(scenario)
         self.plant = self.station.GetSubsystemByName("plant")
         config = scenario.station
@@ -57,6 +68,7 @@ class SimulatedMotion:
             config.gripper_model))
         self._feedforward = (self.station.GetSubsystemByName("arm_feedforward")
                              if self.station.HasSubsystemNamed("arm_feedforward") else None)
+        self._reference: np.ndarray | None = None  # the last period's joint reference
         self._fix(np.asarray(config.initial_arm_position, dtype=float),
                   config.initial_gripper_opening, 0.0)
         self._applied(np.zeros(self.plant.num_velocities()))
@@ -77,15 +89,27 @@ class SimulatedMotion:
                 float(self._output(ports.GRIPPER_POSITION_MEASURED)[0]))
 
     def step(self, command: MotionCommand, dt: float) -> MotionReading:
+        """Advances the world by dt. The reference is reached at the end of the period and
+        moves linearly through it: the simulated joint loop, which updates at the plant's
+        own rate, sees it move as smoothly as the firmware's servo loop does."""
         q_now = self._output(ports.ARM_POSITION_MEASURED)
         # Joints that may not move (disabled) hold where they are.
         reference = np.where(command.powered, command.reference, q_now)
+        start = self._reference if self._reference is not None else reference
         opening = command.gripper_target
         effort = command.gripper_effort_limit if command.gripper_enabled else 0.0
         force = min(max(effort, 0.0), self._max_effort) / self._max_effort * self._max_force
-        self._fix(reference, opening, force)
         self._applied(self._load_torque(command.load))
-        self._simulator.AdvanceTo(self._context.get_time() + dt)
+        t0 = self._context.get_time()
+        period = self.plant.time_step()
+        update = (np.floor(t0 / period + 1e-9) + 1.0) * period
+        while update < t0 + dt - 1e-9:  # the loop's updates within this period
+            self._simulator.AdvanceTo(update)
+            self._fix(start + (update - t0) / dt * (reference - start), opening, force)
+            update += period
+        self._simulator.AdvanceTo(t0 + dt)
+        self._fix(reference, opening, force)
+        self._reference = reference
         torque = self._output(ports.ARM_TORQUE_MEASURED).copy()
         return MotionReading(
             self._output(ports.ARM_POSITION_MEASURED).copy(),

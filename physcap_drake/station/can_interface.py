@@ -67,7 +67,7 @@ class PiperCanInterface(LeafSystem):
     @property
     def link(self):
         """The streaming process's handle (`can.link_process.LinkProcess`), once started."""
-        if self.session.link is None:
+        if not self.session.started:
             raise RuntimeError("the CAN station is not started: initialize its simulator, "
                                "or call start_can_station(station)")
         return self.session.link

@@ -1,11 +1,14 @@
 """CanSession: what a CAN station holds outside Drake, started only when asked.
 
 Building a CAN station connects to nothing, so a diagram can be built, drawn and
-inspected without powering the arm. `start()` (run by the PiperCanInterface's
-initialization event, or explicitly) connects: with `emulate: true` it first starts the
-emulated arm in its own process (`can.emulator_process`) on one end of a socket pair; then
-it starts the streaming process (`can.link_process`) on the other end, or on the bus the
-station names, and runs the arm's start-up sequence (firmware, limits, mode, enabling).
+inspected without powering the arm. `prepare()` and `wait_ready()` (run when the station
+is built) start the processes without connecting them: the streaming process
+(`can.link_process`) and, with `emulate: true`, the emulated arm (`can.emulator_process`,
+which builds its simulated world) on the two ends of a socket pair. `start()` (run by the
+PiperCanInterface's initialization event, or explicitly) connects: the streaming process
+opens its bus and runs the arm's start-up sequence (firmware, limits, mode, enabling).
+Keeping the slow part out of `start()` keeps the initialization event short, so a
+simulator paced to real time does not start far behind the clock.
 `close()` stops streaming (the arm stays enabled and holds) and then the emulated arm.
 These are resources, like a socket; the station's state stays in its Contexts.
 """
@@ -45,7 +48,39 @@ class CanSession:
 
     @property
     def started(self) -> bool:
-        return self.link is not None
+        return self.link is not None and self.link.started
+
+    def prepare(self) -> CanSession:
+        """Starts the processes without connecting: they import (and the emulated arm builds
+        its world) in the background, so `start()` has only the arm's start-up left."""
+        if self.link is not None:
+            return self
+        config = self.config
+        if not config.emulate:
+            self.link = LinkProcess(LinkSettings.of(config))
+            return self
+        emulator_end, link_end = socket_pair()
+        f = config.faults
+        self.link = LinkProcess(LinkSettings.of(config), link_end,
+                                FaultSettings(f.loss, f.delay, f.garble), seed=f.seed)
+        self.emulator = EmulatorProcess(
+            emulator_end, self._scenario_yaml, gripper_max_effort=config.gripper_max_effort,
+            state_size=self.world_size, firmware=config.firmware or EMULATED_FIRMWARE,
+            realtime_priority=max(config.realtime_priority - 1, 0))
+        return self
+
+    def wait_ready(self) -> CanSession:
+        """Waits until the processes `prepare` started are ready to connect (the emulated
+        arm's world is built). Raises RuntimeError naming what failed."""
+        self.prepare()
+        try:
+            if self.emulator is not None:
+                self.emulator.wait_ready()
+            self.link.wait_ready()
+        except BaseException:
+            self.close()
+            raise
+        return self
 
     def start(self) -> CanSession:
         """Connects (see module docstring); does nothing if already started. Raises
@@ -53,24 +88,10 @@ class CanSession:
         running then)."""
         if self.started:
             return self
-        config, link = self.config, None
+        self.wait_ready()
         try:
-            if not config.emulate:
-                link = LinkProcess(LinkSettings.of(config))
-            else:
-                emulator_end, link_end = socket_pair()
-                f = config.faults
-                # The streaming process imports while the emulated arm builds its world.
-                link = LinkProcess(LinkSettings.of(config), link_end,
-                                   FaultSettings(f.loss, f.delay, f.garble), seed=f.seed)
-                self.emulator = EmulatorProcess(
-                    emulator_end, self._scenario_yaml,
-                    gripper_max_effort=config.gripper_max_effort, state_size=self.world_size,
-                    firmware=config.firmware or EMULATED_FIRMWARE)
-            self.link = link.start()
+            self.link.start()
         except BaseException:
-            if link is not None:
-                link.close()
             self.close()
             raise
         return self

@@ -3,8 +3,9 @@
 `MakeCanStation` builds a Diagram whose ports are exactly those of `ports`: the
 PiperCanInterface (commands and feedback) and, beside it, the scene system (the emulated
 world's camera and ground truth, or NoScene; a camera driver goes here). Building connects
-to nothing: the arm is connected, enabled and streamed to when the simulator initializes
-the diagram (the interface's initialization event), or earlier with `start_can_station`.
+to nothing (it starts the station's processes, see `can_session`): the arm is connected,
+enabled and streamed to when the simulator initializes the diagram (the interface's
+initialization event), or earlier with `start_can_station`.
 `close_can_station` stops streaming (the arm stays enabled and holds) and the emulator.
 """
 
@@ -37,6 +38,7 @@ def MakeCanStation(scenario, meshcat=None) -> Diagram:
     else:
         camera = next(c for c in scenario.cameras if c.name == "camera")
         scene = NoScene(camera.width, camera.height)
+    session.wait_ready()  # the processes run, unconnected: initializing only connects
     builder = DiagramBuilder()
     interface = builder.AddNamedSystem(INTERFACE, PiperCanInterface(session, config))
     for name in ports.VECTOR_INPUTS:
