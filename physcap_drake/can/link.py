@@ -359,12 +359,13 @@ class PiperLink:
         if target is None:
             return
         if previous is None:  # (re)start from where the arm is, at rest
-            previous, self._sent_v = self.listener.snapshot().q, np.zeros(6)
-            self._previous_target = previous
+            previous = np.clip(self.listener.snapshot().q, self._lower, self._upper)
+            self._sent_v, self._previous_target = np.zeros(6), previous
         q, self._sent_v = step_towards(previous, self._sent_v, target, self._previous_target,
                                        np.full(6, STREAM_MARGIN * MAX_JOINT_SPEED),
                                        np.full(6, STREAM_MARGIN * MAX_JOINT_ACCELERATION),
                                        self._period)
+        q = np.clip(q, self._lower, self._upper)  # the arm refuses targets beyond its limits
         self._previous_target = target
         for frame in codec.encode_joints(codec.JOINT_COMMAND, q):
             self._send(*frame)

@@ -71,7 +71,12 @@ class EmulatedScene(LeafSystem):
         return calc
 
     def _sync(self) -> None:
-        world = self.emulator.world()
+        """Copies the world's state into this copy: as published now, or, once the station
+        was released, as it was then."""
+        if self.session.emulator is None and self.session.last_world is not None:
+            world = self.session.last_world
+        else:
+            world = self.emulator.world()
         if world is None:
             raise RuntimeError("the emulated arm has not published its world yet")
         _, state = world

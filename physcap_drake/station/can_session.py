@@ -44,6 +44,12 @@ class CanSession:
         self.world_size = world_size
         self.link: LinkProcess | None = None
         self.emulator: EmulatorProcess | None = None
+        #: The emulated world as it was when the session closed ((time s, state) or None):
+        #: success checks read it after the episode released the station.
+        self.last_world = None
+        #: The streaming process's last status (LinkStatus) and stale reasons when it closed.
+        self.last_status = None
+        self.last_stale_reasons: list[str] = []
         atexit.register(self.close)  # processes must not outlive the interpreter
 
     @property
@@ -101,6 +107,11 @@ class CanSession:
         link, emulator = self.link, self.emulator
         self.link = self.emulator = None
         if link is not None:
+            if link.started:
+                self.last_status = link.status()
+                self.last_stale_reasons = link.stale_reasons()
             link.close()
         if emulator is not None:
+            if link is not None and link.started:
+                self.last_world = emulator.world()
             emulator.close()
