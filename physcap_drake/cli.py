@@ -4,7 +4,18 @@ from __future__ import annotations
 
 import typer
 
-from physcap_drake.commands import bench, calibrate, demo, emulate, evaluate, replay, run, sim, task
+from physcap_drake.commands import (
+    arm,
+    bench,
+    calibrate,
+    demo,
+    emulate,
+    evaluate,
+    replay,
+    run,
+    sim,
+    task,
+)
 
 app = typer.Typer(
     name="physcap",
@@ -21,6 +32,7 @@ app.add_typer(demo.app, name="demo")
 app.add_typer(bench.app, name="bench")
 app.add_typer(calibrate.app, name="calibrate")
 app.add_typer(task.app, name="task")
+app.add_typer(arm.app, name="arm")
 
 
 def main() -> None:

@@ -52,7 +52,8 @@ class ArmFeedback:
     """The latest feedback: joint positions q (rad), speeds v (rad/s) and motor currents (A)
     J1..J6, gripper opening (m, total gap) and motor effort (N·m), which drivers report
     enabled, the drivers' status bits (0x261-0x266 byte 5), the flange's end pose (m, rad;
-    NaN before the first) and the last 0x2A1 status (None before the first)."""
+    NaN before the first), the last 0x2A1 status (None before the first) and the gripper's
+    status bits (0x2A8 byte 6; bit 6 enabled)."""
 
     q: np.ndarray
     v: np.ndarray
@@ -63,6 +64,7 @@ class ArmFeedback:
     status: codec.ArmStatus | None
     end_pose: np.ndarray = dc.field(default_factory=lambda: np.full(6, np.nan))
     driver_status: np.ndarray = dc.field(default_factory=lambda: np.zeros(6, dtype=int))
+    gripper_status: int = 0
 
 
 @dc.dataclass
@@ -133,6 +135,7 @@ class FeedbackListener(can.Listener):
         self._current = np.zeros(6)
         self._opening = np.nan
         self._effort = 0.0
+        self._gripper_status = 0
         self._enabled = np.zeros(6, dtype=bool)
         self._driver_status = np.zeros(6, dtype=int)
         self._driver_at = np.full(6, -np.inf)  # when each driver last reported, monotonic s
@@ -212,6 +215,7 @@ class FeedbackListener(can.Listener):
             if not -OPENING_MARGIN <= gripper.opening <= self._stroke + OPENING_MARGIN:
                 raise Garbled(f"gripper opening {gripper.opening:.3g} m")
             self._opening, self._effort = gripper.opening, gripper.effort
+            self._gripper_status = gripper.status
         elif identifier == codec.ARM_STATUS:
             status = codec.decode_arm_status(data)
             if status.ctrl_mode > MAX_CTRL_MODE or status.arm_status > MAX_ARM_STATUS:
@@ -286,7 +290,7 @@ class FeedbackListener(can.Listener):
             return ArmFeedback(self._q.copy(), self._v.copy(), self._current.copy(),
                                float(self._opening), float(self._effort),
                                self._enabled.copy(), self._status, self._end_pose.copy(),
-                               self._driver_status.copy())
+                               self._driver_status.copy(), self._gripper_status)
 
     def enabled_since(self, since: float) -> np.ndarray:
         """Which drivers reported themselves enabled in a frame that arrived at or after

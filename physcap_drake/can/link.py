@@ -151,6 +151,11 @@ class PiperLink:
         return self._wait_for(self.listener.firmware, "the firmware version (0x4AF)",
                               ask=lambda: self._send(*codec.encode_firmware_request()))
 
+    def read_status(self) -> codec.ArmStatus:
+        """The arm's status (0x2A1), once one has arrived."""
+        self.open()
+        return self._wait_for(lambda: self.listener.snapshot().status, "the arm status (0x2A1)")
+
     def read_parameters(self) -> ArmParameters:
         """Asks for every parameter the arm reports (see ArmParameters) and waits for all."""
         self.open()
