@@ -9,6 +9,7 @@ import re
 import time
 
 import can
+import can_rig as rig
 import numpy as np
 import pytest
 
@@ -16,6 +17,8 @@ from physcap_drake.can import codec
 from physcap_drake.can.emulator import wait_until
 from physcap_drake.can.faults import garbled
 from physcap_drake.can.feedback import FeedbackListener
+
+can_rig = rig.can_rig  # the fixture (see tests/can_rig.py)
 
 DETECTION_LIMIT = 0.100  # s, the bound
 

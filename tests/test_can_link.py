@@ -5,6 +5,7 @@ from __future__ import annotations
 import time
 
 import can
+import can_rig as rig
 import numpy as np
 import pytest
 from conftest import unique_channel
@@ -13,6 +14,8 @@ from physcap_drake.can import codec
 from physcap_drake.can.emulator import PiperEmulator, wait_until
 from physcap_drake.can.link import PiperLink, StartupError
 from physcap_drake.station.can_config import PiperCan
+
+can_rig = rig.can_rig  # the fixture (see tests/can_rig.py)
 
 
 def settled(rig, target) -> bool:
@@ -141,22 +144,22 @@ def test_read_parameters_reports_what_the_arm_answers(can_rig):
     assert can_rig.link.read_firmware() == "S-V1.8-2"
 
 
-def test_emergency_stop_then_clear_and_resume_on_a_closed_link(can_rig):
-    can_rig.link.emergency_stop()
+def test_emergency_stop_then_clear_and_resume_once_streaming_stopped(can_rig):
+    link = can_rig.link
+    link.emergency_stop()
     assert can_rig.emulator.snapshot().arm_status == 1
-    assert wait_until(lambda: "emergency stop" in can_rig.link.status().health.fault)
-    with pytest.raises(RuntimeError, match="cuts the motors' power.*close the station"):
-        can_rig.link.resume()
-    can_rig.link.close()  # streaming stops; the arm holds, stopped
-    link = PiperLink(can.Bus(interface="virtual", channel=can_rig.link.config.channel),
-                     can_rig.link.config)
-    try:
-        assert link.clear_errors() == "emergency stop"  # clearing joint errors does not resume
+    assert wait_until(lambda: "emergency stop" in link.status().health.fault)
+    with pytest.raises(RuntimeError, match="cuts the motors' power.*stop_streaming"):
         link.resume()
-        arm = can_rig.emulator.snapshot()
-        assert arm.arm_status == 0 and not arm.enabled.any()  # motors off, standby
-        assert wait_until(lambda: not link.listener.health(time.monotonic()).fault)
-        link.start()  # enables and streams again
-        assert can_rig.emulator.snapshot().enabled.all()
-    finally:
-        link.close()
+    link.stop_streaming()  # the arm holds, stopped; the link still listens
+    assert link.clear_errors() == "emergency stop"  # clearing joint errors does not resume
+    link.resume()
+    arm = can_rig.emulator.snapshot()
+    assert arm.arm_status == 0 and not arm.enabled.any()  # motors off, standby
+    assert wait_until(lambda: not link.listener.health(time.monotonic()).fault)
+    link.start()  # enables and streams again
+    assert can_rig.emulator.snapshot().enabled.all()
+    target = np.array([0.2, 0.3, -0.3, 0.0, 0.2, 0.0])
+    link.command(target, 0.0, 0.0)
+    assert wait_until(lambda: np.allclose(can_rig.emulator.snapshot().q, target, atol=1e-4),
+                      timeout=5.0)

@@ -194,7 +194,7 @@ class PiperLink:
         move. Refused while streaming."""
         if self.streaming:
             raise RuntimeError("resume cuts the motors' power: stop streaming (close the "
-                               "station) first")
+                               "station, or stop_streaming()) first")
         self.open()
         self._wait_for(lambda: self._arm_status() == 0 or None,
                        "the resume (0x2A1 arm status back to 0)",
@@ -260,6 +260,7 @@ class PiperLink:
             self.close()
             raise StartupError(f"{self.where}: {fault}; clear it on the arm before starting")
         self.command(feedback.q, feedback.gripper_opening, 0.0)
+        self._sent_q = None  # stream from where the arm is
         self._stop.clear()
         self._thread = threading.Thread(target=self._stream, name="piper-can-stream",
                                         daemon=True)
@@ -388,12 +389,17 @@ class PiperLink:
 
     # Shutdown ----------------------------------------------------------------------------
 
-    def close(self) -> None:
-        """Stops streaming (the arm holds its last target, motors stay enabled) and closes
-        the bus. Safe to call twice."""
+    def stop_streaming(self) -> None:
+        """Stops streaming (the arm holds its last target, motors stay enabled); the link
+        keeps listening. Safe to call twice."""
         self._stop.set()
         if self._thread is not None and self._thread is not threading.current_thread():
             self._thread.join(timeout=1.0)
+
+    def close(self) -> None:
+        """Stops streaming (the arm holds its last target, motors stay enabled) and closes
+        the bus. Safe to call twice."""
+        self.stop_streaming()
         if self._notifier is not None:
             self._notifier.stop(timeout=1.0)
             self._notifier = None
