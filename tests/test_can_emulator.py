@@ -95,11 +95,14 @@ def test_an_emergency_stop_holds_and_resume_lets_the_arm_move_again(arm):
     sdk, emulator = arm
     enable(sdk)
     first = READY + [0.3, 0, 0, 0, 0, 0]
-    assert stream(sdk, first, lambda: np.allclose(joints(sdk), first, atol=1e-5))
+    assert stream(sdk, first, lambda: np.allclose(joints(sdk), first, atol=1e-5)
+                  and status(sdk).motion_status == 0)
     sdk.EmergencyStop(0x01)
     assert wait_until(lambda: status(sdk).arm_status == 1)  # EMERGENCY_STOP
+    stopped = joints(sdk)
     stream(sdk, READY, lambda: False, timeout=0.3)  # ignored while stopped
-    np.testing.assert_allclose(joints(sdk), first, atol=1e-5)
+    np.testing.assert_array_equal(joints(sdk), stopped)
+    np.testing.assert_allclose(stopped, first, atol=1e-4)
     sdk.EmergencyStop(0x02)  # resume: errors cleared, motors off, standby
     assert wait_until(lambda: status(sdk).arm_status == 0 and status(sdk).ctrl_mode == 0)
     assert wait_until(lambda: not any(sdk.GetArmEnableStatus()))

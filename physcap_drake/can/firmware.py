@@ -234,9 +234,11 @@ class Firmware:
             arm.arm_status, arm.err_code = OVER_LIMIT, arm.err_code | self._rejected_bits
             self.planner.hold()
             return
-        if arm.arm_status == OVER_LIMIT:  # an acceptable target clears the rejection
-            arm.arm_status, arm.err_code = NORMAL, arm.err_code & ~self._rejected_bits
-            self._rejected_bits = 0
+        cleared = self._rejected_bits & _joint_bits(joints)  # these joints are back in range
+        arm.err_code &= ~cleared
+        self._rejected_bits &= ~cleared
+        if arm.arm_status == OVER_LIMIT and not self._rejected_bits:
+            arm.arm_status = NORMAL
         arm.target[joints] = pair
         self.planner.stream()
 
