@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import itertools
 import math
+import time
 
 import can
 import numpy as np
@@ -296,3 +297,61 @@ def test_drag_teaching_reports_its_states(arm):
     assert wait_until(lambda: status(sdk).arm_status == 0 and status(sdk).teach_status == 2)
     sdk.MotionCtrl_1(0x00, 0x00, 0x03)  # replay
     assert wait_until(lambda: status(sdk).arm_status in (0x0C, 0x0D, 0))
+
+
+def test_a_move_c_arc_passes_its_middle_point_and_ends_on_its_last(arm):
+    sdk, _ = arm
+    enable(sdk, move_mode=0x03, speed=50)
+    fk = piper_sdk.C_PiperForwardKinematics(dh_is_offset=1)
+    points = [fk.CalFK(list(READY + offset))[-1] for offset in (
+        [0.0, 0.0, 0.0, 0.0, 0.0, 0.0], [0.25, 0.1, -0.1, 0.0, 0.0, 0.0],
+        [0.5, 0.0, 0.0, 0.0, 0.0, 0.0])]
+    for index, point in enumerate(points, start=1):
+        sdk.EndPoseCtrl(*(round(v * 1000) for v in point))
+        sdk.MoveCAxisUpdateCtrl(index)
+    closest = [math.inf]
+
+    def done() -> bool:
+        pose = sdk.GetArmEndPoseMsgs().end_pose
+        p = np.array([pose.X_axis, pose.Y_axis, pose.Z_axis]) / 1000.0
+        closest[0] = min(closest[0], float(np.linalg.norm(p - np.array(points[1][:3]))))
+        return np.linalg.norm(p - np.array(points[2][:3])) < 2.0 and \
+            status(sdk).motion_status == 0
+
+    assert wait_until(done, timeout=15.0), status(sdk)
+    assert closest[0] < 5.0  # mm: it went through the middle point (sampled every few ms)
+
+
+def test_linkage_offsets_move_the_ids_and_0x48x_feedback_switches_on(arm):
+    sdk, emulator = arm
+    peer = can.Bus(interface="virtual", channel=sdk.GetCanName())
+    try:
+        def seen(identifiers, within: float = 1.0) -> set[int]:
+            found, deadline = set(), time.monotonic() + within
+            while time.monotonic() < deadline:
+                message = peer.recv(timeout=0.05)
+                if message is not None and message.arbitration_id in identifiers:
+                    found.add(message.arbitration_id)
+            return found
+
+        sdk.ArmParamEnquiryAndConfig(0x00, 0x00, 0x01)  # 0x481-0x486 on
+        assert acknowledged(sdk, 0x77)
+        assert seen(set(range(0x481, 0x487))) == set(range(0x481, 0x487))
+        sdk.MasterSlaveConfig(0xFC, 0x10, 0x10, 0x00)  # feedback and control ids + 0x10
+        assert wait_until(lambda: emulator.snapshot().linkage.feedback_offset == 0x10)
+        assert seen({0x2A1, 0x2B1, 0x2B5}) == {0x2B1, 0x2B5}
+        peer.send(can.Message(arbitration_id=0x161, data=[1, 1, 30, 0, 0, 0, 0, 0],
+                              is_extended_id=False))  # 0x151 + 0x10: MOVE J at 30 %
+        assert wait_until(lambda: emulator.snapshot().speed_percent == 30)
+        sdk.MotionCtrl_2(0x01, 0x01, 80, 0x00)  # the base id is not this arm's any more
+        time.sleep(0.05)
+        assert emulator.snapshot().speed_percent == 30
+    finally:
+        peer.shutdown()
+
+
+def test_a_side_mount_is_refused_visibly(arm):
+    sdk, emulator = arm
+    sdk.MotionCtrl_2(0x01, 0x01, 50, 0x00, 0, 0x02)  # installation: side, left
+    assert wait_until(lambda: status(sdk).arm_status == 0x0A)
+    assert "side mount" in emulator.snapshot().refusal
