@@ -25,6 +25,8 @@ log = logging.getLogger("physcap_drake.can")
 
 #: How long the parent waits for the child to build its world and start, s.
 START_TIMEOUT = 120.0
+#: How long a reader of the world waits for the emulator to finish a publication, s.
+WORLD_PATIENCE = 0.005
 REQUEST_TIMEOUT = 10.0
 
 
@@ -46,6 +48,7 @@ class EmulatorProcess:
                  gripper_max_effort: float = 2.0, state_size: int = 0,
                  firmware: str = "S-V1.8-2", realtime_priority: int = 0):
         self._world = SharedBlock(world_layout(state_size)) if state_size else None
+        self._last_world: tuple[float, np.ndarray] | None = None
         world_fd = None if self._world is None else self._world.fd
         fds = (bus_socket.fileno(),) + (() if world_fd is None else (world_fd,))
         self._child = ChildProcess(
@@ -87,11 +90,12 @@ class EmulatorProcess:
         return value
 
     def world(self) -> tuple[float, np.ndarray] | None:
-        """(simulation time s, plant positions and velocities) as last published."""
-        reading = None if self._world is None else self._world.read()
-        if reading is None or np.isnan(reading["time"][0]):
-            return None
-        return float(reading["time"][0]), reading["state"]
+        """(simulation time s, plant positions and velocities) as last published (None
+        before the first publication)."""
+        reading = None if self._world is None else self._world.read(patience=WORLD_PATIENCE)
+        if reading is not None and not np.isnan(reading["time"][0]):
+            self._last_world = float(reading["time"][0]), reading["state"]
+        return self._last_world
 
     def snapshot(self):
         """A copy of the emulated firmware's state (`arm_state.EmulatedArm`)."""

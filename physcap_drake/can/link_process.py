@@ -40,6 +40,8 @@ FEEDBACK = Layout({"published_at": 1, "q": 6, "v": 6, "torque": 6, "gripper": 2,
                    "enabled": 6, "status": 7, "end_pose": 6, "stale": 1, "stale_since": 1,
                    "commands_sent": 1, "stale_count": 1},
                   texts=("reason", "fault"))
+#: How long the diagram's side waits for the streaming process to finish a publication, s.
+FEEDBACK_PATIENCE = 0.002
 #: How long the parent waits for the child's answer to a request (start-up has its own), s.
 REQUEST_TIMEOUT = 5.0
 #: The streaming process's GIL switch interval, s: its other threads (the bus reader) hand
@@ -160,7 +162,7 @@ class LinkProcess:
     def feedback(self) -> LinkFeedback | None:
         """The latest consistent publication (the previous one if the child is mid-write;
         None before the first)."""
-        reading = self._feedback.read()
+        reading = self._feedback.read(patience=FEEDBACK_PATIENCE)
         if reading is not None and not np.isnan(reading["published_at"][0]):
             self._last = _feedback_of(reading)
         return self._last

@@ -15,11 +15,14 @@ from __future__ import annotations
 import dataclasses as dc
 import mmap
 import os
+import time
 
 import numpy as np
 
-#: How often a reader retries a copy that raced with a write before giving up for now.
+#: How often a reader retries a copy that raced with a write before pausing (or giving up).
 READ_ATTEMPTS = 20
+#: A patient reader's pause between rounds of attempts, s.
+RETRY_PAUSE = 50e-6
 
 
 @dc.dataclass(frozen=True)
@@ -94,20 +97,27 @@ class SharedBlock:
             row[:len(raw)] = np.frombuffer(raw, dtype=np.uint8)
         values[0] += 1.0  # even again: done
 
-    def read(self) -> Reading | None:
+    def read(self, patience: float = 0.0) -> Reading | None:
         """A consistent copy, or None when nothing was written yet or every attempt raced
-        with a write."""
-        for _ in range(READ_ATTEMPTS):
-            sequence = self._values[0]
-            if sequence == 0.0 or int(sequence) % 2:
-                continue
-            payload = self._values[1:].copy()
-            texts = self._text.copy()
-            if self._values[0] == sequence:
-                return Reading({k: payload[s] for k, s in self._slices.items()},
-                               {k: bytes(texts[i]).rstrip(b"\0").decode("utf-8", "replace")
-                                for i, k in enumerate(self.layout.texts)})
-        return None
+        with a write (a writer can be held up in the middle of one). With `patience` (s),
+        keeps trying that long, yielding the processor between attempts."""
+        deadline = time.monotonic() + patience
+        while True:
+            for _ in range(READ_ATTEMPTS):
+                sequence = self._values[0]
+                if sequence == 0.0:
+                    return None
+                if int(sequence) % 2:
+                    continue
+                payload = self._values[1:].copy()
+                texts = self._text.copy()
+                if self._values[0] == sequence:
+                    return Reading({k: payload[s] for k, s in self._slices.items()},
+                                   {k: bytes(texts[i]).rstrip(b"\0").decode("utf-8", "replace")
+                                    for i, k in enumerate(self.layout.texts)})
+            if time.monotonic() >= deadline:
+                return None
+            time.sleep(RETRY_PAUSE)
 
     def close(self) -> None:
         """Unmaps the memory and closes the descriptor. Safe to call twice."""
