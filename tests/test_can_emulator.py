@@ -327,10 +327,13 @@ def test_linkage_offsets_move_the_ids_and_0x48x_feedback_switches_on(arm):
     peer = can.Bus(interface="virtual", channel=sdk.GetCanName())
     try:
         def seen(identifiers, within: float = 1.0) -> set[int]:
-            found, deadline = set(), time.monotonic() + within
+            """Identifiers among `identifiers` sent from now on (older queued ones skipped)."""
+            found, since = set(), time.time()
+            deadline = time.monotonic() + within
             while time.monotonic() < deadline:
                 message = peer.recv(timeout=0.05)
-                if message is not None and message.arbitration_id in identifiers:
+                if (message is not None and message.timestamp > since
+                        and message.arbitration_id in identifiers):
                     found.add(message.arbitration_id)
             return found
 

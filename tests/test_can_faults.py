@@ -46,8 +46,8 @@ def assert_motion_stops_then_resumes(rig, clear) -> None:
 def moving_rig(can_rig, caplog):
     caplog.set_level(logging.WARNING, logger="physcap_drake.can")
     can_rig.link.command([0.5, 0.8, -0.8, 0.3, 0.3, 0.3], 0.05, 1.0)
-    time.sleep(0.15)  # streaming, feedback healthy
-    assert not can_rig.link.status().health.stale
+    time.sleep(0.15)  # streaming, feedback healthy (a loaded box may take longer)
+    assert wait_until(lambda: not can_rig.link.status().health.stale, timeout=3.0)
     return can_rig
 
 
