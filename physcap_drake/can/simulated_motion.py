@@ -28,6 +28,8 @@ LOAD_MASS = {0: 0.0, 1: 0.75, 2: 1.5}
 #: The simulated joint interpolator's acceleration bound in the emulated world, rad/s²: far
 #: above anything the emulated firmware plans, so the interpolator just passes it on.
 PASS_THROUGH_ACCELERATION = 1000.0
+#: How far past a joint-loop update a period's sub-step ends, s (never on an update).
+PAST_UPDATE = 1e-7
 GRAVITY = 9.81
 
 
@@ -101,14 +103,18 @@ class SimulatedMotion:
         force = min(max(effort, 0.0), self._max_effort) / self._max_effort * self._max_force
         self._applied(self._load_torque(command.load))
         t0 = self._context.get_time()
-        period = self.plant.time_step()
+        period, end = self.plant.time_step(), t0 + dt
         update = (np.floor(t0 / period + 1e-9) + 1.0) * period
-        while update < t0 + dt - 1e-9:  # the loop's updates within this period
-            self._simulator.AdvanceTo(update)
-            self._fix(start + (update - t0) / dt * (reference - start), opening, force)
+        while update <= end + 1e-9:  # the joint loop's updates within this period
+            # Fixed before the update and advanced just past it: the update sees this value
+            # whichever side of a boundary Drake handles it on.
+            fraction = min((update - t0) / dt, 1.0)
+            self._fix(start + fraction * (reference - start), opening, force)
+            self._simulator.AdvanceTo(update + PAST_UPDATE)
             update += period
-        self._simulator.AdvanceTo(t0 + dt)
         self._fix(reference, opening, force)
+        if self._context.get_time() < end:
+            self._simulator.AdvanceTo(end)
         self._reference = reference
         torque = self._output(ports.ARM_TORQUE_MEASURED).copy()
         return MotionReading(
