@@ -22,6 +22,14 @@ from multiprocessing.connection import Connection
 EXIT_TIMEOUT = 5.0
 
 
+class ChildError(RuntimeError):
+    """The child did not answer, or answered with an error: `kind` is its word for it."""
+
+    def __init__(self, message: str, kind: str = "timeout"):
+        super().__init__(message)
+        self.kind = kind
+
+
 class ChildProcess:
     """Starts `target` ("package.module:function") with `args` (picklable; file descriptors
     listed in `fds` stay valid in the child under the same numbers). `conn` is the
@@ -43,9 +51,31 @@ class ChildProcess:
     def alive(self) -> bool:
         return self._process.poll() is None
 
-    def close(self, timeout: float = EXIT_TIMEOUT) -> None:
-        """Closes the pipe (the child ends) and waits `timeout` s for it; kills it if it
-        lingers."""
+    def request(self, message: tuple, timeout: float):
+        """Sends `message` and returns the child's answer ("ok", value)'s value; raises
+        ChildError with the child's words (and its kind of error) otherwise."""
+        if self.conn.closed:
+            raise ChildError(f"the {self.name} process is not running", "closed")
+        self.conn.send(message)
+        if not self.conn.poll(timeout):
+            raise ChildError(f"the {self.name} process did not answer {message[0]!r} within "
+                             f"{timeout:.0f} s")
+        kind, value = self.conn.recv()
+        if kind != "ok":
+            raise ChildError(str(value), kind)
+        return value
+
+    def close(self, timeout: float = EXIT_TIMEOUT, *, polite: bool = True) -> None:
+        """Ends the child: asks it to close (`polite`; its answer awaited up to `timeout`),
+        closes the pipe, waits `timeout` s and kills it if it lingers. Safe to call twice."""
+        if self.conn.closed:
+            return
+        if polite:
+            try:
+                self.conn.send(("close",))
+                self.conn.poll(timeout)
+            except (OSError, EOFError):
+                pass
         self.conn.close()
         try:
             self._process.wait(timeout=timeout)

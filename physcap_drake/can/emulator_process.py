@@ -18,7 +18,7 @@ import time
 
 import numpy as np
 
-from physcap_drake.can.child_process import ChildProcess
+from physcap_drake.can.child_process import ChildError, ChildProcess
 from physcap_drake.can.shared_block import Layout, SharedBlock
 
 log = logging.getLogger("physcap_drake.can")
@@ -56,7 +56,6 @@ class EmulatorProcess:
             (bus_socket.fileno(), scenario_yaml, gripper_max_effort, firmware, world_fd,
              state_size, realtime_priority), fds, name="piper-emulator")
         bus_socket.close()  # the child has its own copy
-        self._conn = self._child.conn
         self._ready = False
 
     def wait_ready(self) -> EmulatorProcess:
@@ -78,16 +77,10 @@ class EmulatorProcess:
         return self
 
     def _request(self, request: tuple, timeout: float = REQUEST_TIMEOUT):
-        if self._conn is None:
-            raise RuntimeError("the PiPER emulator process is not running")
-        self._conn.send(request)
-        if not self._conn.poll(timeout):
-            raise RuntimeError(f"the PiPER emulator process did not answer {request[0]!r} "
-                               f"within {timeout:.0f} s")
-        kind, value = self._conn.recv()
-        if kind != "ok":
-            raise RuntimeError(f"PiPER emulator process: {value}")
-        return value
+        try:
+            return self._child.request(request, timeout)
+        except ChildError as error:
+            raise RuntimeError(f"PiPER emulator process: {error}") from None
 
     def world(self) -> tuple[float, np.ndarray] | None:
         """(simulation time s, plant positions and velocities) as last published (None
@@ -112,17 +105,11 @@ class EmulatorProcess:
 
     def close(self) -> None:
         """Stops the emulator (the emulated arm stops answering). Safe to call twice."""
-        if self._conn is not None:
-            conn, self._conn = self._conn, None
-            if self._ready:  # else it may still be building its world: no need to wait
-                try:
-                    conn.send(("close",))
-                    conn.poll(REQUEST_TIMEOUT)
-                except (OSError, EOFError):
-                    pass
-            self._child.close(timeout=5.0 if self._ready else 0.2)
-            if self._world is not None:
-                self._world.close()
+        # Not ready yet, it may still be building its world: no need to wait for it.
+        self._child.close(5.0 if self._ready else 0.2, polite=self._ready)
+        if self._world is not None:
+            self._world.close()
+            self._world = None
 
 
 def serve(conn, bus_fd: int, scenario_yaml: str | None, gripper_max_effort: float,

@@ -28,7 +28,7 @@ import time
 import numpy as np
 
 from physcap_drake.can import codec
-from physcap_drake.can.child_process import ChildProcess
+from physcap_drake.can.child_process import ChildError, ChildProcess
 from physcap_drake.can.feedback import Health
 from physcap_drake.can.link import LinkSettings, LinkStatus, StartupError
 from physcap_drake.can.shared_block import Layout, SharedBlock
@@ -106,7 +106,6 @@ class LinkProcess:
             name="piper-can-link")
         if bus_socket is not None:
             bus_socket.close()  # the child has its own copy
-        self._conn = self._child.conn
         self._started = False
         self._last: LinkFeedback | None = None
         self.firmware = ""
@@ -140,18 +139,13 @@ class LinkProcess:
         return self
 
     def _request(self, request: tuple, timeout: float = REQUEST_TIMEOUT):
-        if self._conn is None:
-            raise RuntimeError("the CAN link process is not running")
-        self._conn.send(request)
-        if not self._conn.poll(timeout):
-            raise StartupError(f"the CAN link process did not answer {request[0]!r} within "
-                               f"{timeout:.0f} s")
-        kind, value = self._conn.recv()
-        if kind == "ok":
-            return value
-        error_type = {"ConnectionError": ConnectionError}.get(kind, StartupError)
-        self.close()
-        raise error_type(value)
+        try:
+            return self._child.request(request, timeout)
+        except ChildError as error:
+            self.close()
+            if error.kind == "ConnectionError":
+                raise ConnectionError(str(error)) from None
+            raise StartupError(str(error)) from None
 
     # Streaming ---------------------------------------------------------------------------
 
@@ -190,16 +184,9 @@ class LinkProcess:
     def close(self) -> None:
         """Stops streaming (the arm holds its last target) and ends the process. Safe to
         call twice."""
-        if self._conn is not None:
-            conn, self._conn = self._conn, None
-            try:
-                conn.send(("close",))
-                conn.poll(REQUEST_TIMEOUT if self._started else 0.5)
-            except (OSError, EOFError):
-                pass
-            self._child.close(timeout=5.0 if self._started else 0.5)
-            self._targets.close()
-            self._feedback.close()
+        self._child.close(5.0 if self._started else 0.5)
+        self._targets.close()
+        self._feedback.close()
 
 
 def _feedback_of(r) -> LinkFeedback:
