@@ -295,8 +295,8 @@ def test_drag_teaching_reports_its_states(arm):
     assert wait_until(lambda: status(sdk).arm_status == 0x0B and status(sdk).teach_status == 1)
     sdk.MotionCtrl_1(0x00, 0x00, 0x02)  # stop recording
     assert wait_until(lambda: status(sdk).arm_status == 0 and status(sdk).teach_status == 2)
-    sdk.MotionCtrl_1(0x00, 0x00, 0x03)  # replay
-    assert wait_until(lambda: status(sdk).arm_status in (0x0C, 0x0D, 0))
+    sdk.MotionCtrl_1(0x00, 0x00, 0x03)  # replay (of a recording that held still)
+    assert wait_until(lambda: status(sdk).teach_status == 3 and status(sdk).arm_status == 0)
 
 
 def test_a_move_c_arc_passes_its_middle_point_and_ends_on_its_last(arm):

@@ -178,7 +178,8 @@ class Firmware:
     def _drag_teach(self, code: int) -> None:
         arm = self.arm
         arm.teach_status = code
-        if code == 1:  # start recording: the arm goes compliant for the hand
+        if code == 1:  # start recording: the arm goes compliant for the hand (the emulated
+            # arm has no hand to move it: it holds still, and its recordings do too)
             self.planner.hold()
             self._teach, arm.ctrl_mode, arm.arm_status = [], 2, TEACH_RECORD
         elif code == 2:  # end recording
@@ -356,6 +357,8 @@ class Firmware:
         self._check_collision(reading.external_torque)
         if arm.arm_status == TEACH_RECORD:
             self._teach.append(arm.q.copy())
+        elif arm.arm_status == TEACH_EXECUTE and not self.planner.busy:
+            arm.arm_status = NORMAL  # the replay is over
         arm.motion_status = int(self.planner.busy or float(np.max(np.abs(arm.q - arm.target)))
                                 > 1e-3)
         frames = self._feedback(dt)
