@@ -19,8 +19,8 @@ receiving it. Before sending, every cycle asks the watchdog: while the feedback 
 (see FeedbackListener.health) or the arm reports a fault, no motion command is sent and
 the arm holds its last target. Targets are clamped to the joint limits, and a target that
 jumps is approached within the firmware's joint speed and acceleration limits, before they
-are encoded. `close()` stops streaming and
-leaves the arm enabled and holding; the link never sends the resume (0x150 = 2) by itself.
+are encoded. `close()` stops streaming and leaves the arm enabled and holding; the link
+never sends the resume (0x150 = 2) by itself.
 """
 
 from __future__ import annotations

@@ -120,14 +120,15 @@ class LinkProcess:
     def wait_ready(self) -> LinkProcess:
         """Waits until the process has imported what it needs and answers (it has not
         opened the bus: `start()` does)."""
-        self._request(("ready",), timeout=REQUEST_TIMEOUT * 6)
+        self._request(("ready",), timeout=REQUEST_TIMEOUT * 6, close_on_error=True)
         return self
 
     def start(self) -> LinkProcess:
         """Runs the arm's start-up sequence in the streaming process and waits for its
         first publication. Raises StartupError or ConnectionError with the child's words
         (the process is closed then)."""
-        reply = self._request(("start",), timeout=self.settings.startup_timeout * 6 + 30.0)
+        reply = self._request(("start",), timeout=self.settings.startup_timeout * 6 + 30.0,
+                              close_on_error=True)
         self.firmware, self.torque_scale, self.realtime = reply
         deadline = time.monotonic() + REQUEST_TIMEOUT
         while self.feedback() is None:  # the first cycle publishes right after start-up
@@ -138,11 +139,13 @@ class LinkProcess:
         self._started = True
         return self
 
-    def _request(self, request: tuple, timeout: float = REQUEST_TIMEOUT):
+    def _request(self, request: tuple, timeout: float = REQUEST_TIMEOUT, *,
+                 close_on_error: bool = False):
         try:
             return self._child.request(request, timeout)
         except ChildError as error:
-            self.close()
+            if close_on_error:
+                self.close()
             if error.kind == "ConnectionError":
                 raise ConnectionError(str(error)) from None
             raise StartupError(str(error)) from None
