@@ -199,9 +199,10 @@ def test_end_pose_feedback_is_the_vendors_forward_kinematics(arm):
     sdk, _ = arm
     enable(sdk)
     target = READY + [0.4, -0.3, 0.2, 0.5, -0.2, 0.7]
-    assert stream(sdk, target, lambda: np.allclose(joints(sdk), target, atol=1e-5))
+    assert stream(sdk, target, lambda: np.allclose(joints(sdk), target, atol=1e-5)
+                  and status(sdk).motion_status == 0)
+    time.sleep(0.05)  # at rest: the joint and end-pose frames describe the same pose
     fk = piper_sdk.C_PiperForwardKinematics(dh_is_offset=1).CalFK(list(joints(sdk)))[-1]
-    assert wait_until(lambda: sdk.GetArmEndPoseMsgs().end_pose.X_axis != 0)
     pose = sdk.GetArmEndPoseMsgs().end_pose
     reported = np.array([pose.X_axis, pose.Y_axis, pose.Z_axis]) / 1000.0  # mm
     assert np.linalg.norm(reported - np.array(fk[:3])) < 1.0  # within 1 mm
