@@ -116,8 +116,8 @@ def test_motors_that_never_enable_fail_start_up_naming_the_joints():
     emulator = PiperEmulator(peer)
     handle = emulator.firmware.handle
 
-    def stuck_j3(identifier, data):
-        replies = handle(identifier, data)
+    def stuck_j3(identifier, data, sent_at=None):
+        replies = handle(identifier, data, sent_at)
         emulator.arm.enabled[2] = False
         return replies
 

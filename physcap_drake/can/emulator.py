@@ -98,7 +98,8 @@ class PiperEmulator:
         while not self._stop.is_set():
             while (message := self._bus.recv(timeout=0.0)) is not None:
                 with self.lock:
-                    replies = self.firmware.handle(message.arbitration_id, bytes(message.data))
+                    replies = self.firmware.handle(message.arbitration_id, bytes(message.data),
+                                                   message.timestamp or None)
                 self._send_all(replies)
             with self.lock:
                 frames = self.firmware.cycle(self._period)

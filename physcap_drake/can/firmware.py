@@ -30,6 +30,7 @@ from physcap_drake.can.end_pose import (
     pose_matrix,
     solve_ik,
 )
+from physcap_drake.can.joint_profile import STALE_TARGET, target_velocity
 from physcap_drake.can.motion import MotionCommand, MotionReading
 from physcap_drake.can.paths import Arc, Line
 from physcap_drake.can.planner import NO_SOLUTION, Planner
@@ -83,6 +84,9 @@ class Firmware:
         self._latest_pose: np.ndarray | None = None  # the last complete 0x152-0x154 pose
         self._collided = np.zeros(6, dtype=bool)  # joints whose collision protection tripped
         self._rejected_bits = 0  # err_code bits of the joints whose target was out of range
+        self._sent_at: float | None = None  # when the frame being handled was sent, s
+        self._target_at: list[float | None] = [None] * 3  # when each joint pair last came
+        self._target_age = np.zeros(3)  # s since each joint pair last came
         self._teach: list[np.ndarray] = []
         self._cycle = 0
         self._reading = MotionReading(q.copy(), np.zeros(6), np.zeros(6), np.zeros(6),
@@ -111,11 +115,14 @@ class Firmware:
 
     # Frames in -------------------------------------------------------------------------
 
-    def handle(self, identifier: int, data: bytes) -> list[tuple[int, bytes]]:
-        """Applies one host frame; returns the replies (frames of other lengths, and
-        identifiers the arm does not know, are ignored like the firmware does)."""
+    def handle(self, identifier: int, data: bytes,
+               sent_at: float | None = None) -> list[tuple[int, bytes]]:
+        """Applies one host frame (sent at `sent_at`, s, when the bus says); returns the
+        replies (frames of other lengths, and identifiers the arm does not know, are
+        ignored like the firmware does)."""
         if len(data) != 8:
             return []
+        self._sent_at = sent_at
         identifier = self._unshift(identifier)
         handler = self._handlers.get(identifier)
         if handler is None:
@@ -240,8 +247,14 @@ class Firmware:
         self._rejected_bits &= ~cleared
         if arm.arm_status == OVER_LIMIT and not self._rejected_bits:
             arm.arm_status = NORMAL
+        # The target's speed, from the host's send times: two streaming loops (the host's
+        # and this one) do not tick together, so counting this loop's cycles would not do.
+        velocity = self.planner.stream_velocity.copy()
+        velocity[joints] = target_velocity(arm.target[joints], self._target_at[index], pair,
+                                           self._sent_at)
+        self._target_at[index], self._target_age[index] = self._sent_at, 0.0
         arm.target[joints] = pair
-        self.planner.stream()
+        self.planner.stream(velocity)
 
     def _end_pose(self, index: int, data: bytes) -> None:
         """0x152-0x154; the pose is complete (and acted on) with its last frame, 0x154."""
@@ -340,6 +353,9 @@ class Firmware:
         """One control period: plan, move, check, report."""
         arm = self.arm
         fast = arm.move_mode == codec.MOVE_J and arm.mit_mode == codec.MIT_MODE
+        self._target_age += dt
+        for pair in np.flatnonzero(self._target_age > STALE_TARGET):  # the stream stopped
+            self.planner.stream_velocity[2 * pair:2 * pair + 2] = 0.0
         if arm.stopped or arm.arm_status == TEACH_RECORD:
             arm.reference_speed = np.zeros(6)
         else:

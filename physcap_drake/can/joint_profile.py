@@ -1,5 +1,6 @@
-"""How the firmware moves a joint reference towards a target within speed and acceleration
-limits: one control period at a time, all joints arriving together."""
+"""How a joint reference follows a target within speed and acceleration limits, one control
+period at a time: a streamed trajectory is followed with its own speed, a distant target is
+approached with all joints arriving together, braking to stop on it."""
 
 from __future__ import annotations
 
@@ -9,23 +10,37 @@ import numpy as np
 #: streamed step (rad): targets travel in 0.001° counts, so a step can be a count off.
 _SLACK = 1 + 1e-6
 _COUNT = 2 * np.pi / 360_000
+#: Targets that were last updated longer ago than this are taken to stand still, s.
+STALE_TARGET = 0.1
 
 
-def step_towards(q: np.ndarray, v: np.ndarray, target: np.ndarray, previous_target: np.ndarray,
+def target_velocity(previous: np.ndarray | None, previous_time: float | None,
+                    target: np.ndarray, time: float | None) -> np.ndarray:
+    """The speed of a streamed target (rad/s) from two of its updates and the times (s) they
+    were sent: zero for the first update, or one after a pause of STALE_TARGET or more."""
+    if previous is None or previous_time is None or time is None:
+        return np.zeros_like(target)
+    elapsed = time - previous_time
+    if not 0.0 < elapsed < STALE_TARGET:
+        return np.zeros_like(target)
+    return (target - previous) / elapsed
+
+
+def step_towards(q: np.ndarray, v: np.ndarray, target: np.ndarray, v_target: np.ndarray,
                  v_max: np.ndarray, a_max: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
     """The reference (rad, rad/s) one period `dt` (s) later.
 
-    q, v: the reference now; target: where it should go; previous_target: the target one
-    period ago (a target moving no faster than `v_max` is a streamed trajectory, followed with
-    its own speed); v_max, a_max: per-joint speed (rad/s) and acceleration (rad/s²) limits.
-    A distant target is approached along a straight line in joint space (the slowest joint
-    sets the pace), braking to stop on it.
+    q, v: the reference now; target: where it should go; v_target: how fast the target
+    itself moves (rad/s; `target_velocity`; zero for a target that stands still).
+    v_max, a_max: per-joint speed (rad/s) and acceleration (rad/s²) limits. A target that
+    moves within the limits is followed with its speed, and between its updates the
+    reference carries on at that speed; a distant target is approached along a straight
+    line in joint space (the slowest joint sets the pace), braking to stop on it.
     """
     v_max = np.maximum(v_max, 1e-9)
     a_dt = np.maximum(a_max, 1e-6) * dt
+    v_target = np.clip(v_target, -v_max, v_max)
     error = target - q
-    step = target - previous_target
-    v_target = np.where(np.abs(step) <= v_max * dt * _SLACK + _COUNT, step / dt, 0.0)
     duration = float(np.max(np.abs(error) / v_max))
     v_line = np.abs(error) / duration if duration > 0.0 else v_max
     # Fastest speed from which steps of a_max·dt still stop on the target (the sampled form

@@ -37,16 +37,13 @@ import numpy as np
 
 from physcap_drake.can import codec
 from physcap_drake.can.feedback import ArmParameters, FeedbackListener, Health
-from physcap_drake.can.joint_profile import step_towards
+from physcap_drake.can.joint_profile import STALE_TARGET, step_towards
 from physcap_drake.kinematics.piper_dh import JOINT_LOWER, JOINT_UPPER
 
 log = logging.getLogger("physcap_drake.can")
 
 MAX_JOINT_SPEED = 3.0  # rad/s, the firmware's largest joint speed (0x474)
 MAX_JOINT_ACCELERATION = 5.0  # rad/s², the firmware's largest joint acceleration (0x475)
-#: A jump in the targets is streamed at this fraction of those limits, so the firmware,
-#: which plans with them, can follow each step exactly.
-STREAM_MARGIN = 0.9
 ENABLE_RETRY = 0.05  # s between enable commands during start-up
 #: Interval at which an unanswered query or action is asked again, s.
 QUERY_RETRY = 0.1
@@ -111,7 +108,8 @@ class PiperLink:
         self._target_q: np.ndarray | None = None
         self._sent_q: np.ndarray | None = None  # the last streamed targets, rad
         self._sent_v = np.zeros(6)  # their rate of change, rad/s
-        self._previous_target: np.ndarray | None = None
+        self._target_v = np.zeros(6)  # how fast the commanded target moves, rad/s
+        self._target_at: float | None = None  # when it was last commanded (monotonic s)
         self._gripper = codec.GripperCommand(0.0, 0.0)
         self._lower, self._upper = JOINT_LOWER.copy(), JOINT_UPPER.copy()
         self._stale_since: float | None = None
@@ -304,14 +302,18 @@ class PiperLink:
 
     # Commands and feedback ---------------------------------------------------------------
 
-    def command(self, q, opening: float, effort: float) -> None:
+    def command(self, q, opening: float, effort: float, velocity=None) -> None:
         """Sets the targets the streaming thread sends from now on: joint positions q
-        (rad, J1..J6), gripper opening (m, total gap) and effort limit (N·m)."""
+        (rad, J1..J6), gripper opening (m, total gap) and effort limit (N·m). `velocity`
+        (rad/s) says how fast q moves for a stream of targets: the stream follows it
+        between updates. Without it, q is a target standing still."""
         q = np.clip(np.asarray(q, dtype=float), self._lower, self._upper)
         gripper = codec.GripperCommand(min(max(float(opening), 0.0), self._stroke),
                                        min(max(float(effort), 0.0), 5.0))
+        v = np.zeros(6) if velocity is None else np.asarray(velocity, dtype=float)
         with self._lock:
-            self._target_q, self._gripper = q, gripper
+            self._target_q, self._target_v, self._gripper = q, v, gripper
+            self._target_at = time.monotonic()
 
     def torques(self, current: np.ndarray) -> np.ndarray:
         """Joint torques (N·m) from motor currents (A) with this arm's firmware scaling."""
@@ -356,23 +358,24 @@ class PiperLink:
                 self._sent_q = None  # restart the rate limit from the measured position
 
     def _send_targets(self) -> None:
-        """Streams one step towards the latest target: a target that jumps is approached at
-        no more than the firmware's joint speed and acceleration (braking to stop on it),
-        so the arm can follow every streamed step as it comes."""
+        """Streams one step towards the latest target: a trajectory within the firmware's
+        joint speed and acceleration passes unchanged; a target that jumps is approached at
+        no more than them (braking to stop on it), so the arm can follow every step."""
         with self._lock:
             target, gripper = self._target_q, self._gripper
-            previous = self._sent_q
+            previous, target_v = self._sent_q, self._target_v
+            if (self._target_at is not None
+                    and time.monotonic() - self._target_at > STALE_TARGET):
+                target_v = np.zeros(6)  # the caller stopped updating: it stands still
         if target is None:
             return
         if previous is None:  # (re)start from where the arm is, at rest
             previous = np.clip(self.listener.snapshot().q, self._lower, self._upper)
-            self._sent_v, self._previous_target = np.zeros(6), previous
-        q, self._sent_v = step_towards(previous, self._sent_v, target, self._previous_target,
-                                       np.full(6, STREAM_MARGIN * MAX_JOINT_SPEED),
-                                       np.full(6, STREAM_MARGIN * MAX_JOINT_ACCELERATION),
-                                       self._period)
+            self._sent_v = np.zeros(6)
+        q, self._sent_v = step_towards(previous, self._sent_v, target, target_v,
+                                       np.full(6, MAX_JOINT_SPEED),
+                                       np.full(6, MAX_JOINT_ACCELERATION), self._period)
         q = np.clip(q, self._lower, self._upper)  # the arm refuses targets beyond its limits
-        self._previous_target = target
         for frame in codec.encode_joints(codec.JOINT_COMMAND, q):
             self._send(*frame)
         self._send(*codec.encode_gripper_command(gripper, stroke=self._stroke))

@@ -8,7 +8,8 @@ start-up sequence, streams, and runs the watchdog. The parent and the child shar
 blocks of memory (`shared_block.SharedBlock`, neither side ever waits for the other):
 
 - targets (parent -> child): joint positions (rad), gripper opening (m) and effort (N·m),
-  picked up at the start of every streaming cycle;
+  with the simulated time they are for, picked up at the start of every streaming cycle
+  (and played back at a steady pace, `playback.TargetPlayback`);
 - feedback (child -> parent): the latest feedback and the watchdog's verdict, published
   every streaming cycle with the time it was published.
 
@@ -31,11 +32,12 @@ from physcap_drake.can import codec
 from physcap_drake.can.child_process import ChildError, ChildProcess
 from physcap_drake.can.feedback import Health
 from physcap_drake.can.link import LinkSettings, LinkStatus, StartupError
+from physcap_drake.can.playback import TargetPlayback
 from physcap_drake.can.shared_block import Layout, SharedBlock
 
 log = logging.getLogger("physcap_drake.can")
 
-TARGETS = Layout({"q": 6, "gripper": 2})
+TARGETS = Layout({"q": 6, "gripper": 2, "sim_time": 1, "written_at": 1})
 FEEDBACK = Layout({"published_at": 1, "q": 6, "v": 6, "torque": 6, "gripper": 2,
                    "enabled": 6, "status": 7, "end_pose": 6, "stale": 1, "stale_since": 1,
                    "commands_sent": 1, "stale_count": 1},
@@ -152,9 +154,13 @@ class LinkProcess:
 
     # Streaming ---------------------------------------------------------------------------
 
-    def command(self, q, opening: float, effort: float) -> None:
-        """The targets streamed from the next cycle on (rad; m; N·m), as PiperLink.command."""
-        self._targets.write({"q": np.asarray(q, dtype=float), "gripper": [opening, effort]})
+    def command(self, q, opening: float, effort: float, sim_time: float = np.nan) -> None:
+        """The targets streamed from the next cycle on (rad; m; N·m), as PiperLink.command;
+        `sim_time`: the simulated time they are for (s), when they sample a trajectory: the
+        streaming process then plays the samples back at a steady pace
+        (`playback.TargetPlayback`) instead of sending each as it comes."""
+        self._targets.write({"q": np.asarray(q, dtype=float), "gripper": [opening, effort],
+                             "sim_time": [sim_time], "written_at": [time.monotonic()]})
 
     def feedback(self) -> LinkFeedback | None:
         """The latest consistent publication (the previous one if the child is mid-write;
@@ -221,6 +227,8 @@ def serve(conn, settings: LinkSettings, faults, seed: int, targets_fd: int,
     targets = SharedBlock(TARGETS, fd=targets_fd)
     feedback = SharedBlock(FEEDBACK, fd=feedback_fd)
     faulty = None
+    playback = TargetPlayback()
+    last_cycle, written = time.monotonic(), np.nan
 
     def open_link() -> PiperLink:
         """The bus is opened when the parent asks to start, not before."""
@@ -232,9 +240,22 @@ def serve(conn, settings: LinkSettings, faults, seed: int, targets_fd: int,
                                      faults, seed=seed)
 
         def on_cycle() -> None:
+            nonlocal last_cycle, written
+            now = time.monotonic()
+            elapsed, last_cycle = now - last_cycle, now
             wanted = targets.read()
-            if wanted is not None and not np.isnan(wanted["q"]).any():
-                link.command(wanted["q"], wanted["gripper"][0], wanted["gripper"][1])
+            if (wanted is not None and not np.isnan(wanted["q"]).any()
+                    and wanted["written_at"][0] != written):
+                written = wanted["written_at"][0]
+                sim_time = wanted["sim_time"][0]
+                if np.isnan(sim_time):  # a target standing still, not a trajectory's
+                    playback.reset()
+                    link.command(wanted["q"], *wanted["gripper"])
+                else:  # the gripper's targets are played back in step with the joints'
+                    playback.add(np.concatenate([wanted["q"], wanted["gripper"]]), sim_time)
+            if not playback.empty:
+                target, velocity = playback.next(elapsed)
+                link.command(target[:6], target[6], target[7], velocity[:6])
             _publish(link, feedback)
 
         link = PiperLink(bus, settings, on_cycle=on_cycle)

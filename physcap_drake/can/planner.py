@@ -35,7 +35,8 @@ class Planner:
         self._plan: list[PathTiming] | None = None
         self._segments: list[Segment] = []
         self._replay: list[np.ndarray] = []
-        self._previous_target = arm.target.copy()
+        #: How fast the streamed target moves (rad/s), from the times its updates were sent.
+        self.stream_velocity = np.zeros(6)
         self.paused = False
 
     # Plans ------------------------------------------------------------------------------
@@ -46,16 +47,18 @@ class Planner:
         self._plan, self._replay = None, []
         arm.target = arm.reference.copy()
         arm.reference_speed = np.zeros(6)
-        self._previous_target = arm.target.copy()
+        self.stream_velocity = np.zeros(6)
 
-    def stream(self) -> None:
-        """From now on the reference follows `arm.target` (MOVE J)."""
+    def stream(self, velocity: np.ndarray) -> None:
+        """From now on the reference follows `arm.target`, which moves at `velocity` (rad/s)
+        between its updates (MOVE J)."""
         self._plan, self._replay = None, []
+        self.stream_velocity = velocity
 
     def move_to(self, q_goal: np.ndarray) -> None:
         """A point-to-point joint move to q_goal (rad)."""
         self.arm.target = np.asarray(q_goal, dtype=float).copy()
-        self._previous_target = self.arm.reference.copy()  # a jump, not a stream
+        self.stream_velocity = np.zeros(6)  # a target standing still
         self._plan = None
 
     def follow(self, segments: list[Segment]) -> None:
@@ -88,14 +91,14 @@ class Planner:
         if self._plan is not None:
             return self._path_step(dt)
         if self._replay and float(np.max(np.abs(arm.reference - arm.target))) <= 1e-6:
-            arm.target = self._replay.pop(0)
-            self._previous_target = arm.reference.copy()
+            sample = self._replay.pop(0)  # one sample per cycle: their speed is the step's
+            self.stream_velocity = (sample - arm.target) / dt
+            arm.target = sample
         v_max = arm.max_speed * (1.0 if fast else self._speed_scale())
         a_max = np.full(6, FAST_ACCELERATION) if fast else arm.max_acceleration
         arm.reference, arm.reference_speed = step_towards(
-            arm.reference, arm.reference_speed, arm.target, self._previous_target, v_max, a_max,
+            arm.reference, arm.reference_speed, arm.target, self.stream_velocity, v_max, a_max,
             dt)
-        self._previous_target = arm.target.copy()
         return 0
 
     def _path_step(self, dt: float) -> int:
@@ -113,7 +116,6 @@ class Planner:
             return SINGULARITY
         arm.reference_speed = (q - arm.reference) / dt
         arm.reference, arm.target = q, q.copy()
-        self._previous_target = q.copy()
         if timing.finished:
             self._plan.pop(0)
             self._segments.pop(0)

@@ -84,7 +84,7 @@ class PiperCanInterface(LeafSystem):
     def _send(self, context: Context) -> None:
         force = float(np.clip(self._force.Eval(context)[0], 0.0, self._max_force))
         self.link.command(self._position.Eval(context), self._opening.Eval(context)[0],
-                          force / self._max_force * self._max_effort)
+                          force / self._max_force * self._max_effort, context.get_time())
 
     def _initialize(self, context: Context, state: DiscreteValues) -> None:
         self.session.start()
