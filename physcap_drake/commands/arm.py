@@ -7,12 +7,15 @@ from pathlib import Path
 from typing import Annotated
 
 import typer
-from rich.markup import escape
 from rich.table import Table
 
 from physcap_drake.can import codec
 from physcap_drake.can.link import StartupError
-from physcap_drake.commands.common import console, error_console, load_scenario_or_exit
+from physcap_drake.commands.common import (
+    console,
+    fail,
+    load_scenario_or_exit,
+)
 from physcap_drake.scenario import Scenario
 from physcap_drake.station.can_config import PiperCan
 from physcap_drake.station.can_operator import ArmReport, arm_report, operator_link
@@ -37,11 +40,9 @@ def _with_arm(path: Path | None, action):
         with operator_link(_scenario(path)) as link:
             return action(link)
     except ValueError as error:  # not a CAN scenario
-        error_console.print(f"[bold red]--scenario {path}:[/] {escape(str(error))}")
-        raise typer.Exit(code=2) from None
+        fail(f"--scenario {path}: {error}")
     except (ConnectionError, StartupError, RuntimeError) as error:
-        error_console.print(f"[bold red]arm:[/] {escape(str(error))}", soft_wrap=True)
-        raise typer.Exit(code=1) from None
+        fail(f"arm: {error}", code=1)
 
 
 @app.command("status")
@@ -66,9 +67,8 @@ def resume(scenario: ScenarioOption = None, yes: Annotated[bool, typer.Option(
     """Clear the emergency stop and errors (0x150 = 2). The motors lose power, so the arm
     falls unless it is supported; enable it again (start an episode) to move."""
     if not yes:
-        error_console.print("[bold red]resume cuts the motors' power and the arm falls[/] "
-                            "unless supported: support it, then run again with --yes")
-        raise typer.Exit(code=2)
+        fail("resume cuts the motors' power and the arm falls unless supported: support it, "
+             "then run again with --yes")
     _with_arm(scenario, lambda link: link.resume())
     console.print("the arm resumed: errors cleared, motors off, standby")
 

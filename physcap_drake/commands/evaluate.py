@@ -9,10 +9,11 @@ from typing import Annotated
 
 import typer
 from rich.markup import escape
-from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
 from physcap_drake.agent.llm.factory import VALID_SPECS
-from physcap_drake.commands.common import console, error_console
+from physcap_drake.commands.common import console, fail
+from physcap_drake.commands.model_options import ModelChoice
+from physcap_drake.commands.progress import ProgressReport
 from physcap_drake.eval.grid import all_agents, all_tasks, make_grid, parse_names
 from physcap_drake.eval.runner import collect, pending, run_grid
 from physcap_drake.eval.tables import make_cell, write_results
@@ -35,33 +36,33 @@ def evaluate(
     out: Annotated[Path, typer.Option("--out", help="Folder of the episode folders and the "
                                       "result files.")] = Path("eval_runs"),
 ) -> None:
-    """Run the evaluation grid and write results.md, results.csv and results.json (the
-    paper's Table 1 layout and its simulation table). Finished episodes are not run again:
-    rerunning the same command resumes an interrupted grid."""
+    """Run the evaluation grid of tasks and agent variants.
+
+    Writes results.md, results.csv and results.json (the paper's Table 1 layout and its
+    simulation table). Finished episodes are not run again: rerunning the same command
+    resumes an interrupted grid.
+    """
     try:
         task_names = parse_names(tasks, all_tasks(), "task")
         agent_names = parse_names(agents, all_agents(), "agent variant")
     except ValueError as error:
-        error_console.print(f"[bold red]error:[/] {escape(str(error))}")
-        raise typer.Exit(code=2) from None
+        fail(str(error))
+    ModelChoice(llm, model).client(seed=0)  # a bad --llm fails here, not in every episode
     specs = make_grid(task_names, agent_names, trials)
     todo = pending(specs, out)
     console.print(f"{len(specs)} episodes in the grid, {len(specs) - len(todo)} already "
                   f"finished in {out}, {len(todo)} to run with {workers} worker(s)", soft_wrap=True)
     start = time.monotonic()
-    columns = (TextColumn("[progress.description]{task.description}"), BarColumn(),
-               MofNCompleteColumn(), TimeElapsedColumn(), TextColumn("{task.fields[last]}"))
-    with Progress(*columns, console=console) as progress:
-        bar = progress.add_task("episodes", total=len(todo), last="")
+    with ProgressReport(console, "episodes", len(todo), "episodes") as progress:
 
         def on_done(result) -> None:
             spec = result["spec"]
             if "error" in result:
-                progress.console.print(f"[bold red]{spec.label()}: {escape(result['error'])}")
+                progress.print(f"[bold red]{spec.label()}: {escape(result['error'])}")
                 verdict = "error"
             else:
                 verdict = "ok" if result["summary"]["success"] else "failed"
-            progress.update(bar, advance=1, last=f"{spec.label()}: {verdict}")
+            progress.advance(note=f"last {spec.label()}: {verdict}")
 
         run_grid(todo, out, llm=llm, model=model, workers=workers, on_done=on_done)
     wall = time.monotonic() - start
@@ -81,6 +82,5 @@ def evaluate(
                   soft_wrap=True)
     console.print("written: " + ", ".join(str(f) for f in files), soft_wrap=True)
     if unfinished:
-        error_console.print(f"[bold red]{len(unfinished)} episode(s) did not finish[/]; "
-                            "rerun the command to retry them (see error.json in their folders)")
-        raise typer.Exit(code=1)
+        fail(f"{len(unfinished)} episode(s) did not finish; rerun the command to retry "
+             "them (see error.json in their folders)", code=1)
