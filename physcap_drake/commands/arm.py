@@ -20,8 +20,8 @@ from physcap_drake.scenario import Scenario
 from physcap_drake.station.can_config import PiperCan
 from physcap_drake.station.can_operator import ArmReport, arm_report, operator_link
 
-app = typer.Typer(help="The real PiPER over CAN (or its emulator): its state, emergency stop, "
-                       "resume, clearing errors.", no_args_is_help=True)
+app = typer.Typer(help="The PiPER over CAN: state, e-stop, resume, clearing errors.",
+                  no_args_is_help=True)
 
 ScenarioOption = Annotated[Path | None, typer.Option(
     "--scenario", help="A scenario whose station: !PiperCan names the bus (emulate: true "
@@ -47,9 +47,10 @@ def _with_arm(path: Path | None, action):
 
 @app.command("status")
 def status(scenario: ScenarioOption = None) -> None:
-    """Print the arm's firmware, mode and status, enabled motors, joint limits and
-    accelerations, end-effector limits, collision levels, gripper and errors. Enables
-    nothing and moves nothing."""
+    """Print the arm's firmware, limits, enable bits and errors.
+
+    Also its mode and status, joint accelerations, end-effector limits, collision levels
+    and gripper. Enables nothing and moves nothing."""
     _print(_with_arm(scenario, arm_report))
 
 
@@ -75,7 +76,9 @@ def resume(scenario: ScenarioOption = None, yes: Annotated[bool, typer.Option(
 
 @app.command("clear-errors")
 def clear_errors(scenario: ScenarioOption = None) -> None:
-    """Ask every joint to clear its errors (0x475) and say what the arm still reports."""
+    """Clear every joint's errors (0x475) and say what is left.
+
+    Prints what the arm still reports afterwards."""
     remaining = _with_arm(scenario, lambda link: link.clear_errors())
     console.print(f"still reported: {remaining}" if remaining else "no errors reported")
 

@@ -54,9 +54,10 @@ def calibrate_camera(
     json_path: Annotated[Path | None, typer.Option("--json", help="Write the figures "
                                                    "here.")] = None,
 ) -> None:
-    """Find the camera's pose from a ChArUco board laid at known places on the table; print
-    the reprojection error (and, in simulation, the error against the true pose) and write
-    the calibration file."""
+    """Find the camera's pose from a ChArUco board.
+
+    The board is laid at known places on the table; prints the reprojection error (and, in
+    simulation, the error against the true pose) and writes the calibration file."""
     loaded = load_scenario_or_exit(scenario)
     entry = next((c for c in loaded.cameras if c.name == camera), None)
     if entry is None:
