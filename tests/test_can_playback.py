@@ -86,3 +86,25 @@ def test_an_earlier_sample_starts_the_playback_over():
     playback.add(np.zeros(6), 0.0)
     target, speed = playback.next(PERIOD)
     assert np.all(target == 0.0) and np.all(speed == 0.0)
+
+
+@pytest.mark.parametrize("lag", [0.0, 0.02, 0.1])
+def test_a_reference_behind_a_braking_target_stops_on_it_without_overrunning(lag):
+    """The streamed target cruises at 2 rad/s and brakes at the acceleration limit onto
+    1.0 rad; the reference starts `lag` rad behind it (a burst, a stall) yet never passes
+    the target's end by more than 2 mrad (the braking is sampled, the target's speed a
+    finite difference; without the stopping-point bound it ran 0.28 rad past), and stops
+    on it."""
+    times, samples = ramp_to(1.0, 2.0, 5.0)
+    velocity = np.gradient(samples[:, 1], PERIOD)
+    q, v = samples[0].copy(), np.zeros(6)
+    q[1] -= lag
+    path = []
+    for k in range(len(times) + 100):
+        i = min(k, len(times) - 1)
+        q, v = step_towards(q, v, samples[i], np.array([0, velocity[i] if k < len(times)
+                                                        else 0.0, 0, 0, 0, 0]),
+                            np.full(6, 3.0), np.full(6, 5.0), PERIOD)
+        path.append(q[1])
+    assert max(path) <= 1.0 + 0.002
+    assert path[-1] == pytest.approx(1.0, abs=1e-6)

@@ -12,6 +12,7 @@ world (a task's hidden masses) go the other way over the pipe.
 
 from __future__ import annotations
 
+import gc
 import logging
 import socket
 import time
@@ -143,6 +144,10 @@ def serve(conn, bus_fd: int, scenario_yaml: str | None, gripper_max_effort: floa
                      "state": plant.GetPositionsAndVelocities(motion.plant_context)})
 
     use_realtime(realtime_priority, "the emulated PiPER")  # its firmware thread inherits it
+    # What start-up allocated (the world's Drake systems, the modules) is never collected
+    # again: a full collection over all of it stalls the firmware loop for about 40 ms,
+    # which the host's watchdog sees as lost feedback.
+    gc.freeze()
     bus = SocketBus(socket.socket(fileno=bus_fd), "emulator")
     emulator = PiperEmulator(bus, firmware=firmware, motion=motion,
                              on_cycle=publish if world is not None else None).start()

@@ -48,6 +48,14 @@ def step_towards(q: np.ndarray, v: np.ndarray, target: np.ndarray, v_target: np.
     braking = a_dt * (np.sqrt(0.25 + 2.0 * np.abs(error) / (a_dt * dt)) - 0.5)
     approach = np.minimum(np.minimum(braking, np.abs(error) / (2.0 * dt)), v_line)
     v_wanted = np.clip(v_target + np.sign(error) * approach, -v_max, v_max)
+    # Never faster than lets the reference stop where the target would if it braked now:
+    # then a target braking within the limits is never overrun, however far behind the
+    # reference was.
+    a = np.maximum(a_max, 1e-6)
+    to_stop = error + v_target * np.abs(v_target) / (2.0 * a)
+    v_stop = a_dt * (np.sqrt(0.25 + 2.0 * np.abs(to_stop) / (a_dt * dt)) - 0.5)
+    v_wanted = np.where(to_stop >= 0.0, np.minimum(v_wanted, v_stop),
+                        np.maximum(v_wanted, -v_stop))
     v_next = v + np.clip(v_wanted - v, -a_dt, a_dt)
     q_next = q + v_next * dt
     # A joint whose next step to the target is within both limits takes it exactly.
