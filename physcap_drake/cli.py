@@ -15,6 +15,7 @@ from typing import Annotated
 import typer
 
 from physcap_drake.commands import (
+    arm,
     bench,
     calibrate,
     demo,
@@ -61,6 +62,7 @@ app.add_typer(demo.app, name="demo")
 app.add_typer(bench.app, name="bench")
 app.add_typer(calibrate.app, name="calibrate")
 app.add_typer(task.app, name="task")
+app.add_typer(arm.app, name="arm")
 
 
 def version_text() -> str:

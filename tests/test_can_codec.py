@@ -135,10 +135,11 @@ def test_firmware_string_is_found_in_the_reply():
         codec.parse_firmware("V2")
 
 
-def test_the_power_cutting_reset_is_never_encoded():
-    with pytest.raises(ValueError, match="arm falls"):
-        codec.encode_motion_control(emergency=2)
+def test_emergency_stop_and_resume_frames():
     assert codec.encode_motion_control(emergency=1) == (0x150, bytes([1, 0, 0, 0, 0, 0, 0, 0]))
+    assert codec.encode_motion_control(emergency=2) == (0x150, bytes([2, 0, 0, 0, 0, 0, 0, 0]))
+    with pytest.raises(ValueError, match="0x150 emergency must be one of 0x00, 0x01, 0x02"):
+        codec.encode_motion_control(emergency=3)
 
 
 def test_commands_that_start_joint_streaming():

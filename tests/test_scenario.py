@@ -9,8 +9,9 @@ import pytest
 from physcap_drake.resources import stations_dir
 from physcap_drake.scenario import load_scenario, load_scenario_text
 from physcap_drake.scenario_errors import ScenarioError
-from physcap_drake.station import MakeStation
+from physcap_drake.station import MakeStation, close_station
 from physcap_drake.station.can_config import PiperCan
+from physcap_drake.station.can_station import start_can_station
 from physcap_drake.station.sim_config import SimPiper
 
 ROBOT = """
@@ -161,9 +162,11 @@ def test_a_real_arm_that_is_not_there_fails_naming_the_bus():
     scenario = load_scenario_text(ROBOT + REAL_TIME + "station: !PiperCan {interface: "
                                   "socketcan, channel: nocan7}\n")
     assert isinstance(scenario.station, PiperCan) and scenario.station.channel == "nocan7"
+    station = MakeStation(scenario)  # building connects nothing; starting does
     with pytest.raises(ConnectionError, match="station.interface 'socketcan', "
                                               "station.channel 'nocan7'"):
-        MakeStation(scenario)
+        start_can_station(station)
+    close_station(station)
 
 
 @pytest.mark.parametrize(("snippet", "key_path", "needs"), [

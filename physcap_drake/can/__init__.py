@@ -1,1 +1,5 @@
-"""The PiPER CAN interface: the protocol codec (more to come with the CAN station)."""
+"""The PiPER over CAN: the protocol (`codec`), the host's link (`link`, `feedback`, and the
+streaming process `link_process`), and the emulated arm (`emulator`, `firmware`,
+`firmware_settings`, `planner`, `end_pose`, `paths`, `motion`, `simulated_motion`, and its
+process `emulator_process`), with what joins them across processes (`socket_bus`,
+`shared_block`, `child_process`, `realtime`) and the fault drills (`faults`)."""

@@ -56,6 +56,8 @@ class FaultyBus(can.BusABC):
         self._pending: collections.deque[can.Message] = collections.deque()
         self._lock = threading.Lock()
         self.counts = collections.Counter()  # frames "lost", "garbled", "silenced", "passed"
+        #: Every frame sent through it (the host's commands), in order, for tests and drills.
+        self.sent: collections.deque[can.Message] = collections.deque(maxlen=100_000)
         super().__init__(channel=getattr(inner, "channel_info", "faulty"))
         self.channel_info = f"faulty({getattr(inner, 'channel_info', '?')})"
 
@@ -70,6 +72,7 @@ class FaultyBus(can.BusABC):
             return self._settings
 
     def send(self, msg: can.Message, timeout: float | None = None) -> None:
+        self.sent.append(msg)
         self._inner.send(msg, timeout)
 
     def _damage(self, message: can.Message) -> can.Message | None:

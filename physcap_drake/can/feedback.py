@@ -1,10 +1,14 @@
 """FeedbackListener: the host's view of the arm, filled from CAN frames by a python-can Notifier.
 
 Every frame is decoded with `codec` in the Notifier's thread and kept, under a lock, as the
-latest value of its kind. Frames that cannot be decoded (wrong length) or carry impossible
-values are rejected and remembered as garbled; the arm's error states (0x2A1 status, joint
-communication errors, angle limits, the drivers' collision and stall bits) are remembered as
-a fault. `health(now)` judges whether the feedback can be trusted right now.
+latest value of its kind: the periodic feedback (status, end pose, joints, gripper, drivers)
+and the replies to queries and settings (firmware, limits, accelerations, end-effector
+limits, collision levels, gripper parameters, acknowledgements). Frames that cannot be
+decoded (wrong length) or carry impossible values are rejected and remembered as garbled;
+the arm's error states (0x2A1 status, joint communication errors, angle limits, the
+drivers' collision and stall bits) are remembered as a fault. The drag-teach states
+(arm_status 11-13) are states, not faults. `health(now)` judges whether the feedback can
+be trusted right now.
 """
 
 from __future__ import annotations
@@ -24,13 +28,15 @@ from physcap_drake.kinematics.piper_dh import JOINT_LOWER, JOINT_UPPER
 log = logging.getLogger("physcap_drake.can")
 
 #: The arm sends these at its feedback rate; they are the heartbeat the watchdog counts.
-PERIODIC = (codec.ARM_STATUS, *codec.JOINT_FEEDBACK, codec.GRIPPER_FEEDBACK, *codec.HIGH_SPEED)
+PERIODIC = codec.PERIODIC_FEEDBACK
 #: Feedback cycles over which frame loss is counted (80 ms at 200 Hz): 160 frames, enough to
 #: tell 1 % from 10 % loss (means 1.6 and 16 lost) and to do so within 100 ms.
 LOSS_CYCLES = 16
 #: Values beyond these are not feedback but garbage: joint angle beyond its limit (rad),
-#: joint speed (rad/s), motor current (A), gripper opening outside [−, stroke + ] (m).
+#: joint speed (rad/s), motor current (A), gripper opening outside [−, stroke + ] (m),
+#: end-pose position (m, from the base) and angle (rad).
 ANGLE_MARGIN, MAX_SPEED, MAX_CURRENT, OPENING_MARGIN = 0.5, 20.0, 30.0, 0.01
+MAX_REACH, MAX_POSE_ANGLE = 1.0, 2.0 * np.pi
 #: Plausible driver voltage (V) and temperatures (°C); the highest status codes of 0x2A1.
 MAX_VOLTAGE, TEMPERATURES, MAX_CTRL_MODE, MAX_ARM_STATUS = 60.0, (-40.0, 150.0), 7, 15
 #: A frame timestamp this far from the host clock is on another clock (no age check), s.
@@ -45,7 +51,9 @@ class Garbled(ValueError):
 class ArmFeedback:
     """The latest feedback: joint positions q (rad), speeds v (rad/s) and motor currents (A)
     J1..J6, gripper opening (m, total gap) and motor effort (N·m), which drivers report
-    enabled, and the last 0x2A1 status (None before the first)."""
+    enabled, the drivers' status bits (0x261-0x266 byte 5), the flange's end pose (m, rad;
+    NaN before the first), the last 0x2A1 status (None before the first) and the gripper's
+    status bits (0x2A8 byte 6; bit 6 enabled)."""
 
     q: np.ndarray
     v: np.ndarray
@@ -54,6 +62,22 @@ class ArmFeedback:
     gripper_effort: float
     enabled: np.ndarray
     status: codec.ArmStatus | None
+    end_pose: np.ndarray = dc.field(default_factory=lambda: np.full(6, np.nan))
+    driver_status: np.ndarray = dc.field(default_factory=lambda: np.zeros(6, dtype=int))
+    gripper_status: int = 0
+
+
+@dc.dataclass
+class ArmParameters:
+    """The latest replies to queries: joint limits (0x473, by motor 1-6), acceleration limits
+    (rad/s², 0x47C, by motor), end-effector limits (0x478), collision protection levels
+    (0x47B), gripper parameters (0x47E); None until answered."""
+
+    limits: dict[int, codec.JointLimits] = dc.field(default_factory=dict)
+    accelerations: dict[int, float] = dc.field(default_factory=dict)
+    end_limits: codec.EndSpeeds | None = None
+    crash_levels: tuple[int, ...] | None = None
+    gripper: codec.GripperParameters | None = None
 
 
 @dc.dataclass(frozen=True)
@@ -111,10 +135,17 @@ class FeedbackListener(can.Listener):
         self._current = np.zeros(6)
         self._opening = np.nan
         self._effort = 0.0
+        self._gripper_status = 0
         self._enabled = np.zeros(6, dtype=bool)
+        self._driver_status = np.zeros(6, dtype=int)
+        self._driver_at = np.full(6, -np.inf)  # when each driver last reported, monotonic s
+        self._end_pose = np.full(6, np.nan)
         self._status: codec.ArmStatus | None = None
         self._firmware_frames: list[bytes] = []
-        self.limits: dict[int, codec.JointLimits] = {}
+        self.parameters = ArmParameters()
+        #: Acknowledgements (0x476) in order of arrival: (monotonic s, ack).
+        self.acks: collections.deque[tuple[float, codec.InstructionAck]] = collections.deque(
+            maxlen=64)
         self._last_heartbeat = -np.inf
         self._age = 0.0  # how old the newest frame was when it arrived, s
         self._clock_checked = False
@@ -164,6 +195,14 @@ class FeedbackListener(can.Listener):
                         <= JOINT_UPPER[joint] + ANGLE_MARGIN):
                     raise Garbled(f"J{joint + 1} at {angle:.3g} rad, beyond its limits")
             self._q[first:first + 2] = pair
+        elif identifier in codec.END_POSE_FEEDBACK:
+            index = codec.END_POSE_FEEDBACK.index(identifier)
+            pair = codec.decode_end_pose_pair(index, data)
+            bounds = ((MAX_REACH, MAX_REACH), (MAX_REACH, MAX_POSE_ANGLE),
+                      (MAX_POSE_ANGLE, MAX_POSE_ANGLE))[index]
+            if any(abs(v) > b for v, b in zip(pair, bounds, strict=True)):
+                raise Garbled(f"end pose values {pair} beyond reach")
+            self._end_pose[2 * index:2 * index + 2] = pair
         elif identifier in codec.HIGH_SPEED:
             high = codec.decode_high_speed(data)
             joint = codec.HIGH_SPEED.index(identifier)
@@ -176,6 +215,7 @@ class FeedbackListener(can.Listener):
             if not -OPENING_MARGIN <= gripper.opening <= self._stroke + OPENING_MARGIN:
                 raise Garbled(f"gripper opening {gripper.opening:.3g} m")
             self._opening, self._effort = gripper.opening, gripper.effort
+            self._gripper_status = gripper.status
         elif identifier == codec.ARM_STATUS:
             status = codec.decode_arm_status(data)
             if status.ctrl_mode > MAX_CTRL_MODE or status.arm_status > MAX_ARM_STATUS:
@@ -196,15 +236,39 @@ class FeedbackListener(can.Listener):
                 raise Garbled(f"J{joint + 1} driver at {low.voltage:.4g} V, "
                               f"{low.driver_temperature:.4g} / {low.motor_temperature:.4g} °C")
             self._enabled[joint] = low.enabled
+            self._driver_status[joint] = low.status
+            self._driver_at[joint] = time.monotonic()
             for bit, what in ((4, "collision protection tripped"), (7, "stall protection "
                                                                        "tripped")):
                 if low.status >> bit & 1 and not self._fault:
                     self._set_fault(f"the arm reports: J{joint + 1} {what}")
         elif identifier == codec.FIRMWARE:
             self._firmware_frames.append(data)
-        elif identifier == codec.LIMITS_REPLY:
+        else:
+            self._take_reply(identifier, data)
+
+    def _take_reply(self, identifier: int, data: bytes) -> None:
+        parameters = self.parameters
+        if identifier == codec.LIMITS_REPLY:
             limits = codec.decode_joint_limits(data)
-            self.limits[limits.motor] = limits
+            parameters.limits[limits.motor] = limits
+        elif identifier == codec.ACCELERATION_REPLY:
+            motor, acceleration = codec.decode_acceleration_limit(data)
+            parameters.accelerations[motor] = acceleration
+        elif identifier == codec.END_LIMITS_REPLY:
+            parameters.end_limits = codec.decode_end_speeds(data)
+        elif identifier == codec.CRASH_PROTECTION_REPLY:
+            parameters.crash_levels = codec.decode_crash_protection(data)
+        elif identifier == codec.GRIPPER_PARAMETERS_REPLY:
+            parameters.gripper = codec.decode_gripper_parameters(data)
+        elif identifier == codec.INSTRUCTION_ACK:
+            self.acks.append((time.monotonic(), codec.decode_instruction_ack(data)))
+
+    def clear_fault(self) -> None:
+        """Forgets the remembered fault (after the arm's errors were cleared on it); a status
+        frame that still reports an error sets it again."""
+        with self._lock:
+            self._fault = ""
 
     def _set_fault(self, text: str) -> None:
         self._fault = text
@@ -225,7 +289,14 @@ class FeedbackListener(can.Listener):
         with self._lock:
             return ArmFeedback(self._q.copy(), self._v.copy(), self._current.copy(),
                                float(self._opening), float(self._effort),
-                               self._enabled.copy(), self._status)
+                               self._enabled.copy(), self._status, self._end_pose.copy(),
+                               self._driver_status.copy(), self._gripper_status)
+
+    def enabled_since(self, since: float) -> np.ndarray:
+        """Which drivers reported themselves enabled in a frame that arrived at or after
+        monotonic time `since`."""
+        with self._lock:
+            return self._enabled & (self._driver_at >= since)
 
     def complete(self) -> bool:
         """Whether every joint angle and the gripper have been reported at least once."""

@@ -1,18 +1,26 @@
-"""PiperLink: the host's connection to a PiPER over CAN, with its own real-time thread.
+"""PiperLink: the host's connection to a PiPER over CAN, with its own streaming thread.
 
-Start-up (`start`): read the firmware version (0x4AF; it picks the torque scaling) and the
-joint limits (0x472), switch to CAN control in joint mode (0x151), enable the motors (0x471)
-until every driver reports its enabled bit, set the gripper stroke (0x47D). Then a streaming
+`open()` starts listening (a python-can Notifier fills a FeedbackListener). Queries ask
+and wait for the answer, asking again every QUERY_RETRY s: the firmware version (0x4AF),
+the joint limits and accelerations (0x472), the end-effector limits, collision levels and
+gripper parameters (0x477). Operator actions wait until the arm shows they took effect:
+`emergency_stop()` (0x150 = 1), `resume()` (0x150 = 2, which cuts motor power: the real arm
+falls unless supported) and `clear_errors()` (0x475).
+
+Start-up (`start`): open, read the firmware version (it picks the torque scaling) and the
+joint limits, switch to CAN control in joint mode (0x151), enable the motors (0x471) until
+every driver reports its enabled bit, set the gripper stroke (0x47D). Then a streaming
 thread sends, every 1/control_rate s, the latest joint targets (0x155-0x157) and gripper
-command (0x159) that `command()` left, while a python-can Notifier fills a FeedbackListener.
+command (0x159) that `command()` left.
 
 The streaming thread is independent of whoever calls `command()`: a Drake simulator that
 stops while a language model thinks leaves the last target in place, and the arm keeps
 receiving it. Before sending, every cycle asks the watchdog: while the feedback is stale
 (see FeedbackListener.health) or the arm reports a fault, no motion command is sent and
-the arm holds its last target. Targets are clamped to the joint limits and their change per
-cycle to the firmware's speed limit before they are encoded. `close()` stops streaming and
-leaves the arm enabled and holding; the motor-power-cutting reset (0x150 = 2) is never sent.
+the arm holds its last target. Targets are clamped to the joint limits, and a target that
+jumps is approached within the firmware's joint speed and acceleration limits, before they
+are encoded. `close()` stops streaming and leaves the arm enabled and holding; the link
+never sends the resume (0x150 = 2) by itself.
 """
 
 from __future__ import annotations
@@ -22,45 +30,74 @@ import dataclasses as dc
 import logging
 import threading
 import time
+from collections.abc import Callable
 
 import can
 import numpy as np
 
 from physcap_drake.can import codec
-from physcap_drake.can.feedback import FeedbackListener, Health
+from physcap_drake.can.feedback import ArmParameters, FeedbackListener, Health
+from physcap_drake.can.joint_profile import STALE_TARGET, step_towards
 from physcap_drake.kinematics.piper_dh import JOINT_LOWER, JOINT_UPPER
 
 log = logging.getLogger("physcap_drake.can")
 
 MAX_JOINT_SPEED = 3.0  # rad/s, the firmware's largest joint speed (0x474)
+MAX_JOINT_ACCELERATION = 5.0  # rad/s², the firmware's largest joint acceleration (0x475)
 ENABLE_RETRY = 0.05  # s between enable commands during start-up
-#: Interval at which an unanswered start-up query is asked again, s.
+#: Interval at which an unanswered query or action is asked again, s.
 QUERY_RETRY = 0.1
 
 
 class StartupError(RuntimeError):
-    """The arm did not answer or did not enable during start-up."""
+    """The arm did not answer, or did not do what it was asked, in time."""
+
+
+@dc.dataclass(frozen=True)
+class LinkSettings:
+    """What a PiperLink needs of a station's `PiperCan` config (the same names and units;
+    see station/can_config.py), as plain values another process can receive."""
+
+    interface: str = "socketcan"
+    channel: str = "can0"
+    control_rate: float = 200.0
+    firmware: str = ""
+    gripper_stroke_mm: int = 100
+    startup_timeout: float = 2.0
+    feedback_timeout: float = 0.05
+    max_feedback_loss: float = 0.05
+    realtime_priority: int = 0
+
+    @classmethod
+    def of(cls, config) -> LinkSettings:
+        """The settings of a `PiperCan` (or any object with these attributes)."""
+        return cls(**{f.name: getattr(config, f.name) for f in dc.fields(cls)})
 
 
 @dc.dataclass(frozen=True)
 class LinkStatus:
     """The streaming thread's view: health now, since when it is stale (monotonic s, None
-    if not stale), and how many motion commands were sent so far."""
+    if not stale), how many motion commands were sent so far, and how often the feedback
+    went stale (each time motion stopped until it recovered)."""
 
     health: Health
     stale_since: float | None
     commands_sent: int
+    stale_count: int = 0
 
 
 class PiperLink:
     """See module docstring. `config` is a `PiperCan` station config; `bus` an open
-    python-can bus (the link owns it from now on and shuts it down in `close`)."""
+    python-can bus (the link owns it once opened and shuts it down in `close`).
+    `on_cycle()`, if given, runs at the start of every streaming cycle (before the targets
+    are sent), in the streaming thread."""
 
-    def __init__(self, bus: can.BusABC, config):
+    def __init__(self, bus: can.BusABC, config, on_cycle: Callable[[], None] | None = None):
         self.config = config
         self._bus = bus
         self._period = 1.0 / config.control_rate
         self._stroke = config.gripper_stroke_mm / 1000.0
+        self._on_cycle = on_cycle
         self.listener = FeedbackListener(stroke=self._stroke,
                                          feedback_timeout=config.feedback_timeout,
                                          max_loss=config.max_feedback_loss)
@@ -69,13 +106,19 @@ class PiperLink:
         self._stop = threading.Event()
         self._lock = threading.Lock()
         self._target_q: np.ndarray | None = None
-        self._sent_q: np.ndarray | None = None
+        self._sent_q: np.ndarray | None = None  # the last streamed targets, rad
+        self._sent_v = np.zeros(6)  # their rate of change, rad/s
+        self._target_v = np.zeros(6)  # how fast the commanded target moves, rad/s
+        self._target_at: float | None = None  # when it was last commanded (monotonic s)
         self._gripper = codec.GripperCommand(0.0, 0.0)
         self._lower, self._upper = JOINT_LOWER.copy(), JOINT_UPPER.copy()
         self._stale_since: float | None = None
         self._commands_sent = 0
+        self._stale_count = 0
         self.firmware = ""
         self.torque_scale = (1.0,) * 6
+        #: Why the feedback went stale, each time it did (the last 100).
+        self.stale_reasons: collections.deque[str] = collections.deque(maxlen=100)
         #: Start times of the last streaming cycles (monotonic s), for jitter figures.
         self.cycle_starts: collections.deque[float] = collections.deque(maxlen=20000)
 
@@ -84,51 +127,150 @@ class PiperLink:
         """The bus the link talks on (e.g. a FaultyBus, to inject faults)."""
         return self._bus
 
+    @property
+    def where(self) -> str:
+        return f"{self.config.interface}:{self.config.channel}"
+
+    @property
+    def streaming(self) -> bool:
+        return self._thread is not None and self._thread.is_alive()
+
+    def open(self) -> PiperLink:
+        """Starts listening. From here on `close()` shuts the bus down."""
+        if self._notifier is None:
+            self._notifier = can.Notifier(self._bus, [self.listener], timeout=0.01)
+        return self
+
+    # Queries ----------------------------------------------------------------------------
+
+    def read_firmware(self) -> str:
+        """The firmware version the arm reports, e.g. "S-V1.8-2"."""
+        self.open()
+        return self._wait_for(self.listener.firmware, "the firmware version (0x4AF)",
+                              ask=lambda: self._send(*codec.encode_firmware_request()))
+
+    def read_status(self) -> codec.ArmStatus:
+        """The arm's status (0x2A1), once one has arrived."""
+        self.open()
+        return self._wait_for(lambda: self.listener.snapshot().status, "the arm status (0x2A1)")
+
+    def read_parameters(self) -> ArmParameters:
+        """Asks for every parameter the arm reports (see ArmParameters) and waits for all."""
+        self.open()
+        parameters = self.listener.parameters
+
+        def ask_missing(acceleration: bool):
+            known = parameters.accelerations if acceleration else parameters.limits
+            return lambda: [self._send(*codec.encode_limit_query(m, acceleration))
+                            for m in range(1, 7) if m not in known]
+
+        self._wait_for(lambda: len(parameters.limits) == 6 or None,
+                       "the joint limits (0x472 -> 0x473)", ask=ask_missing(False))
+        self._wait_for(lambda: len(parameters.accelerations) == 6 or None,
+                       "the joint accelerations (0x472 -> 0x47C)", ask=ask_missing(True))
+        for query, field, what in (
+                (codec.QUERY_END_LIMITS, "end_limits", "the end-effector limits (0x478)"),
+                (codec.QUERY_CRASH, "crash_levels", "the collision levels (0x47B)"),
+                (codec.QUERY_GRIPPER, "gripper", "the gripper parameters (0x47E)")):
+            request = codec.encode_parameter_request(codec.ParameterRequest(query=query))
+            self._wait_for(lambda f=field: getattr(parameters, f), what,
+                           ask=lambda r=request: self._send(*r))
+        return parameters
+
+    # Operator actions -------------------------------------------------------------------
+
+    def emergency_stop(self) -> None:
+        """Stops the arm (0x150 = 1) and waits until it reports the emergency stop."""
+        self.open()
+        self._wait_for(lambda: self._arm_status() == 1 or None,
+                       "the emergency stop (0x2A1 arm status 1)",
+                       ask=lambda: self._send(*codec.encode_motion_control(emergency=1)))
+
+    def resume(self) -> None:
+        """Clears the arm's errors and the emergency stop (0x150 = 2): the motors lose power
+        (the real arm falls unless supported) and the arm goes to standby; `start()` again to
+        move. Refused while streaming."""
+        if self.streaming:
+            raise RuntimeError("resume cuts the motors' power: stop streaming (close the "
+                               "station, or stop_streaming()) first")
+        self.open()
+        self._wait_for(lambda: self._arm_status() == 0 or None,
+                       "the resume (0x2A1 arm status back to 0)",
+                       ask=lambda: self._send(*codec.encode_motion_control(emergency=2)))
+        self.listener.clear_fault()
+
+    def clear_errors(self) -> str:
+        """Asks every joint to clear its errors (0x475) and waits for the acknowledgement;
+        returns what the arm still reports wrong afterwards ("" if nothing)."""
+        self.open()
+        since = time.monotonic()
+        self._wait_for(lambda: self._acknowledged(codec.JOINT_CONFIG, since) or None,
+                       "the clear-error acknowledgement (0x476 for 0x475)",
+                       ask=lambda: self._send(*codec.encode_joint_config(codec.JointConfig(
+                           codec.ALL_MOTORS, clear_error=True))))
+        time.sleep(3 * QUERY_RETRY)  # a few status frames after the clearing
+        remaining = self.listener.snapshot().status
+        error = remaining.error if remaining is not None else "no status from the arm"
+        if not error:
+            self.listener.clear_fault()
+        return error
+
+    def _arm_status(self) -> int | None:
+        status = self.listener.snapshot().status
+        return None if status is None else status.arm_status
+
+    def _acknowledged(self, identifier: int, since: float) -> bool:
+        return any(t >= since and ack.index == identifier & 0xFF
+                   for t, ack in list(self.listener.acks))
+
     # Start-up ----------------------------------------------------------------------------
 
     def start(self) -> PiperLink:
         """Runs the start-up sequence (module docstring) and starts streaming.
         Raises StartupError naming what did not answer."""
-        self._notifier = can.Notifier(self._bus, [self.listener], timeout=0.01)
-        # From here on close() shuts the bus down; before, the caller still owns it.
-        where = f"{self.config.interface}:{self.config.channel}"
-        reported = self._wait_for(self.listener.firmware, "the firmware version (0x4AF)", where,
-                                  ask=lambda: self._send(*codec.encode_firmware_request()))
+        self.open()
+        reported = self.read_firmware()
         self.firmware = self.config.firmware or reported
         if self.config.firmware and self.config.firmware != reported:
             log.warning("firmware override %s (the arm reports %s)", self.config.firmware,
                         reported)
         self.torque_scale = codec.torque_scale(self.firmware)
+        limits = self.listener.parameters.limits
+
         def ask_missing_limits() -> None:
             for motor in range(1, 7):
-                if motor not in self.listener.limits:
+                if motor not in limits:
                     self._send(*codec.encode_limit_query(motor))
 
-        self._wait_for(lambda: len(self.listener.limits) == 6 or None,
-                       "the joint limits (0x472 -> 0x473)", where, ask=ask_missing_limits)
-        for motor, limits in self.listener.limits.items():  # keep the tighter of the two
-            self._lower[motor - 1] = max(self._lower[motor - 1], limits.min_angle)
-            self._upper[motor - 1] = min(self._upper[motor - 1], limits.max_angle)
+        self._wait_for(lambda: len(limits) == 6 or None, "the joint limits (0x472 -> 0x473)",
+                       ask=ask_missing_limits)
+        for motor, limit in limits.items():  # keep the tighter of the two
+            self._lower[motor - 1] = max(self._lower[motor - 1], limit.min_angle)
+            self._upper[motor - 1] = min(self._upper[motor - 1], limit.max_angle)
         self._wait_for(lambda: self.listener.complete() or None,
-                       "joint and gripper feedback (0x2A5-0x2A8)", where)
+                       "joint and gripper feedback (0x2A5-0x2A8)")
         self._send(*codec.encode_mode_control(ctrl_mode=1, move_mode=1, speed_percent=100))
-        self._enable(where)
+        self._enable()
         self._send(*codec.encode_gripper_parameters(self.config.gripper_stroke_mm))
         feedback = self.listener.snapshot()
         fault = self.listener.health(time.monotonic()).fault
         if fault:
-            raise StartupError(f"{where}: {fault}; clear it on the arm before starting")
+            self.close()
+            raise StartupError(f"{self.where}: {fault}; clear it on the arm before starting")
         self.command(feedback.q, feedback.gripper_opening, 0.0)
+        self._sent_q = None  # stream from where the arm is
+        self._stop.clear()
         self._thread = threading.Thread(target=self._stream, name="piper-can-stream",
                                         daemon=True)
         self._thread.start()
-        log.info("PiPER on %s: firmware %s, streaming at %.0f Hz", where, self.firmware,
+        log.info("PiPER on %s: firmware %s, streaming at %.0f Hz", self.where, self.firmware,
                  self.config.control_rate)
         return self
 
-    def _wait_for(self, probe, what: str, where: str, ask=None):
+    def _wait_for(self, probe, what: str, ask=None):
         """Waits until probe() is not None; `ask()` sends the request, again every
-        QUERY_RETRY s (a request or its answer can be lost on the bus)."""
+        QUERY_RETRY s (a request or its answer can be lost on the bus). On a timeout the
+        link closes and StartupError names what did not arrive."""
         deadline = time.monotonic() + self.config.startup_timeout
         next_ask = time.monotonic()
         while (value := probe()) is None:
@@ -137,36 +279,41 @@ class PiperLink:
                 next_ask = time.monotonic() + QUERY_RETRY
             if time.monotonic() > deadline:
                 self.close()
-                raise StartupError(f"no answer from the arm on {where}: {what} did not arrive "
-                                   f"within station.startup_timeout = "
+                raise StartupError(f"no answer from the arm on {self.where}: {what} did not "
+                                   f"arrive within station.startup_timeout = "
                                    f"{self.config.startup_timeout} s (is the arm powered and "
                                    "the bus up at 1 Mbit/s?)")
             time.sleep(0.002)
         return value
 
-    def _enable(self, where: str) -> None:
-        deadline = time.monotonic() + self.config.startup_timeout
-        while not self.listener.snapshot().enabled.all():
+    def _enable(self) -> None:
+        """Enables the motors until every driver says so in a frame sent after the request."""
+        since = time.monotonic()
+        deadline = since + self.config.startup_timeout
+        while not (enabled := self.listener.enabled_since(since)).all():
             if time.monotonic() > deadline:
-                missing = [f"J{j + 1}" for j, on in enumerate(self.listener.snapshot().enabled)
-                           if not on]
+                missing = [f"J{j + 1}" for j, on in enumerate(enabled) if not on]
                 self.close()
-                raise StartupError(f"{where}: the motors of {', '.join(missing)} did not "
-                                   f"report enabled (0x261-0x266 bit 6) within "
+                raise StartupError(f"{self.where}: the motors of {', '.join(missing)} did "
+                                   f"not report enabled (0x261-0x266 bit 6) within "
                                    f"station.startup_timeout = {self.config.startup_timeout} s")
             self._send(*codec.encode_motor_enable(True))
             time.sleep(ENABLE_RETRY)
 
     # Commands and feedback ---------------------------------------------------------------
 
-    def command(self, q, opening: float, effort: float) -> None:
+    def command(self, q, opening: float, effort: float, velocity=None) -> None:
         """Sets the targets the streaming thread sends from now on: joint positions q
-        (rad, J1..J6), gripper opening (m, total gap) and effort limit (N·m)."""
+        (rad, J1..J6), gripper opening (m, total gap) and effort limit (N·m). `velocity`
+        (rad/s) says how fast q moves for a stream of targets: the stream follows it
+        between updates. Without it, q is a target standing still."""
         q = np.clip(np.asarray(q, dtype=float), self._lower, self._upper)
         gripper = codec.GripperCommand(min(max(float(opening), 0.0), self._stroke),
                                        min(max(float(effort), 0.0), 5.0))
+        v = np.zeros(6) if velocity is None else np.asarray(velocity, dtype=float)
         with self._lock:
-            self._target_q, self._gripper = q, gripper
+            self._target_q, self._target_v, self._gripper = q, v, gripper
+            self._target_at = time.monotonic()
 
     def torques(self, current: np.ndarray) -> np.ndarray:
         """Joint torques (N·m) from motor currents (A) with this arm's firmware scaling."""
@@ -175,7 +322,7 @@ class PiperLink:
     def status(self) -> LinkStatus:
         with self._lock:
             return LinkStatus(self.listener.health(time.monotonic()), self._stale_since,
-                              self._commands_sent)
+                              self._commands_sent, self._stale_count)
 
     # The streaming thread ----------------------------------------------------------------
 
@@ -184,6 +331,8 @@ class PiperLink:
         while not self._stop.is_set():
             now = time.monotonic()
             self.cycle_starts.append(now)
+            if self._on_cycle is not None:
+                self._on_cycle()
             health = self.listener.health(now)
             self._track_staleness(health, now)
             if not (health.stale or health.fault):
@@ -198,6 +347,8 @@ class PiperLink:
             was_stale = self._stale_since is not None
             if health.stale and not was_stale:
                 self._stale_since = now
+                self._stale_count += 1
+                self.stale_reasons.append(health.reason)
                 log.warning("arm feedback stale (%s): motion commands stopped, the arm "
                             "holds", health.reason)
             elif not health.stale and was_stale:
@@ -207,15 +358,24 @@ class PiperLink:
                 self._sent_q = None  # restart the rate limit from the measured position
 
     def _send_targets(self) -> None:
+        """Streams one step towards the latest target: a trajectory within the firmware's
+        joint speed and acceleration passes unchanged; a target that jumps is approached at
+        no more than them (braking to stop on it), so the arm can follow every step."""
         with self._lock:
             target, gripper = self._target_q, self._gripper
-            previous = self._sent_q
+            previous, target_v = self._sent_q, self._target_v
+            if (self._target_at is not None
+                    and time.monotonic() - self._target_at > STALE_TARGET):
+                target_v = np.zeros(6)  # the caller stopped updating: it stands still
         if target is None:
             return
-        if previous is None:
-            previous = self.listener.snapshot().q
-        step = MAX_JOINT_SPEED * self._period
-        q = previous + np.clip(target - previous, -step, step)
+        if previous is None:  # (re)start from where the arm is, at rest
+            previous = np.clip(self.listener.snapshot().q, self._lower, self._upper)
+            self._sent_v = np.zeros(6)
+        q, self._sent_v = step_towards(previous, self._sent_v, target, target_v,
+                                       np.full(6, MAX_JOINT_SPEED),
+                                       np.full(6, MAX_JOINT_ACCELERATION), self._period)
+        q = np.clip(q, self._lower, self._upper)  # the arm refuses targets beyond its limits
         for frame in codec.encode_joints(codec.JOINT_COMMAND, q):
             self._send(*frame)
         self._send(*codec.encode_gripper_command(gripper, stroke=self._stroke))
@@ -232,12 +392,17 @@ class PiperLink:
 
     # Shutdown ----------------------------------------------------------------------------
 
-    def close(self) -> None:
-        """Stops streaming (the arm holds its last target, motors stay enabled) and closes
-        the bus. Safe to call twice."""
+    def stop_streaming(self) -> None:
+        """Stops streaming (the arm holds its last target, motors stay enabled); the link
+        keeps listening. Safe to call twice."""
         self._stop.set()
         if self._thread is not None and self._thread is not threading.current_thread():
             self._thread.join(timeout=1.0)
+
+    def close(self) -> None:
+        """Stops streaming (the arm holds its last target, motors stay enabled) and closes
+        the bus. Safe to call twice."""
+        self.stop_streaming()
         if self._notifier is not None:
             self._notifier.stop(timeout=1.0)
             self._notifier = None

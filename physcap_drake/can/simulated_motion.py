@@ -1,10 +1,13 @@
 """SimulatedMotion: the emulator's arm is the simulated station (MultibodyPlant physics).
 
-The emulator thread feeds the commands that arrived on the bus into the simulated station's
-inputs and advances its simulator by one feedback period per cycle, so joint motion, joint
-torques and gripper effort come from the same physics as the sim station, with the task's
-objects in the scene. The scene is also what an emulated station's camera sees and what the
-task's success check reads (ground truth the real arm does not have).
+Each firmware cycle feeds the joint reference and the gripper command into the simulated
+station's inputs and advances its simulator by one period, so joint motion, joint torques
+and gripper effort come from the same physics as the sim station, with the task's objects
+in the scene. The scene is also what an emulated station's camera sees and what the task's
+success check reads (ground truth the real arm does not have).
+
+The end-load setting (0x477) is applied as the firmware applies it: the weight of a half
+(0.75 kg) or full (1.5 kg) payload at the fingertip is added to the joints' feed-forward.
 """
 
 from __future__ import annotations
@@ -12,11 +15,22 @@ from __future__ import annotations
 import dataclasses as dc
 
 import numpy as np
+from pydrake.multibody.tree import JacobianWrtVariable
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import Context
 
-from physcap_drake.can.emulator import EmulatedArm, MotionReading
+from physcap_drake.can.motion import MotionCommand, MotionReading
 from physcap_drake.station import ports
+
+#: Payload of the end-load settings 0 (empty), 1 (half), 2 (full), kg: the PiPER's rated
+#: payload is 1.5 kg.
+LOAD_MASS = {0: 0.0, 1: 0.75, 2: 1.5}
+#: The simulated joint interpolator's acceleration bound in the emulated world, rad/s²: far
+#: above anything the emulated firmware plans, so the interpolator just passes it on.
+PASS_THROUGH_ACCELERATION = 1000.0
+#: How far past a joint-loop update a period's sub-step ends, s (never on an update).
+PAST_UPDATE = 1e-7
+GRAVITY = 9.81
 
 
 class SimulatedMotion:
@@ -33,15 +47,33 @@ class SimulatedMotion:
     def __init__(self, scenario, *, gripper_max_effort: float):
         from physcap_drake.station.sim_station import MakeSimStation
 
+        # The emulated firmware (`can.planner`) plans the joint reference; the simulated
+        # station's own joint interpolator only has to pass it on. Bounding its acceleration
+        # as well would filter the reference a second time (the firmware's 5 ms steps are
+        # sampled at the plant's 4 ms), so the world is built with that bound lifted.
+        servo = scenario.station.joint_servo
+        scenario = dc.replace(scenario, station=dc.replace(
+            scenario.station, joint_servo=dc.replace(
+                servo, max_acceleration=PASS_THROUGH_ACCELERATION)))
         self.station = MakeSimStation(scenario)
         self.plant = self.station.GetSubsystemByName("plant")
-        self._max_force = scenario.station.gripper_servo.max_force
+        config = scenario.station
+        self._max_force = config.gripper_servo.max_force
         self._max_effort = float(gripper_max_effort)
         self._simulator = Simulator(self.station)
         self._context = self._simulator.get_mutable_context()
-        config = scenario.station
+        arm = self.plant.GetModelInstanceByName(config.arm_model)
+        self._arm_velocities = sorted(
+            self.plant.get_joint_actuator(i).joint().velocity_start()
+            for i in self.plant.GetJointActuatorIndices(arm))
+        self._tcp = self.plant.GetFrameByName("tcp", self.plant.GetModelInstanceByName(
+            config.gripper_model))
+        self._feedforward = (self.station.GetSubsystemByName("arm_feedforward")
+                             if self.station.HasSubsystemNamed("arm_feedforward") else None)
+        self._reference: np.ndarray | None = None  # the last period's joint reference
         self._fix(np.asarray(config.initial_arm_position, dtype=float),
                   config.initial_gripper_opening, 0.0)
+        self._applied(np.zeros(self.plant.num_velocities()))
         self._simulator.Initialize()
 
     @property
@@ -54,30 +86,76 @@ class SimulatedMotion:
         """The plant's part of the live context (read it holding the emulator's lock)."""
         return self.plant.GetMyMutableContextFromRoot(self._context)
 
-    def initial_state(self, arm: EmulatedArm) -> None:
-        arm.q = self._output(ports.ARM_POSITION_MEASURED).copy()
-        arm.gripper_opening = float(self._output(ports.GRIPPER_POSITION_MEASURED)[0])
+    def initial_state(self) -> tuple[np.ndarray, float]:
+        return (self._output(ports.ARM_POSITION_MEASURED).copy(),
+                float(self._output(ports.GRIPPER_POSITION_MEASURED)[0]))
 
-    def step(self, arm: EmulatedArm, dt: float) -> MotionReading:
-        # Joints that may not move (disabled, or the arm in an error state) hold where they are.
-        target = np.where(arm.moving, arm.target, arm.q)
-        opening = arm.gripper_target if arm.gripper_enabled else arm.gripper_opening
-        effort = arm.gripper_effort if arm.gripper_enabled else 0.0
+    def step(self, command: MotionCommand, dt: float) -> MotionReading:
+        """Advances the world by dt. The reference is reached at the end of the period and
+        moves linearly through it: the simulated joint loop, which updates at the plant's
+        own rate, sees it move as smoothly as the firmware's servo loop does."""
+        q_now = self._output(ports.ARM_POSITION_MEASURED)
+        # Joints that may not move (disabled) hold where they are.
+        reference = np.where(command.powered, command.reference, q_now)
+        start = self._reference if self._reference is not None else reference
+        opening = command.gripper_target
+        effort = command.gripper_effort_limit if command.gripper_enabled else 0.0
         force = min(max(effort, 0.0), self._max_effort) / self._max_effort * self._max_force
-        self._fix(target, opening, force)
-        self._simulator.AdvanceTo(self._context.get_time() + dt)
-        arm.q = self._output(ports.ARM_POSITION_MEASURED).copy()
-        arm.gripper_opening = float(self._output(ports.GRIPPER_POSITION_MEASURED)[0])
+        self._applied(self._load_torque(command.load))
+        t0 = self._context.get_time()
+        period, end = self.plant.time_step(), t0 + dt
+        update = (np.floor(t0 / period + 1e-9) + 1.0) * period
+        while update <= end + 1e-9:  # the joint loop's updates within this period
+            # Fixed before the update and advanced just past it: the update sees this value
+            # whichever side of a boundary Drake handles it on.
+            fraction = min((update - t0) / dt, 1.0)
+            self._fix(start + fraction * (reference - start), opening, force)
+            self._simulator.AdvanceTo(update + PAST_UPDATE)
+            update += period
+        self._fix(reference, opening, force)
+        if self._context.get_time() < end:
+            self._simulator.AdvanceTo(end)
+        self._reference = reference
+        torque = self._output(ports.ARM_TORQUE_MEASURED).copy()
         return MotionReading(
-            self._output(ports.ARM_VELOCITY_ESTIMATED).copy(),
-            self._output(ports.ARM_TORQUE_MEASURED).copy(),
+            self._output(ports.ARM_POSITION_MEASURED).copy(),
+            self._output(ports.ARM_VELOCITY_ESTIMATED).copy(), torque,
+            torque - self._model_torque(),
+            float(self._output(ports.GRIPPER_POSITION_MEASURED)[0]),
             float(self._output(ports.GRIPPER_EFFORT_MEASURED)[0]) * self._max_effort)
+
+    # The firmware's model ------------------------------------------------------------------------
+
+    def _load_torque(self, load: int) -> np.ndarray:
+        """Generalized forces that carry the set end load's weight at the fingertip."""
+        mass = LOAD_MASS.get(load, 0.0)
+        if mass == 0.0:
+            return np.zeros(self.plant.num_velocities())
+        J = self.plant.CalcJacobianTranslationalVelocity(
+            self.plant_context, JacobianWrtVariable.kV, self._tcp, np.zeros(3),
+            self.plant.world_frame(), self.plant.world_frame())
+        tau = J.T @ np.array([0.0, 0.0, mass * GRAVITY])
+        masked = np.zeros_like(tau)
+        masked[self._arm_velocities] = tau[self._arm_velocities]
+        return masked
+
+    def _model_torque(self) -> np.ndarray:
+        """The torques the firmware's model expects (its feed-forward), N·m."""
+        if self._feedforward is None:
+            return np.zeros(6)
+        return self._feedforward.get_output_port().Eval(
+            self._feedforward.GetMyContextFromRoot(self._context)).copy()
+
+    # Station I/O -------------------------------------------------------------------------
 
     def _fix(self, q: np.ndarray, opening: float, force: float) -> None:
         station, context = self.station, self._context
         station.GetInputPort(ports.ARM_POSITION).FixValue(context, q)
         station.GetInputPort(ports.GRIPPER_POSITION).FixValue(context, [opening])
         station.GetInputPort(ports.GRIPPER_FORCE_LIMIT).FixValue(context, [force])
+
+    def _applied(self, tau: np.ndarray) -> None:
+        self.plant.get_applied_generalized_force_input_port().FixValue(self.plant_context, tau)
 
     def _output(self, name: str) -> np.ndarray:
         return self.station.GetOutputPort(name).Eval(self._context)

@@ -88,14 +88,17 @@ def can_loop(
     """Period jitter of the CAN station's command loop.
 
     Streams commands over the virtual bus to the emulator while the arm sweeps in real
-    time, and reports the loop period's p50_ms and p99_ms (target 1000 / rate).
+    time and the camera renders at 10 Hz; reports the loop period's p50_ms, p99_ms
+    (target 1000 / rate) and max_ms, and how often the watchdog stopped the arm.
     """
     with sim_progress("bench can-loop", seconds) as progress:
         result = run_can_loop(seconds, rate, progress)
     console.print(f"control loop at {result.control_rate_hz:g} Hz over {result.cycles} "
                   f"cycles: p50_ms {result.p50_ms:.3f}, p99_ms {result.p99_ms:.3f}, max_ms "
                   f"{result.max_ms:.3f}, mean rate {result.mean_rate_hz:.1f} Hz, "
-                  f"{result.commands_sent} commands sent")
+                  f"{result.commands_sent} commands sent, {result.watchdog_trips} watchdog "
+                  f"trips, {result.images} camera images, real-time scheduling "
+                  f"{'on' if result.realtime else 'off'}")
     if json_path is not None:
         save_json(json_path, dataclasses.asdict(result))
 

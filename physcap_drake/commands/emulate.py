@@ -26,8 +26,10 @@ def emulate_piper(
         "--scenario", help="Back the arm by this scenario's simulated station (its scene and "
                            "objects); without it the joints move kinematically.")] = None,
 ) -> None:
-    """Answer on the bus like a PiPER arm (status, joints, gripper, driver feedback at
-    200 Hz; enable, mode, joint and gripper commands, firmware and limit queries)."""
+    """Answer on the bus like a PiPER arm: feedback at 200 Hz (status, end pose, joints,
+    gripper, drivers), every command and query of the vendor's protocol (e-stop and resume,
+    modes and speed, joint and end-pose moves, gripper, settings acknowledged on 0x476,
+    limits and parameters); what it cannot emulate (MIT mode) it refuses in arm_status."""
     if interface not in ("socketcan", "virtual"):
         raise typer.BadParameter(f"--interface must be socketcan or virtual, not {interface!r}")
     motion = None

@@ -19,8 +19,9 @@ def MakeStation(scenario, meshcat: Meshcat | None = None) -> Diagram:
         meshcat: when given, the scene is drawn there (per `scenario.visualization`).
     Returns:
         A Diagram with inputs piper.position, gripper.position, gripper.force_limit and the
-        outputs listed in `physcap_drake.station.ports`. A PiperCan station is connected
-        and streaming once built: release it with `close_station`.
+        outputs listed in `physcap_drake.station.ports`. A PiperCan station connects when
+        its simulator initializes (or `can_station.start_can_station`): release it with
+        `close_station`.
     """
     station = scenario.station
     if isinstance(station, SimPiper):
@@ -56,7 +57,7 @@ def scene_plant(station: Diagram):
     scene = station.GetSubsystemByName(SCENE) if station.HasSubsystemNamed(SCENE) else None
     if not isinstance(scene, EmulatedScene):
         raise RuntimeError(NO_WORLD)
-    return scene.motion.plant
+    return scene.plant
 
 
 NO_WORLD = ("this station has no simulated world (the real arm over CAN): ground truth "
@@ -66,31 +67,27 @@ NO_WORLD = ("this station has no simulated world (the real arm over CAN): ground
 @contextmanager
 def scene_ground_truth(station: Diagram, root_context: Context):
     """Yields (plant, plant context) of the simulated world behind `station`: the sim
-    station's own plant, or an emulated CAN station's emulator scene (held still while the
-    block runs). Ground truth for success checks and task set-up only, never for agents.
-    Raises RuntimeError for the real arm, which has no simulated world."""
-    from physcap_drake.station.can_scene import EmulatedScene
+    station's own plant, or an emulated CAN station's emulated world (what the block changes
+    is written to it when the block ends). Ground truth for success checks and task set-up
+    only, never for agents. Raises RuntimeError for the real arm, which has no simulated
+    world."""
     from physcap_drake.station.can_station import SCENE
 
     plant = scene_plant(station)
     if station.HasSubsystemNamed("plant"):
         yield plant, plant.GetMyMutableContextFromRoot(root_context)
         return
-    scene: EmulatedScene = station.GetSubsystemByName(SCENE)
-    with scene.emulator.lock:
-        yield scene.motion.plant, scene.motion.plant_context
+    with station.GetSubsystemByName(SCENE).ground_truth() as world:
+        yield world
 
 
 def scene_snapshot(station: Diagram, root_context: Context):
     """(plant, plant context) of the simulated world now, to read: the sim station's live
-    context (its time stands still between calls), or a copy of the emulator's (its thread
-    moves on). Raises RuntimeError for the real arm."""
+    context (its time stands still between calls), or a copy of the emulated world's (the
+    emulated arm moves on). Raises RuntimeError for the real arm."""
     from physcap_drake.station.can_station import SCENE
 
     plant = scene_plant(station)
     if station.HasSubsystemNamed("plant"):
         return plant, plant.GetMyContextFromRoot(root_context)
-    motion = station.GetSubsystemByName(SCENE).motion
-    with station.GetSubsystemByName(SCENE).emulator.lock:
-        copy = motion.context.Clone()
-    return plant, plant.GetMyContextFromRoot(copy)
+    return plant, station.GetSubsystemByName(SCENE).snapshot()

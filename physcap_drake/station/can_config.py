@@ -69,6 +69,10 @@ class PiperCan:
     max_feedback_loss: float = 0.05
     # Stale for longer than this ends the episode with an error, s.
     stale_limit: float = 1.0
+    # Real-time (SCHED_RR) priority of the streaming process, 1-99; 0: normal scheduling.
+    # Needs CAP_SYS_NICE (root, or setcap on the interpreter); refused, it streams at
+    # normal priority and logs a warning. The emulated arm runs one below it.
+    realtime_priority: int = 20
     # Run a PiPER emulator on the virtual channel, backed by `emulated` (see module docstring).
     emulate: bool = False
     # The simulated arm behind the emulator (its models are the scenario's directives).
@@ -91,6 +95,7 @@ class PiperCan:
                   open_minimum=True)
         at.number("max_feedback_loss", self.max_feedback_loss, minimum=0.0, maximum=1.0)
         at.number("stale_limit", self.stale_limit, minimum=self.feedback_timeout)
+        at.number("realtime_priority", self.realtime_priority, minimum=0, maximum=99)
         if self.firmware:
             from physcap_drake.can.codec import parse_firmware
 

@@ -1,4 +1,4 @@
-"""PiperCanInterface: the Drake side of a PiperLink (the real arm, or its emulator, over CAN)."""
+"""PiperCanInterface: the Drake side of the CAN link (the real arm, or its emulator)."""
 
 from __future__ import annotations
 
@@ -7,9 +7,9 @@ import time
 import numpy as np
 from pydrake.systems.framework import BasicVector, Context, DiscreteValues, LeafSystem
 
-from physcap_drake.can.link import PiperLink
 from physcap_drake.control.errors import ArmFault
 from physcap_drake.station import ports
+from physcap_drake.station.can_session import CanSession
 
 # Layout of the discrete state: the latched feedback and the watchdog's verdict.
 _Q, _V, _TAU = slice(0, 6), slice(6, 12), slice(12, 18)
@@ -18,15 +18,18 @@ _STATE_SIZE = 21
 
 
 class PiperCanInterface(LeafSystem):
-    """Hands the station's commands to a running PiperLink and latches its feedback.
+    """Hands the station's commands to the streaming process and latches its feedback.
 
-    Every 1/control_rate s a publish event gives the link the latest inputs (the link's own
-    thread streams them to the arm; see `physcap_drake.can.link`), and a discrete update
-    copies the link's feedback into the context, so the outputs are functions of the
-    context. The same update raises ArmFault, ending the run, when the arm reports an error
-    state or the feedback has been stale for longer than `stale_limit`; shorter stale spells
-    set the stale flag (`is_stale`) while the arm holds and the outputs keep their last
-    trusted values.
+    Its initialization event starts the session (connects, runs the arm's start-up,
+    starts streaming; see `can_session`), unless it was started before. Every
+    1/control_rate s a publish event writes the latest inputs where the streaming process
+    picks them up (it streams them to the arm at its own pace; see `can.link_process`),
+    and a discrete update copies the process's latest feedback into the context, so the
+    outputs are functions of the context. The same update raises ArmFault, ending the
+    run, when the arm reports an error state, the feedback has been stale for longer than
+    `stale_limit`, or the streaming process stopped publishing for that long; shorter
+    stale spells set the stale flag (`is_stale`) while the arm holds and the outputs keep
+    their last trusted values.
 
     Input ports: piper.position (6, rad), gripper.position (1, m, total gap),
         gripper.force_limit (1, N per finger; sent as an effort limit of
@@ -38,9 +41,9 @@ class PiperCanInterface(LeafSystem):
     Discrete state: q (6), v (6), τ (6), opening, effort, stale flag (0 or 1).
     """
 
-    def __init__(self, link: PiperLink, config):
+    def __init__(self, session: CanSession, config):
         super().__init__()
-        self.link = link  # a resource (like a socket), not state: the state is in the context
+        self.session = session  # a resource (like a socket), not state
         self._max_force = config.gripper_max_force
         self._max_effort = config.gripper_max_effort
         self._stale_limit = config.stale_limit
@@ -49,7 +52,7 @@ class PiperCanInterface(LeafSystem):
         self._opening = self.DeclareVectorInputPort(ports.GRIPPER_POSITION, 1)
         self._force = self.DeclareVectorInputPort(ports.GRIPPER_FORCE_LIMIT, 1)
         state = self.DeclareDiscreteState(_STATE_SIZE)
-        self.DeclareInitializationDiscreteUpdateEvent(self._latch)
+        self.DeclareInitializationDiscreteUpdateEvent(self._initialize)
         self.DeclarePeriodicDiscreteUpdateEvent(period, 0.0, self._latch)
         self.DeclarePeriodicPublishEvent(period, 0.0, self._send)
         ticket = {self.discrete_state_ticket(state)}
@@ -60,6 +63,14 @@ class PiperCanInterface(LeafSystem):
                            (ports.GRIPPER_EFFORT_MEASURED, slice(_EFFORT, _EFFORT + 1))):
             size = part.stop - part.start
             self.DeclareVectorOutputPort(name, size, self._output_of(part), ticket)
+
+    @property
+    def link(self):
+        """The streaming process's handle (`can.link_process.LinkProcess`), once started."""
+        if not self.session.started:
+            raise RuntimeError("the CAN station is not started: initialize its simulator, "
+                               "or call start_can_station(station)")
+        return self.session.link
 
     def _output_of(self, part: slice):
         def calc(context: Context, output: BasicVector) -> None:
@@ -73,15 +84,25 @@ class PiperCanInterface(LeafSystem):
     def _send(self, context: Context) -> None:
         force = float(np.clip(self._force.Eval(context)[0], 0.0, self._max_force))
         self.link.command(self._position.Eval(context), self._opening.Eval(context)[0],
-                          force / self._max_force * self._max_effort)
+                          force / self._max_force * self._max_effort, context.get_time())
+
+    def _initialize(self, context: Context, state: DiscreteValues) -> None:
+        self.session.start()
+        self._latch(context, state)
 
     def _latch(self, context: Context, state: DiscreteValues) -> None:
-        status = self.link.status()
-        health = status.health
+        feedback = self.link.feedback()
+        now = time.monotonic()
+        if feedback is None or now - feedback.published_at > self._stale_limit:
+            silent = "nothing yet" if feedback is None else (
+                f"nothing for {now - feedback.published_at:.1f} s")
+            raise ArmFault(f"the CAN streaming process published {silent} (more than "
+                           f"station.stale_limit = {self._stale_limit} s): it stopped")
+        health = feedback.health
         if health.fault:
             raise ArmFault(health.fault)
-        if status.stale_since is not None:
-            stale_for = time.monotonic() - status.stale_since
+        if feedback.stale_since is not None:
+            stale_for = now - feedback.stale_since
             if stale_for > self._stale_limit:
                 raise ArmFault(f"arm feedback stale for {stale_for:.1f} s (more than "
                                f"station.stale_limit = {self._stale_limit} s): "
@@ -89,9 +110,7 @@ class PiperCanInterface(LeafSystem):
         value = context.get_discrete_state_vector().get_value().copy()
         value[_STALE] = float(health.stale)
         if not health.stale:
-            feedback = self.link.listener.snapshot()
-            value[_Q], value[_V] = feedback.q, feedback.v
-            value[_TAU] = self.link.torques(feedback.current)
+            value[_Q], value[_V], value[_TAU] = feedback.q, feedback.v, feedback.torque
             value[_OPENING] = feedback.gripper_opening
             value[_EFFORT] = min(abs(feedback.gripper_effort) / self._max_effort, 1.0)
         state.set_value(value)

@@ -2,20 +2,25 @@
 
 The real arm reports joints and gripper only. Camera images come from a camera, and the
 simulation-only outputs (`camera.label`, `body_poses`) exist only where there is a
-simulation. With an emulator, its simulated scene is that world: `EmulatedScene` renders it
-and reads its body poses. Without one, `NoScene` keeps the port contract but refuses to be
-evaluated, naming the port (no camera driver is part of this project yet).
+simulation. With an emulator, its simulated scene is that world: the emulated arm runs it
+in its own process and publishes its state; `EmulatedScene` keeps a copy of the same scene
+(built from the same scenario) to render and read. Without one, `NoScene` keeps the port
+contract but refuses to be evaluated, naming the port (no camera driver is part of this
+project yet; a camera added beside the interface will provide the image ports).
 """
 
 from __future__ import annotations
 
+import dataclasses as dc
+from contextlib import contextmanager
+
+import numpy as np
 from pydrake.common.value import AbstractValue
 from pydrake.multibody.plant import MultibodyPlant
 from pydrake.systems.framework import Context, LeafSystem
 
-from physcap_drake.can.emulator import PiperEmulator
-from physcap_drake.can.simulated_motion import SimulatedMotion
 from physcap_drake.station import ports
+from physcap_drake.station.can_session import CanSession
 
 SCENE_OUTPUTS = (*ports.IMAGE_OUTPUTS, ports.BODY_POSES)
 
@@ -23,38 +28,86 @@ SCENE_OUTPUTS = (*ports.IMAGE_OUTPUTS, ports.BODY_POSES)
 class EmulatedScene(LeafSystem):
     """camera.rgb, camera.depth, camera.label and body_poses of the emulator's simulated scene.
 
-    Each evaluation copies the scene's plant state (under the emulator's lock, so a
-    consistent instant) into a context of its own and evaluates the simulated station's port
-    there: rendering never holds up the emulator's firmware loop. The values are the same
-    types as the sim station's. Body poses are in the world frame, indexed by BodyIndex of
-    `motion.plant`; they and the label image are ground truth for success checks only.
+    Each evaluation copies the world state the emulated arm last published into this
+    system's own copy of the scene and evaluates the simulated station's port there, so
+    rendering never holds up the arm. The values are the same types as the sim station's.
+    Body poses are in the world frame, indexed by BodyIndex of `plant`; they and the label
+    image are ground truth for success checks only.
     """
 
-    def __init__(self, emulator: PiperEmulator, motion: SimulatedMotion):
+    def __init__(self, scenario, session: CanSession):
         super().__init__()
-        self.emulator = emulator  # resources shared with the emulator thread, not state
-        self.motion = motion
-        self._render_context = motion.station.CreateDefaultContext()
-        self._render_plant_context = motion.plant.GetMyMutableContextFromRoot(
-            self._render_context)
+        from physcap_drake.station.sim_station import MakeSimStation
+
+        self.session = session  # resources shared with the emulator, not state
+        self.station = MakeSimStation(dc.replace(scenario, station=scenario.station.emulated))
+        self.plant = self.station.GetSubsystemByName("plant")
+        self._context = self.station.CreateDefaultContext()
+        self._plant_context = self.plant.GetMyMutableContextFromRoot(self._context)
         for name in SCENE_OUTPUTS:
-            port = motion.station.GetOutputPort(name)
+            port = self.station.GetOutputPort(name)
             self.DeclareAbstractOutputPort(name, port.Allocate, self._copier(port),
                                            {self.time_ticket()})
         # The first image costs several times the next ones (renderer set-up): pay it now.
-        motion.station.GetOutputPort(ports.CAMERA_RGB).Eval(self._render_context)
+        self.station.GetOutputPort(ports.CAMERA_RGB).Eval(self._context)
+
+    @property
+    def world_size(self) -> int:
+        """The emulated plant's positions + velocities (what the emulator publishes)."""
+        return self.plant.num_positions() + self.plant.num_velocities()
+
+    @property
+    def emulator(self):
+        """The emulated arm's process handle (`can.emulator_process.EmulatorProcess`)."""
+        if self.session.emulator is None:
+            raise RuntimeError("the CAN station is not started: initialize its simulator, "
+                               "or call start_can_station(station)")
+        return self.session.emulator
 
     def _copier(self, port):
         def calc(context: Context, output: AbstractValue) -> None:
             self._sync()
-            output.SetFrom(port.EvalAbstract(self._render_context))
+            output.SetFrom(port.EvalAbstract(self._context))
         return calc
 
     def _sync(self) -> None:
-        plant = self.motion.plant
-        with self.emulator.lock:
-            state = plant.GetPositionsAndVelocities(self.motion.plant_context)
-        plant.SetPositionsAndVelocities(self._render_plant_context, state)
+        """Copies the world's state into this copy: as published now, or, once the station
+        was released, as it was then."""
+        if self.session.emulator is None and self.session.last_world is not None:
+            world = self.session.last_world
+        else:
+            world = self.emulator.world()
+        if world is None:
+            raise RuntimeError("the emulated arm has not published its world yet")
+        _, state = world
+        self.plant.SetPositionsAndVelocities(self._plant_context, state)
+
+    def snapshot(self) -> Context:
+        """The plant's context as the emulated world is now (a copy, to read)."""
+        self._sync()
+        return self.plant.GetMyContextFromRoot(self._context.Clone())
+
+    @contextmanager
+    def ground_truth(self):
+        """Yields (plant, plant context) of the world now; what the block changes in it
+        (parameters such as masses, positions, velocities) is written to the emulated
+        world when the block ends."""
+        self._sync()
+        context = self._plant_context
+        before = _parameters(context)
+        state = self.plant.GetPositionsAndVelocities(context).copy()
+        yield self.plant, context
+        changed = {i: v for i, v in _parameters(context).items()
+                   if not np.array_equal(v, before[i])}
+        now = self.plant.GetPositionsAndVelocities(context)
+        moved = None if np.array_equal(now, state) else now.copy()
+        if changed or moved is not None:
+            self.emulator.set_world(changed, moved)
+
+
+def _parameters(context: Context) -> dict[int, np.ndarray]:
+    return {i: context.get_numeric_parameter(i).get_value().copy()
+            for i in range(context.num_numeric_parameter_groups())}
 
 
 class NoScene(LeafSystem):

@@ -1,80 +1,46 @@
 """The CAN station: the PiPER over CAN behind the sim station's port contract.
 
-`MakeCanStation` connects to the arm (or starts an emulator on a virtual bus and connects to
-that), runs the start-up sequence and returns a Diagram whose ports are exactly those of
-`ports`. Connecting is a side effect of building, like opening a device: call
-`close_station(station)` when done (it stops streaming; the arm stays enabled and holds).
+`MakeCanStation` builds a Diagram whose ports are exactly those of `ports`: the
+PiperCanInterface (commands and feedback) and, beside it, the scene system (the emulated
+world's camera and ground truth, or NoScene; a camera driver goes here). Building connects
+to nothing (it starts the station's processes, see `can_session`): the arm is connected,
+enabled and streamed to when the simulator initializes the diagram (the interface's
+initialization event), or earlier with `start_can_station`.
+`close_can_station` stops streaming (the arm stays enabled and holds) and the emulator.
 """
 
 from __future__ import annotations
 
-import atexit
+from contextlib import contextmanager
 
-import can
 from pydrake.systems.framework import Diagram, DiagramBuilder
 
-from physcap_drake.can.emulator import PiperEmulator
-from physcap_drake.can.faults import FaultSettings, FaultyBus
-from physcap_drake.can.link import PiperLink
-from physcap_drake.can.simulated_motion import SimulatedMotion, simulated_motion
 from physcap_drake.station import ports
 from physcap_drake.station.can_config import PiperCan
 from physcap_drake.station.can_interface import PiperCanInterface
 from physcap_drake.station.can_scene import SCENE_OUTPUTS, EmulatedScene, NoScene
+from physcap_drake.station.can_session import CanSession
 
 INTERFACE, SCENE = "piper_can", "scene"
-EMULATED_FIRMWARE = "S-V1.8-2"
-
-
-def _open_bus(config: PiperCan) -> can.BusABC:
-    try:
-        if config.interface in ("slcan", "gs_usb"):
-            return can.Bus(interface=config.interface, channel=config.channel,
-                           bitrate=1_000_000)
-        return can.Bus(interface=config.interface, channel=config.channel)
-    except (OSError, can.CanError, ValueError) as error:
-        raise ConnectionError(f"station.interface {config.interface!r}, station.channel "
-                              f"{config.channel!r}: cannot open the CAN bus: {error}") from None
-
-
-def _start_emulator(scenario, config: PiperCan) -> tuple[PiperEmulator, SimulatedMotion]:
-    """An emulator backed by `config.emulated` in the scenario's scene, running."""
-    motion = simulated_motion(scenario)
-    bus = can.Bus(interface="virtual", channel=config.channel)
-    emulator = PiperEmulator(bus, firmware=config.firmware or EMULATED_FIRMWARE,
-                             motion=motion, rate=200.0)
-    return emulator.start(), motion
 
 
 def MakeCanStation(scenario, meshcat=None) -> Diagram:
     """Builds the CAN station for `scenario` (whose `station` is a `PiperCan`); see module
-    docstring. Raises ConnectionError / StartupError naming the bus and what failed."""
+    docstring. Nothing is connected yet."""
     config: PiperCan = scenario.station
     if meshcat is not None:
         raise ValueError("station: !PiperCan does not draw in Meshcat yet; run without "
                          "--meshcat")
-    emulator = motion = None
+    session = CanSession(scenario)
     if config.emulate:
-        emulator, motion = _start_emulator(scenario, config)
-        faults = config.faults
-        bus = FaultyBus(can.Bus(interface="virtual", channel=config.channel),
-                        FaultSettings(faults.loss, faults.delay, faults.garble),
-                        seed=faults.seed)
-    else:
-        bus = _open_bus(config)
-    if emulator is not None:
-        scene = EmulatedScene(emulator, motion)
+        scene = EmulatedScene(scenario, session)
+        session.world_size = scene.world_size
     else:
         camera = next(c for c in scenario.cameras if c.name == "camera")
         scene = NoScene(camera.width, camera.height)
-    try:
-        link = PiperLink(bus, config).start()
-    except Exception:
-        if emulator is not None:
-            _release_emulator(emulator)
-        raise
+    session.wait_ready()  # the processes run, unconnected: initializing only connects
     builder = DiagramBuilder()
-    interface = builder.AddNamedSystem(INTERFACE, PiperCanInterface(link, config))
+    interface = builder.AddNamedSystem(INTERFACE, PiperCanInterface(session, config))
     for name in ports.VECTOR_INPUTS:
         builder.ExportInput(interface.GetInputPort(name), name)
     for name in ports.VECTOR_OUTPUTS:
@@ -84,24 +50,30 @@ def MakeCanStation(scenario, meshcat=None) -> Diagram:
         builder.ExportOutput(scene.GetOutputPort(name), name)
     diagram = builder.Build()
     diagram.set_name("station")
-    # Threads must not outlive the interpreter (an emulator inside Drake's C++ would abort).
-    atexit.register(_release, link, emulator)
     return diagram
 
 
-def _release(link: PiperLink, emulator: PiperEmulator | None) -> None:
-    link.close()
-    if emulator is not None:
-        _release_emulator(emulator)
+def can_session(station: Diagram) -> CanSession:
+    return station.GetSubsystemByName(INTERFACE).session
 
 
-def _release_emulator(emulator: PiperEmulator) -> None:
-    emulator.stop()
-    emulator.bus.shutdown()
+def start_can_station(station: Diagram) -> None:
+    """Connects the station now (emulator, streaming process, the arm's start-up) instead
+    of at its simulator's initialization. Raises ConnectionError / StartupError naming the
+    bus and what failed."""
+    can_session(station).start()
 
 
 def close_can_station(station: Diagram) -> None:
-    """Stops streaming and closes the bus (the arm holds), then stops an emulator."""
-    scene = station.GetSubsystemByName(SCENE)
-    _release(station.GetSubsystemByName(INTERFACE).link,
-             scene.emulator if isinstance(scene, EmulatedScene) else None)
+    """Stops streaming (the arm holds), then the emulator. Safe to call twice."""
+    can_session(station).close()
+
+
+@contextmanager
+def running_can_station(station: Diagram):
+    """Connected inside the block, released (the arm holding) after it, whatever happens."""
+    start_can_station(station)
+    try:
+        yield station
+    finally:
+        close_can_station(station)

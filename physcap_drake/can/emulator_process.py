@@ -1,0 +1,189 @@
+"""EmulatorProcess: the emulated arm in a process of its own, like the real arm is a device
+of its own.
+
+The child builds the motion backend (the scenario's simulated station, or the kinematic
+arm), runs a PiperEmulator on its end of a socket pair (`socket_bus`) and, after every
+firmware cycle, publishes the simulated world's state (plant positions and velocities,
+and the simulation time) to a shared block. The parent keeps a copy of the world's model
+(`station.can_scene.EmulatedScene`) and reads that block to render the camera and report
+ground truth, so rendering in the parent never holds up the arm. The few writes to the
+world (a task's hidden masses) go the other way over the pipe.
+"""
+
+from __future__ import annotations
+
+import gc
+import logging
+import socket
+import time
+
+import numpy as np
+
+from physcap_drake.can.child_process import ChildError, ChildProcess
+from physcap_drake.can.shared_block import Layout, SharedBlock
+
+log = logging.getLogger("physcap_drake.can")
+
+#: How long the parent waits for the child to build its world and start, s.
+START_TIMEOUT = 120.0
+#: How long a reader of the world waits for the emulator to finish a publication, s.
+WORLD_PATIENCE = 0.005
+REQUEST_TIMEOUT = 10.0
+
+
+def world_layout(size: int) -> Layout:
+    """Simulation time (s) and the plant's positions and velocities (`size` values)."""
+    return Layout({"time": 1, "state": size})
+
+
+class EmulatorProcess:
+    """The parent's handle. `bus_socket`: the emulator's end of a socket pair; `scenario_yaml`:
+    a scenario with a `SimPiper` station (as YAML text) whose simulated station backs the
+    arm, or None for the kinematic arm; `gripper_max_effort`: N·m at the simulated gripper's
+    full force (see SimulatedMotion); `state_size`: the plant's positions + velocities (the
+    world block's size, 0 without a scenario); `firmware`: the version it reports;
+    `realtime_priority`: its scheduling (see `can.realtime`, 0: normal). The process starts
+    at once and builds its world in the background; `wait_ready()` waits for it."""
+
+    def __init__(self, bus_socket: socket.socket, scenario_yaml: str | None = None, *,
+                 gripper_max_effort: float = 2.0, state_size: int = 0,
+                 firmware: str = "S-V1.8-2", realtime_priority: int = 0):
+        self._world = SharedBlock(world_layout(state_size)) if state_size else None
+        self._last_world: tuple[float, np.ndarray] | None = None
+        world_fd = None if self._world is None else self._world.fd
+        fds = (bus_socket.fileno(),) + (() if world_fd is None else (world_fd,))
+        self._child = ChildProcess(
+            "physcap_drake.can.emulator_process:serve",
+            (bus_socket.fileno(), scenario_yaml, gripper_max_effort, firmware, world_fd,
+             state_size, realtime_priority), fds, name="piper-emulator")
+        bus_socket.close()  # the child has its own copy
+        self._ready = False
+
+    def wait_ready(self) -> EmulatorProcess:
+        """Waits until the emulated arm runs (its world built, its first cycle published);
+        RuntimeError with the child's words if it cannot start (it is closed then)."""
+        if self._ready:
+            return self
+        try:
+            self._request(("ready",), timeout=START_TIMEOUT)
+            deadline = time.monotonic() + REQUEST_TIMEOUT
+            while self._world is not None and self.world() is None:  # its first cycle
+                if time.monotonic() > deadline:
+                    raise RuntimeError("the PiPER emulator process never published its world")
+                time.sleep(0.002)
+        except BaseException:
+            self.close()
+            raise
+        self._ready = True
+        return self
+
+    def _request(self, request: tuple, timeout: float = REQUEST_TIMEOUT):
+        try:
+            return self._child.request(request, timeout)
+        except ChildError as error:
+            raise RuntimeError(f"PiPER emulator process: {error}") from None
+
+    def world(self) -> tuple[float, np.ndarray] | None:
+        """(simulation time s, plant positions and velocities) as last published (None
+        before the first publication)."""
+        reading = None if self._world is None else self._world.read(patience=WORLD_PATIENCE)
+        if reading is not None and not np.isnan(reading["time"][0]):
+            self._last_world = float(reading["time"][0]), reading["state"]
+        return self._last_world
+
+    def snapshot(self):
+        """A copy of the emulated firmware's state (`arm_state.EmulatedArm`)."""
+        return self._request(("snapshot",))
+
+    def set_error(self, arm_status: int = 0, err_code: int = 0) -> None:
+        """The arm reports this error state from now on (see PiperEmulator.set_error)."""
+        self._request(("set_error", arm_status, err_code))
+
+    def set_world(self, parameters: dict[int, np.ndarray], state: np.ndarray | None) -> None:
+        """Writes the simulated world: numeric parameter groups of the plant context (by
+        index) and, if given, its positions and velocities; returns once applied."""
+        self._request(("set_world", parameters, state))
+
+    def close(self) -> None:
+        """Stops the emulator (the emulated arm stops answering). Safe to call twice."""
+        # Not ready yet, it may still be building its world: no need to wait for it.
+        self._child.close(5.0 if self._ready else 0.2, polite=self._ready)
+        if self._world is not None:
+            self._world.close()
+            self._world = None
+
+
+def serve(conn, bus_fd: int, scenario_yaml: str | None, gripper_max_effort: float,
+          firmware: str, world_fd: int | None, state_size: int,
+          realtime_priority: int) -> None:
+    """The emulated arm's process: runs until the parent says close or goes away."""
+    from physcap_drake.can.emulator import PiperEmulator
+    from physcap_drake.can.motion import KinematicMotion
+    from physcap_drake.can.realtime import use_realtime
+    from physcap_drake.can.socket_bus import SocketBus
+
+    logging.basicConfig(level=logging.WARNING, format="%(message)s")
+    world = None if world_fd is None else SharedBlock(world_layout(state_size), fd=world_fd)
+    try:
+        if scenario_yaml is None:
+            motion = KinematicMotion()
+        else:
+            from physcap_drake.can.simulated_motion import SimulatedMotion
+            from physcap_drake.scenario import load_scenario_text
+
+            motion = SimulatedMotion(load_scenario_text(scenario_yaml, label="emulated arm"),
+                                     gripper_max_effort=gripper_max_effort)
+    except (RuntimeError, ValueError, OSError) as error:  # say why there is no world; end
+        conn.recv()
+        conn.send(("error", f"{type(error).__name__}: {error}"))
+        return
+
+    def publish() -> None:
+        plant = motion.plant
+        world.write({"time": [motion.context.get_time()],
+                     "state": plant.GetPositionsAndVelocities(motion.plant_context)})
+
+    use_realtime(realtime_priority, "the emulated PiPER")  # its firmware thread inherits it
+    # What start-up allocated (the world's Drake systems, the modules) is never collected
+    # again: a full collection over all of it stalls the firmware loop for about 40 ms,
+    # which the host's watchdog sees as lost feedback.
+    gc.freeze()
+    bus = SocketBus(socket.socket(fileno=bus_fd), "emulator")
+    emulator = PiperEmulator(bus, firmware=firmware, motion=motion,
+                             on_cycle=publish if world is not None else None).start()
+    try:
+        while True:
+            try:
+                kind, *args = conn.recv()
+            except (EOFError, OSError):
+                break
+            if kind == "close":
+                conn.send(("ok", None))
+                break
+            conn.send(_answer(emulator, kind, args))
+    finally:
+        emulator.stop()
+        bus.shutdown()
+        if world is not None:
+            world.close()
+
+
+def _answer(emulator, kind: str, args) -> tuple[str, object]:
+    if kind == "ready":
+        return "ok", None
+    if kind == "snapshot":
+        return "ok", emulator.snapshot()
+    if kind == "set_error":
+        emulator.set_error(*args)
+        return "ok", None
+    if kind == "set_world":
+        parameters, state = args
+        motion = emulator.motion
+        with emulator.lock:
+            context = motion.plant_context
+            for index, values in parameters.items():
+                context.get_mutable_numeric_parameter(index).SetFromVector(values)
+            if state is not None:
+                motion.plant.SetPositionsAndVelocities(context, state)
+        return "ok", None
+    return "error", f"unknown request {kind!r}"

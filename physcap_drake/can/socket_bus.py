@@ -1,0 +1,96 @@
+"""SocketBus: a python-can bus between two processes of this machine, for the emulator.
+
+python-can's virtual bus only connects buses of one interpreter; the emulated arm and the
+host's streaming process are separate processes, like the real arm and its host. They talk
+over a Unix socket pair (datagrams, so one frame stays one message). A frame that cannot be
+sent at once (the peer stopped reading and the socket is full) is dropped and the sender
+gets a CanOperationError, as a real bus's full transmit queue does; nothing ever waits.
+"""
+
+from __future__ import annotations
+
+import select
+import socket
+import struct
+import time
+
+import can
+
+#: Socket buffer size asked for, bytes (about 0.2-1 s of the arm's feedback, as the kernel
+#: allows).
+BUFFER_BYTES = 4 << 20
+#: arbitration id, flags (1 extended, 2 remote), length, 8 data bytes, timestamp.
+_FRAME = struct.Struct(">IBB8sd")
+
+
+def socket_pair() -> tuple[socket.socket, socket.socket]:
+    """Two connected ends; give one to each process (multiprocessing can pass them)."""
+    return socket.socketpair(socket.AF_UNIX, socket.SOCK_SEQPACKET)
+
+
+class SocketBus(can.BusABC):
+    """One end of a `socket_pair` as a python-can bus (see module docstring)."""
+
+    def __init__(self, sock: socket.socket, channel: str = "socket", **kwargs):
+        super().__init__(channel=channel, **kwargs)
+        self._socket = sock
+        self._socket.setblocking(False)
+        for option in (socket.SO_SNDBUF, socket.SO_RCVBUF):  # the kernel caps the size
+            self._socket.setsockopt(socket.SOL_SOCKET, option, BUFFER_BYTES)
+        self.channel_info = f"socket pair {channel}"
+        self._drain()
+
+    def _drain(self) -> None:
+        """Drops what the peer sent before this end was opened, as a freshly opened CAN
+        socket only sees frames from then on."""
+        try:
+            while self._socket.recv(_FRAME.size):
+                pass
+        except (BlockingIOError, InterruptedError):
+            pass
+
+    def send(self, msg: can.Message, timeout: float | None = None) -> None:
+        flags = (1 if msg.is_extended_id else 0) | (2 if msg.is_remote_frame else 0)
+        data = bytes(msg.data)
+        packet = _FRAME.pack(msg.arbitration_id, flags, len(data), data.ljust(8, b"\0"),
+                             time.time())
+        try:
+            self._socket.send(packet)
+        except (BlockingIOError, InterruptedError) as error:
+            raise can.CanOperationError("socket bus: the peer is not reading, frame "
+                                        "dropped") from error
+        except OSError as error:
+            raise can.CanOperationError(f"socket bus: {error}") from error
+
+    def _recv_internal(self, timeout: float | None):
+        try:
+            packet = self._socket.recv(_FRAME.size)
+        except BlockingIOError:
+            ready, _, _ = select.select([self._socket], [], [], timeout)
+            if not ready:
+                return None, False
+            try:
+                packet = self._socket.recv(_FRAME.size)
+            except (BlockingIOError, InterruptedError):
+                return None, False
+            except ConnectionError:
+                packet = b""
+        except ConnectionError:
+            packet = b""
+        except OSError as error:
+            raise can.CanOperationError(f"socket bus: {error}") from error
+        if not packet:  # the peer closed its end: nothing will come any more
+            if timeout:
+                time.sleep(min(timeout, 0.01))
+            return None, False
+        identifier, flags, length, data, stamp = _FRAME.unpack(packet)
+        return can.Message(arbitration_id=identifier, is_extended_id=bool(flags & 1),
+                           is_remote_frame=bool(flags & 2), dlc=length, data=data[:length],
+                           timestamp=stamp, channel=self.channel_info), False
+
+    def fileno(self) -> int:
+        return self._socket.fileno()
+
+    def shutdown(self) -> None:
+        super().shutdown()
+        self._socket.close()

@@ -1,0 +1,117 @@
+"""CanSession: what a CAN station holds outside Drake, started only when asked.
+
+Building a CAN station connects to nothing, so a diagram can be built, drawn and
+inspected without powering the arm. `prepare()` and `wait_ready()` (run when the station
+is built) start the processes without connecting them: the streaming process
+(`can.link_process`) and, with `emulate: true`, the emulated arm (`can.emulator_process`,
+which builds its simulated world) on the two ends of a socket pair. `start()` (run by the
+PiperCanInterface's initialization event, or explicitly) connects: the streaming process
+opens its bus and runs the arm's start-up sequence (firmware, limits, mode, enabling).
+Keeping the slow part out of `start()` keeps the initialization event short, so a
+simulator paced to real time does not start far behind the clock.
+`close()` stops streaming (the arm stays enabled and holds) and then the emulated arm.
+These are resources, like a socket; the station's state stays in its Contexts.
+"""
+
+from __future__ import annotations
+
+import atexit
+import dataclasses as dc
+
+from pydrake.common.yaml import yaml_dump_typed
+
+from physcap_drake.can.emulator_process import EmulatorProcess
+from physcap_drake.can.faults import FaultSettings
+from physcap_drake.can.link import LinkSettings
+from physcap_drake.can.link_process import LinkProcess
+from physcap_drake.can.socket_bus import socket_pair
+from physcap_drake.station.can_config import PiperCan
+
+#: The firmware version the emulated arm reports unless `station.firmware` says another.
+EMULATED_FIRMWARE = "S-V1.8-2"
+
+
+class CanSession:
+    """See module docstring. `world_size`: positions + velocities of the emulated world's
+    plant (the scene's copy of it), 0 without an emulator."""
+
+    def __init__(self, scenario, world_size: int = 0):
+        config: PiperCan = scenario.station
+        self.config = config
+        self._scenario_yaml = (yaml_dump_typed(dc.replace(scenario, station=config.emulated))
+                               if config.emulate else None)
+        #: The emulated plant's positions + velocities (the shared world block's size).
+        self.world_size = world_size
+        self.link: LinkProcess | None = None
+        self.emulator: EmulatorProcess | None = None
+        #: The emulated world as it was when the session closed ((time s, state) or None):
+        #: success checks read it after the episode released the station.
+        self.last_world = None
+        #: The streaming process's last status (LinkStatus) and stale reasons when it closed.
+        self.last_status = None
+        self.last_stale_reasons: list[str] = []
+        atexit.register(self.close)  # processes must not outlive the interpreter
+
+    @property
+    def started(self) -> bool:
+        return self.link is not None and self.link.started
+
+    def prepare(self) -> CanSession:
+        """Starts the processes without connecting: they import (and the emulated arm builds
+        its world) in the background, so `start()` has only the arm's start-up left."""
+        if self.link is not None:
+            return self
+        config = self.config
+        if not config.emulate:
+            self.link = LinkProcess(LinkSettings.of(config))
+            return self
+        emulator_end, link_end = socket_pair()
+        f = config.faults
+        self.link = LinkProcess(LinkSettings.of(config), link_end,
+                                FaultSettings(f.loss, f.delay, f.garble), seed=f.seed)
+        self.emulator = EmulatorProcess(
+            emulator_end, self._scenario_yaml, gripper_max_effort=config.gripper_max_effort,
+            state_size=self.world_size, firmware=config.firmware or EMULATED_FIRMWARE,
+            realtime_priority=max(config.realtime_priority - 1, 0))
+        return self
+
+    def wait_ready(self) -> CanSession:
+        """Waits until the processes `prepare` started are ready to connect (the emulated
+        arm's world is built). Raises RuntimeError naming what failed."""
+        self.prepare()
+        try:
+            if self.emulator is not None:
+                self.emulator.wait_ready()
+            self.link.wait_ready()
+        except BaseException:
+            self.close()
+            raise
+        return self
+
+    def start(self) -> CanSession:
+        """Connects (see module docstring); does nothing if already started. Raises
+        ConnectionError / StartupError naming the bus and what failed (nothing is left
+        running then)."""
+        if self.started:
+            return self
+        self.wait_ready()
+        try:
+            self.link.start()
+        except BaseException:
+            self.close()
+            raise
+        return self
+
+    def close(self) -> None:
+        """Stops streaming (the arm holds), then the emulated arm. Safe to call twice."""
+        link, emulator = self.link, self.emulator
+        self.link = self.emulator = None
+        if link is not None:
+            if link.started:
+                self.last_status = link.status()
+                self.last_stale_reasons = link.stale_reasons()
+            link.close()
+        if emulator is not None:
+            if link is not None and link.started:
+                self.last_world = emulator.world()
+            emulator.close()

@@ -1,0 +1,79 @@
+"""`physcap arm ...` against the emulated arm (and against no arm at all)."""
+
+from __future__ import annotations
+
+import re
+
+import pytest
+from conftest import unique_channel
+from typer.testing import CliRunner
+
+from physcap_drake.cli import app
+from physcap_drake.resources import stations_dir
+
+SCENARIO = """\
+directives:
+- add_directives:
+    file: package://physcap_models/piper/piper_100mm.dmd.yaml
+station: !PiperCan
+  interface: {interface}
+  channel: {channel}
+  emulate: {emulate}
+  startup_timeout: 0.5
+simulator_config:
+  target_realtime_rate: 1.0
+"""
+
+
+def scenario(tmp_path, interface="virtual", emulate=True) -> str:
+    path = tmp_path / "arm.yaml"
+    path.write_text(SCENARIO.format(interface=interface, channel=unique_channel(),
+                                    emulate=str(emulate).lower()))
+    return str(path)
+
+
+def run(*args):
+    return CliRunner().invoke(app, ["arm", *args])
+
+
+def test_status_prints_firmware_limits_enable_bits_and_errors(tmp_path):
+    result = run("status", "--scenario", scenario(tmp_path))
+    assert result.exit_code == 0, result.output
+    out = result.output
+    assert "firmware S-V1.8-2: standby, MOVE P, normal" in out
+    assert "motors: J1 off, J2 off, J3 off, J4 off, J5 off, J6 off, gripper off" in out
+    assert re.search(r"J3 .* -170\.0 .* 0\.0 .* 3\.000 .* 5\.00", out)  # limits, speed, acc
+    assert "end effector: 0.500 m/s" in out and "J6 0" in out and "errors: none" in out
+
+
+def test_estop_waits_for_the_arm_to_report_it(tmp_path):
+    result = run("estop", "--scenario", scenario(tmp_path))
+    assert result.exit_code == 0, result.output
+    assert "the arm reports: emergency stop" in result.output
+
+
+def test_resume_asks_for_confirmation_then_resumes(tmp_path):
+    path = scenario(tmp_path)
+    refused = run("resume", "--scenario", path)
+    assert refused.exit_code == 2 and "--yes" in refused.output
+    result = run("resume", "--scenario", path, "--yes")
+    assert result.exit_code == 0 and "errors cleared, motors off" in result.output
+
+
+def test_clear_errors_says_what_remains(tmp_path):
+    result = run("clear-errors", "--scenario", scenario(tmp_path))
+    assert result.exit_code == 0 and "no errors reported" in result.output
+
+
+def test_a_simulated_station_is_refused_naming_the_option():
+    result = run("status", "--scenario", str(stations_dir() / "piper_table.yaml"))
+    assert result.exit_code == 2
+    assert "--scenario" in result.output and "!PiperCan station" in result.output
+
+
+@pytest.mark.parametrize("interface", ["virtual", "socketcan"])
+def test_no_arm_on_the_bus_is_one_line_naming_what_did_not_answer(tmp_path, interface):
+    result = run("status", "--scenario", scenario(tmp_path, interface, emulate=False))
+    assert result.exit_code == 1
+    assert re.search(r"arm: .*(firmware version \(0x4AF\)|cannot open the CAN bus)",
+                     result.output.replace("\n", " "))
