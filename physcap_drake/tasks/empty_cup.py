@@ -18,8 +18,8 @@ import numpy as np
 
 from physcap_drake.demos.pick_place import PlaceCheck, check_in_tray, move_to_tray
 from physcap_drake.perception.visible_objects import VisibleObject
+from physcap_drake.tasks.ground_truth import check_left_in_place, choose_answer, near_container
 from physcap_drake.tasks.task_instance import SceneObject, TaskInstance
-from physcap_drake.tasks.tray_tasks import _choose_answer, _near_tray
 
 COLORS = ("red", "yellow", "blue", "white")
 #: How many of the full cups carry a straw besides the empty one (see the module docstring).
@@ -35,6 +35,8 @@ BASKET_INNER_HALF = np.array([0.116, 0.086])
 CUP_RADIUS, CUP_GRASP_HEIGHT = 0.028, 0.041
 #: The task's time limit on robot execution time, s (LIBERO's episode limit).
 TIME_LIMIT = 200.0
+#: This task's own number in its random streams.
+STREAM = 19
 
 
 def _spawn(rng: np.random.Generator, count: int) -> list[np.ndarray]:
@@ -62,14 +64,14 @@ class EmptyCup:
                    f"{TIME_LIMIT:.0f} s of robot time. Leave the other cups where they are.")
 
     def instance(self, seed: int, answer: str = "") -> TaskInstance:
-        rng = np.random.default_rng((seed, 19))
+        rng = np.random.default_rng((seed, STREAM))
         spots = _spawn(rng, len(COLORS))
         names = [f"{color} cup" for color in COLORS]
         # The straw cups first, then the empty one among them: which of them is empty
         # changes nothing in view (pinning another straw cup keeps the same scene).
         straws = sorted(rng.choice(len(names), 1 + FULL_WITH_STRAW, replace=False))
         straws = [names[i] for i in straws]
-        answer = _choose_answer(rng, straws, answer, self.name)
+        answer = choose_answer(seed, STREAM, straws, answer, self.name)
         objects = tuple(SceneObject(
             f"{color}_cup", f"objects/libero_cup_{color}_{'straw' if name in straws else 'plain'}",
             VisibleObject(name, "cup", color, straw=name in straws),
@@ -79,7 +81,8 @@ class EmptyCup:
         return TaskInstance(self.name, seed, self.prompt, objects, answer)
 
     def check(self, episode) -> PlaceCheck:
-        """Ground truth: the empty cup in the basket, no full one, within the time limit."""
+        """Ground truth: the empty cup in the basket, no full one, the full ones where they
+        stood (within 2 cm), within the time limit."""
         instance, plant, plant_context = episode.instance, episode.plant, episode.plant_context
         robot_time = episode.api.robot_time
         basket = plant.GetBodyByName("basket")
@@ -91,13 +94,19 @@ class EmptyCup:
             if obj.visible.name == instance.answer:
                 inside = check_in_tray(plant, plant_context, body, basket, CUP_RADIUS,
                                        upright=False, inner_half=BASKET_INNER_HALF,
-                                       floor=BASKET_FLOOR)
+                                       floor=BASKET_FLOOR, label=obj.visible.name,
+                                       container="basket")
                 if not inside.success:
                     return PlaceCheck(False, f"the empty {obj.visible.name} is not in the "
                                              f"basket: {inside.reason}")
-            elif _near_tray(plant, plant_context, body, basket, BASKET_INNER_HALF):
+            elif near_container(plant, plant_context, body, basket, BASKET_INNER_HALF):
                 return PlaceCheck(False, f"the {obj.visible.name} (full) is in the basket")
-        return PlaceCheck(True, f"the empty {instance.answer} is in the basket")
+        full = [o.visible.name for o in instance.objects if o.visible.name != instance.answer]
+        moved = check_left_in_place(instance, plant, plant_context, full)
+        if moved is not None:
+            return moved
+        return PlaceCheck(True, f"the empty {instance.answer} is in the basket; the full cups "
+                                "stand where they stood")
 
     def solve(self, instance: TaskInstance, api, wrong: bool = False) -> None:
         """Scripted solution that knows the answer; with `wrong`, it moves the most tempting
