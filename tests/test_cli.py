@@ -75,7 +75,7 @@ def test_calibrate_mass_writes_one_entry_per_reference_mass(tmp_path):
     result = runner.invoke(app, ["calibrate", "mass", "--trials", "1", "--workers", "1",
                                  "--json", str(out)])
     assert result.exit_code == 0, result.output
-    rows = json.loads(out.read_text())
+    rows = json.loads(out.read_text())["rows"]
     assert [row["true_g"] for row in rows] == [13, 120, 350, 600, 963]
     for row in rows:
         assert abs(row["mean_g"] - row["true_g"]) < 10.0
