@@ -89,7 +89,7 @@ def test_run_prints_the_transcript_and_writes_the_summary(tmp_path):
                                  "--json", str(summary_path), "--record", str(calls_path)])
     assert result.exit_code == 0, result.output
     assert "# Code block" not in result.output  # the console shows entries, not markdown
-    assert "MEASURED: red can mass" in result.output and "success" in result.output
+    assert "MEASURED: green can mass" in result.output and "success" in result.output
     summary = json.loads(summary_path.read_text())
     assert summary["success"] is True and summary["oi"] == 1
     assert summary["robot_time_s"] > 10.0 and summary["agent"] == "physcap"

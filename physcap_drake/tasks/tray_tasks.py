@@ -144,5 +144,6 @@ class PickRipeAvocado(TrayTask):
                 body=f"avocado_{index}",
                 model=f"objects/avocado_{skin}_{'ripe' if ripe else 'firm'}",
                 visible=VisibleObject(name, "avocado", skin), xy=xy,
-                hidden={"stiffness_level": 2 if ripe else 4, "ripe": ripe}))
+                # The levels get_stiffness measures on these models (ripe 1, firm 4).
+                hidden={"stiffness_level": 1 if ripe else 4, "ripe": ripe}))
         return TaskInstance(self.name, seed, self.prompt, tuple(objects), answer)
