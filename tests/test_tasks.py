@@ -181,10 +181,14 @@ def _place(episode, name: str, xyz, rpy=(0.0, 0.0, 0.0)) -> None:
                           RigidTransform(RollPitchYaw(*rpy), np.asarray(xyz, dtype=float)))
 
 
-def test_a_tray_task_fails_when_another_object_is_out_of_place():
-    episode = make_episode("identify_empty_can", 5)
+@pytest.mark.parametrize(("task", "floor_point"), [
+    ("identify_empty_can", TRAY_BOTTOM + [0.0, 0.0, TRAY_FLOOR]),
+    ("empty_cup", BASKET_BOTTOM + [0.0, 0.0, BASKET_FLOOR]),
+])
+def test_a_put_away_task_fails_when_another_object_is_out_of_place(task, floor_point):
+    episode = make_episode(task, 5)
     instance = episode.instance
-    _place(episode, instance.answer, TRAY_BOTTOM + [0.0, 0.0, TRAY_FLOOR])
+    _place(episode, instance.answer, floor_point)
     assert episode.check().success, episode.check().reason
     other = next(o for o in instance.objects if o.visible.name != instance.answer)
     _place(episode, other.visible.name, [other.xy[0] - 0.05, other.xy[1], 0.0])
@@ -194,17 +198,6 @@ def test_a_tray_task_fails_when_another_object_is_out_of_place():
     assert "_" not in result.reason  # named as the camera names it, not by model names
     _place(episode, other.visible.name, [other.xy[0] + 0.01, other.xy[1], 0.0])
     assert episode.check().success  # put back within 2 cm
-
-
-def test_empty_cup_fails_when_a_full_cup_is_out_of_place():
-    episode = make_episode("empty_cup", 2)
-    instance = episode.instance
-    _place(episode, instance.answer, BASKET_BOTTOM + [0.0, 0.0, BASKET_FLOOR])
-    assert episode.check().success, episode.check().reason
-    full = next(o for o in instance.objects if o.visible.name != instance.answer)
-    _place(episode, full.visible.name, [full.xy[0], full.xy[1] + 0.03, 0.0])
-    result = episode.check()
-    assert not result.success and result.reason.startswith(f"the {full.visible.name} ended")
 
 
 def test_a_lifted_cup_must_end_upright_on_the_table_or_the_tray():

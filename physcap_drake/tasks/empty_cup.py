@@ -18,7 +18,7 @@ import numpy as np
 
 from physcap_drake.demos.pick_place import PlaceCheck, check_in_tray, move_to_tray
 from physcap_drake.perception.visible_objects import VisibleObject
-from physcap_drake.tasks.ground_truth import check_left_in_place, choose_answer, near_container
+from physcap_drake.tasks.ground_truth import check_others_stayed, choose_answer, near_container
 from physcap_drake.tasks.task_instance import SceneObject, TaskInstance
 
 COLORS = ("red", "yellow", "blue", "white")
@@ -101,12 +101,9 @@ class EmptyCup:
                                              f"basket: {inside.reason}")
             elif near_container(plant, plant_context, body, basket, BASKET_INNER_HALF):
                 return PlaceCheck(False, f"the {obj.visible.name} (full) is in the basket")
-        full = [o.visible.name for o in instance.objects if o.visible.name != instance.answer]
-        moved = check_left_in_place(instance, plant, plant_context, full)
-        if moved is not None:
-            return moved
-        return PlaceCheck(True, f"the empty {instance.answer} is in the basket; the full cups "
-                                "stand where they stood")
+        return check_others_stayed(instance, plant, plant_context) or PlaceCheck(
+            True, f"the empty {instance.answer} is in the basket; the full cups stand where "
+                  "they stood")
 
     def solve(self, instance: TaskInstance, api, wrong: bool = False) -> None:
         """Scripted solution that knows the answer; with `wrong`, it moves the most tempting

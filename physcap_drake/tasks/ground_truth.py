@@ -57,17 +57,18 @@ def near_container(plant, plant_context, body, container,
     return bool(np.all(np.abs(offset[:2]) < inner_half) and offset[2] < 0.05)
 
 
-def check_left_in_place(instance, plant, plant_context, keep: list[str],
-                        verb: str = "leave") -> PlaceCheck | None:
-    """A failed check naming the first object of `keep` (visible names) that ended more than
+def check_others_stayed(instance, plant, plant_context) -> PlaceCheck | None:
+    """A failed check naming the first object other than the answer that ended more than
     STAY_TOLERANCE from where it stood, or None if they all stayed (or were put back)."""
-    for name in keep:
-        obj = instance.object(name)
-        moved = displacement(plant, plant_context, instance.body_of(plant, name), obj.xy)
+    for obj in instance.objects:
+        if obj.visible.name == instance.answer:
+            continue
+        body = instance.body_of(plant, obj.visible.name)
+        moved = displacement(plant, plant_context, body, obj.xy)
         if moved > STAY_TOLERANCE:
-            return PlaceCheck(False, f"the {name} ended {100 * moved:.1f} cm from where it "
-                                     f"stood; the task asked to {verb} it there (within "
-                                     f"{100 * STAY_TOLERANCE:.0f} cm)")
+            return PlaceCheck(False, f"the {obj.visible.name} ended {100 * moved:.1f} cm from "
+                                     "where it stood; the task asked to leave it there "
+                                     f"(within {100 * STAY_TOLERANCE:.0f} cm)")
     return None
 
 

@@ -15,7 +15,7 @@ import numpy as np
 
 from physcap_drake.demos.pick_place import PlaceCheck, check_in_tray, move_to_tray
 from physcap_drake.perception.visible_objects import VisibleObject
-from physcap_drake.tasks.ground_truth import check_left_in_place, choose_answer, near_container
+from physcap_drake.tasks.ground_truth import check_others_stayed, choose_answer, near_container
 from physcap_drake.tasks.task_instance import SceneObject, TaskInstance
 
 #: Row of the four objects: x and the y of each slot (world frame, m), and the jitter. The
@@ -65,12 +65,9 @@ class TrayTask:
             elif near_container(plant, plant_context, body, tray):
                 return PlaceCheck(False, f"the {obj.visible.name} is in the {TRAY_NAME}, but "
                                          f"the answer was the {instance.answer}")
-        others = [o.visible.name for o in instance.objects if o.visible.name != instance.answer]
-        moved = check_left_in_place(instance, plant, plant_context, others)
-        if moved is not None:
-            return moved
-        return PlaceCheck(True, f"the {instance.answer} alone is in the {TRAY_NAME}; the "
-                                "others stand where they stood")
+        return check_others_stayed(instance, plant, plant_context) or PlaceCheck(
+            True, f"the {instance.answer} alone is in the {TRAY_NAME}; the others stand "
+                  "where they stood")
 
     def solve(self, instance: TaskInstance, api, wrong: bool = False) -> None:
         """Scripted solution that knows the answer (for testing the task only); with
