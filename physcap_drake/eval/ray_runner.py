@@ -81,13 +81,16 @@ def store_episode(payload: dict[str, Any], out: Path) -> dict[str, Any]:
 
 def connect(address: str | None, workers: int) -> bool:
     """Connects to the cluster at `address`, or starts a local instance with `workers` CPUs
-    (address None); returns whether a local instance was started (to shut it down)."""
+    (address None); returns whether it connected here (to disconnect at the end). A process
+    already connected (ray.init called before) keeps its connection."""
+    if ray.is_initialized():
+        return False
     if address is None:
         ray.init(address="local", num_cpus=workers, include_dashboard=False,
                  logging_level="WARNING")
         return True
     ray.init(address=address, logging_level="WARNING")
-    return False
+    return True
 
 
 def run_grid_on_ray(specs: list[EpisodeSpec], out: Path, *, llm: str = "reference",
@@ -99,7 +102,7 @@ def run_grid_on_ray(specs: list[EpisodeSpec], out: Path, *, llm: str = "referenc
     todo = pending(specs, out)
     if not todo:
         return []
-    started = connect(address, workers)
+    connected = connect(address, workers)
     results: list[dict[str, Any]] = []
     waiting: dict[Any, EpisodeSpec] = {}
     try:
@@ -117,6 +120,6 @@ def run_grid_on_ray(specs: list[EpisodeSpec], out: Path, *, llm: str = "referenc
     finally:
         for ref in waiting:  # interrupted: nothing half-written stays behind on our side
             ray.cancel(ref, force=True)
-        if started:
+        if connected:
             ray.shutdown()
     return results
