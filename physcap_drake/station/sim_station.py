@@ -168,11 +168,13 @@ def MakeSimStation(scenario, meshcat: Meshcat | None = None) -> Diagram:
     builder.ExportInput(gripper_servo.GetInputPort("force_limit"), ports.GRIPPER_FORCE_LIMIT)
     opening = gripper_servo.GetOutputPort("opening_measured")
     if as_built.finger_compliance > 0.0:
-        # The motor's encoder closes past the pads by 2·c·f (two fingers, f = effort·F_max).
+        # The motor, whose encoder reports, runs ahead of the pads by c·f per finger (f: the
+        # finger's force, positive opening): the opening reads c·(2f) more than the pads'.
         deflection = builder.AddNamedSystem("finger_compliance", Gain(
-            -2.0 * as_built.finger_compliance * config.gripper_servo.max_force, 1))
+            as_built.finger_compliance, 1))
         reported = builder.AddNamedSystem("opening_reported", Adder(2, 1))
-        builder.Connect(gripper_servo.GetOutputPort("effort"), deflection.get_input_port())
+        builder.Connect(gripper_servo.GetOutputPort("finger_force"),
+                        deflection.get_input_port())
         builder.Connect(opening, reported.get_input_port(0))
         builder.Connect(deflection.get_output_port(), reported.get_input_port(1))
         opening = reported.get_output_port()
