@@ -219,18 +219,6 @@ def stiffness(trials: Annotated[int, typer.Option(
     shares = {}
     if groups:
         shares = _stiffness_attribution(results, specimens)
-    if write:
-        if heldout_accuracy < WRITE_ACCURACY:
-            error_console.print(f"not written: the fitted thresholds classify "
-                                f"{heldout_accuracy:.1%} of the held-out trials right, below "
-                                f"{WRITE_ACCURACY:.0%}")
-            raise typer.Exit(code=1)
-        fitted.source = (f"physcap calibrate stiffness --trials {trials} --seed {seed}"
-                         + (f" --mismatch-only {','.join(groups)}" if groups else "")
-                         + f": fitted on seeds {_span(fit_seeds)}, held-out accuracy "
-                         f"{heldout_accuracy:.3f} on seeds {_span(heldout_seeds)}, "
-                         f"{date.today().isoformat()}")
-        _write_thresholds(fitted)
     if json_path is not None:
         save_json(json_path, {
             "fit_seeds": fit_seeds, "heldout_seeds": heldout_seeds,
@@ -255,6 +243,18 @@ def stiffness(trials: Annotated[int, typer.Option(
                          for s in dict.fromkeys(r.specimen for r in results)},
                         fitted.thresholds_mm, plot)
         console.print(f"saved {plot}")
+    if write:
+        if heldout_accuracy < WRITE_ACCURACY:
+            error_console.print(f"not written: the fitted thresholds classify "
+                                f"{heldout_accuracy:.1%} of the held-out trials right, below "
+                                f"{WRITE_ACCURACY:.0%}")
+            raise typer.Exit(code=1)
+        fitted.source = (f"physcap calibrate stiffness --trials {trials} --seed {seed}"
+                         + (f" --mismatch-only {','.join(groups)}" if groups else "")
+                         + f": fitted on seeds {_span(fit_seeds)}, held-out accuracy "
+                         f"{heldout_accuracy:.3f} on seeds {_span(heldout_seeds)}, "
+                         f"{date.today().isoformat()}")
+        _write_thresholds(fitted)
 
 
 def _span(seeds: list[int]) -> str:
