@@ -25,9 +25,12 @@ COLORS = ("red", "yellow", "blue", "white")
 #: How many of the full cups carry a straw besides the empty one (see the module docstring).
 FULL_WITH_STRAW = 1
 EMPTY_KG, FULL_KG = 0.035, 0.350
-#: Spawn region of the cups (world frame, m) and the least distance between two of them.
+#: Spawn region of the cups (world frame, m) and the least distance between two of them:
+#: the open fingers' outer faces are 68 mm from the grasp point, the neighbour's wall 28 mm
+#: from its axis, and the grasp point may be 10 mm off, so less than 106 mm lets the fingers
+#: knock a neighbour over on the way down.
 REGION_LOWER, REGION_UPPER = np.array([0.30, 0.0]), np.array([0.44, 0.32])
-MIN_SPACING = 0.10
+MIN_SPACING = 0.12
 #: The basket (as placed in stations/empty_cup.yaml): floor centre, floor, inner half-size.
 BASKET_BOTTOM = np.array([0.32, -0.26, 0.0])
 BASKET_FLOOR = 0.004
