@@ -1,30 +1,122 @@
-"""The `physcap` command line."""
+"""The `physcap` command line.
+
+Every error a user can cause ends the same way: one line `error: ...` on stderr and exit
+code 2 (a mistyped option, a missing or wrong file, a scenario that does not fit); a task
+that runs and fails exits 1; Ctrl-C exits 130.
+"""
 
 from __future__ import annotations
 
+import platform
+import sys
+from importlib.metadata import PackageNotFoundError, version
+from typing import Annotated
+
 import typer
 
-from physcap_drake.commands import bench, calibrate, demo, emulate, evaluate, replay, run, sim, task
+from physcap_drake.commands import (
+    bench,
+    calibrate,
+    demo,
+    emulate,
+    evaluate,
+    recover,
+    replay,
+    run,
+    sim,
+    task,
+)
+from physcap_drake.commands.common import (
+    BAD_INPUT,
+    error_console,
+    exit_2_on_bad_input,
+    print_error,
+)
+
+try:  # newer typer releases carry their own copy of click
+    from typer._click.exceptions import NoArgsIsHelpError, UsageError
+except ImportError:  # pragma: no cover (older typer)
+    from click.exceptions import NoArgsIsHelpError, UsageError
+
+#: Help is plain text, wrapped to at most 80 columns (it reads the same in a pipe).
+HELP_SETTINGS = {"help_option_names": ["-h", "--help"], "max_content_width": 80}
 
 app = typer.Typer(
     name="physcap",
     help="PhysCaP on a simulated or real AgileX PiPER, as a Drake systems diagram.",
     no_args_is_help=True,
     pretty_exceptions_enable=False,
+    rich_markup_mode=None,
+    add_completion=False,
+    context_settings=HELP_SETTINGS,
 )
 app.command("sim")(sim.sim)
 app.command("run")(run.run)
 app.command("eval")(evaluate.evaluate)
 app.command("replay")(replay.replay)
-app.command("emulate-piper")(emulate.emulate_piper)
+app.command("recover")(recover.recover)
+app.command("emulate-piper", short_help="Emulate a PiPER arm on a CAN bus.")(
+    emulate.emulate_piper)
 app.add_typer(demo.app, name="demo")
 app.add_typer(bench.app, name="bench")
 app.add_typer(calibrate.app, name="calibrate")
 app.add_typer(task.app, name="task")
 
 
-def main() -> None:
-    app()
+def version_text() -> str:
+    def of(package: str) -> str:
+        try:
+            return version(package)
+        except PackageNotFoundError:
+            return "not installed"
+
+    return (f"physcap {of('physcap-drake')} (drake {of('drake')}, Python "
+            f"{platform.python_version()})")
+
+
+def _print_version(wanted: bool) -> None:
+    if wanted:
+        typer.echo(version_text())
+        raise typer.Exit()
+
+
+@app.callback()
+def _physcap(show_version: Annotated[bool, typer.Option(
+        "--version", callback=_print_version, is_eager=True,
+        help="Print the version and exit.")] = False) -> None:
+    """PhysCaP on a simulated or real AgileX PiPER, as a Drake systems diagram."""
+
+
+def _guard(typer_app: typer.Typer) -> None:
+    """Every command, in every group: bad input is one line and exit 2, not a traceback."""
+    for info in typer_app.registered_commands:
+        info.callback = exit_2_on_bad_input(info.callback)
+        info.context_settings = {**HELP_SETTINGS, **(info.context_settings or {})}
+    for group in typer_app.registered_groups:
+        group.typer_instance.rich_markup_mode = None
+        group.typer_instance.info.context_settings = HELP_SETTINGS
+        _guard(group.typer_instance)
+
+
+_guard(app)
+
+
+def main(argv: list[str] | None = None) -> None:
+    """Runs the command line on `argv` (default: sys.argv[1:]) and exits with its code."""
+    command = typer.main.get_command(app)
+    try:
+        code = command.main(args=argv, prog_name="physcap", standalone_mode=False)
+    except NoArgsIsHelpError as error:
+        typer.echo(error.ctx.get_help())
+        code = 0
+    except UsageError as error:
+        where = f" (see '{error.ctx.command_path} --help')" if error.ctx is not None else ""
+        print_error(error.format_message() + where)
+        code = BAD_INPUT
+    except (typer.Abort, KeyboardInterrupt):
+        error_console.print("[bold red]interrupted[/]")
+        code = 130
+    sys.exit(code or 0)
 
 
 if __name__ == "__main__":

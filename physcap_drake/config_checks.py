@@ -56,3 +56,13 @@ class ConfigChecker:
     def choice(self, key: str, value: object, allowed: Sequence[object]) -> None:
         if value not in allowed:
             self.fail(key, "one of " + ", ".join(repr(a) for a in allowed), f"got {value!r}")
+
+
+def check_scenario_task(task_name: str, scenario_task: str, filename: str) -> None:
+    """A scenario used for a task must set that task's scene up: its `task.name` must name
+    the task (a scene laid out for another task would silently run with the wrong table:
+    no tray, another task's answer pinned, ...). Raises ScenarioError."""
+    if scenario_task != task_name:
+        ConfigChecker(filename).fail(
+            "task.name", f"{task_name!r}, the task being run (a scenario made for it)",
+            f"got {scenario_task!r}" if scenario_task else "the scenario names no task")

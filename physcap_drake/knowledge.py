@@ -46,6 +46,11 @@ class SceneKnowledge:
                 return entry
         return None
 
+    def size_chars(self) -> int:
+        """How much text the knowledge puts into every prompt (characters of the entries'
+        descriptions); the sandbox budgets what one code block may add."""
+        return sum(len(entry.describe()) for entry in self.entries)
+
     def as_text(self) -> str:
         """One line per entry, for prompts and transcripts."""
         if not self.entries:

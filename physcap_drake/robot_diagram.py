@@ -55,8 +55,9 @@ def build_robot_diagram(scenario: Scenario, meshcat: Meshcat | None = None, *,
     """Station + SkillExecutor + the PhysX estimators, connected through the station's port
     contract (the gripper commands pass a GripperCommandSelector, so the stiffness probe can
     take the gripper over). With `log_joints`, the commanded positions and measured
-    velocities are logged every step. `make_agent(station)` builds an AgentSystem whose
-    camera input ports are connected to the station's camera outputs. `make_recorder(station)`
+    velocities are logged every step. `make_agent(station)` builds an AgentSystem each of
+    whose input ports (the camera images and what else its perception reads) is connected
+    to the station output of the same name. `make_recorder(station)`
     builds a recorder (e.g. McapRecorder) each of whose input ports is connected to the station
     output of the same name."""
     builder = DiagramBuilder()
@@ -89,8 +90,9 @@ def build_robot_diagram(scenario: Scenario, meshcat: Meshcat | None = None, *,
     agent = None
     if make_agent is not None:
         agent = builder.AddNamedSystem("agent", make_agent(station))
-        for name in (ports.CAMERA_RGB, ports.CAMERA_LABEL):
-            builder.Connect(station.GetOutputPort(name), agent.GetInputPort(name))
+        for index in range(agent.num_input_ports()):
+            port = agent.get_input_port(index)
+            builder.Connect(station.GetOutputPort(port.get_name()), port)
     recorder = None
     if make_recorder is not None:
         recorder = builder.AddNamedSystem("recorder", make_recorder(station))

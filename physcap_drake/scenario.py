@@ -28,6 +28,7 @@ from physcap_drake.physx.physx_config import PhysxConfig
 from physcap_drake.resources import make_package_map
 from physcap_drake.scenario_errors import ScenarioError, file_label, locate_yaml_error
 from physcap_drake.station.can_config import PiperCan
+from physcap_drake.station.realsense.config import RealSense
 from physcap_drake.station.robot_model import arm_joint_limits, make_controller_plant
 from physcap_drake.station.sim_config import SimPiper
 
@@ -101,8 +102,12 @@ class Scenario:
     skills: SkillsConfig = dc.field(default_factory=SkillsConfig)
     # The physical probes get_mass and get_stiffness.
     physx: PhysxConfig = dc.field(default_factory=PhysxConfig)
-    # RGB-D cameras (Drake's CameraConfig); the one named "camera" is the station's camera.
-    cameras: list[CameraConfig] = dc.field(default_factory=lambda: [_default_camera()])
+    # RGB-D cameras; the one named "camera" is the station's camera. Each entry names its
+    # source: a Drake CameraConfig (untagged, or !CameraConfig) is rendered in the simulated
+    # scene with perfect depth; !RealSense is a RealSense camera (a live device, a .db3
+    # recording, or emulated from the simulated scene: see station/realsense/config.py).
+    cameras: list[CameraConfig | RealSense] = dc.field(
+        default_factory=lambda: [_default_camera()])
     # What Meshcat shows (Drake's VisualizationConfig).
     visualization: VisualizationConfig = dc.field(default_factory=VisualizationConfig)
     # Meshcat's web server; bound to this machine only unless host is changed.
@@ -148,7 +153,7 @@ def check_scenario(scenario: Scenario, filename: str = "<scenario>") -> None:
     scenario.skills.check(at.child("skills"))
     scenario.physx.check(at.child("physx"))
     _check_directives(scenario, at)
-    _check_cameras(scenario.cameras, at)
+    _check_cameras(scenario.cameras, at, simulated=isinstance(scenario.station, SimPiper))
     station = scenario.station
     if isinstance(station, SimPiper):
         _check_against_robot(scenario, station, at, at.child("station"))
@@ -241,7 +246,8 @@ def _check_against_robot(scenario: Scenario, station: SimPiper, at: ConfigChecke
         "max_force (else the target effort can never be reached) to that force")
 
 
-def _check_cameras(cameras: list[CameraConfig], at: ConfigChecker) -> None:
+def _check_cameras(cameras: list[CameraConfig | RealSense], at: ConfigChecker, *,
+                   simulated: bool) -> None:
     names = [camera.name for camera in cameras]
     if MAIN_CAMERA not in names:
         at.fail("cameras", f"a camera named {MAIN_CAMERA!r} (the station's camera)",
@@ -250,6 +256,12 @@ def _check_cameras(cameras: list[CameraConfig], at: ConfigChecker) -> None:
         here = at.child("cameras").child(index)
         if names.count(camera.name) > 1:
             here.fail("name", "a camera name used once", f"{camera.name!r} is repeated")
+        if isinstance(camera, RealSense):
+            camera.check(here)
+            if simulated and not camera.emulate:
+                here.fail("emulate", "true on a simulated station (!SimPiper): a live or "
+                          "recorded camera cannot see the simulated scene", "got false")
+            continue
         here.number("width", camera.width, minimum=0, open_minimum=True)
         here.number("height", camera.height, minimum=0, open_minimum=True)
         here.number("fps", camera.fps, minimum=0.0, open_minimum=True)

@@ -67,6 +67,9 @@ class HostileCoder:
         "import os\nos.system('echo hi')",
         "goto_pose([0.30, 0.10, 0.25])\nx = 1 / 0",
         "goto_pose([0.30, -0.05, 0.25])\nwhile True:\n    pass",
+        # an array whose tolist() lies, to smuggle a list past the child's own checks
+        "class S(np.ndarray):\n    def tolist(self):\n        return ['red can']\n"
+        "get_object_pose(np.zeros(1).view(S))",
         "print('x' * 10**6)",
         "home_pose()",
     ]
@@ -87,11 +90,12 @@ def test_hostile_code_blocks_end_cleanly_and_the_arm_is_left_at_rest():
     run = run_agent_episode("identify_empty_can", 1, agent="cap", client=HostileCoder(),
                             limits=limits)
     steps = run.outcome.steps
-    assert [s.ok for s in steps] == [False, False, False, True, True]
+    assert [s.ok for s in steps] == [False, False, False, False, True, True]
     assert "import of 'os'" in steps[0].error or "os" in steps[0].error
     assert "ZeroDivisionError" in steps[1].error
     assert "limit" in steps[2].error
-    assert len(steps[3].stdout) <= 5200
+    assert "get_object_pose(): name must be a string, got a list of 1 items" in steps[3].error
+    assert len(steps[4].stdout) <= 5200
     assert run.outcome.failure == "" and run.outcome.robot_time_s > 3.0
     api = run.episode.api
     assert api.status.state != "running"

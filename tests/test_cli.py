@@ -6,6 +6,9 @@ import base64
 import json
 import re
 
+import cv2
+import pytest
+from browser import find_chromium, meshcat_image, meshcat_visibility
 from typer.testing import CliRunner
 
 from physcap_drake.cli import app
@@ -36,7 +39,8 @@ def test_sim_wiggle_saves_a_meshcat_replay(tmp_path):
         r"data:application/octet-binary;base64,([A-Za-z0-9+/=]+)", text))
     assert b"/drake/illustration/piper/" in commands  # the arm is in the recorded scene
     assert b"set_animation" in commands  # and its motion was recorded
-    assert "127.0.0.1" in result.output or "localhost" in result.output
+    # Only a file was asked for: no server address (not even Drake's own log line).
+    assert "127.0.0.1" not in result.output and "localhost" not in result.output
 
 
 def test_bad_scenario_exits_2_naming_file_and_key(tmp_path):
@@ -53,11 +57,44 @@ def test_missing_scenario_file_exits_2(tmp_path):
     assert "no such file" in result.output
 
 
-def test_demo_pick_place_puts_the_can_on_the_tray():
-    result = runner.invoke(app, ["demo", "pick-place", "--scenario", TABLE])
+@pytest.fixture(scope="module")
+def demo_run(tmp_path_factory):
+    """`physcap demo pick-place --html demo.html`, run once for the tests below."""
+    html = tmp_path_factory.mktemp("demo") / "demo.html"
+    return runner.invoke(app, ["demo", "pick-place", "--scenario", TABLE, "--html", str(html)]
+                         ), html
+
+
+def test_demo_pick_place_puts_the_can_on_the_tray(demo_run):
+    result, _ = demo_run
     assert result.exit_code == 0, result.output
     assert "close_gripper" in result.output and "home_pose" in result.output
     assert "success: the soda can is upright in the tray" in result.output
+
+
+def scene_fraction(image) -> float:
+    """The fraction of pixels showing the scene rather than Meshcat's grey background: the
+    table, tray and objects are coloured, the arm dark; the background is light grey."""
+    hsv = cv2.cvtColor(image, cv2.COLOR_BGR2HSV)
+    return float(((hsv[..., 1] > 40) | (hsv[..., 2] < 60)).mean())
+
+
+@pytest.mark.parametrize("size", [(1024, 768), (1280, 720)])
+def test_demo_html_opens_framed_on_the_table(demo_run, tmp_path, size):
+    """Before framing, the table filled 2 % of a 1024 × 768 window (the rest was sky and
+    floor); now most of the window is table, arm and objects."""
+    chromium = find_chromium()
+    if chromium is None:
+        pytest.fail("Chromium is missing: `./run test` installs it (Debian package "
+                    "'chromium'); or install it yourself")
+    image = meshcat_image(demo_run[1], chromium, tmp_path, size)
+    assert image.shape[:2] == (size[1], size[0])
+    assert scene_fraction(image) > 0.5
+
+
+def test_demo_html_hides_contact_forces_axes_and_grid(demo_run):
+    for path in ("/drake/contact_forces", "/Axes", "/Grid"):
+        assert meshcat_visibility(demo_run[1], path) == {False}, path
 
 
 def test_bench_pick_place_writes_its_figures(tmp_path):

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from physcap_drake.perception.camera_geometry import CameraGeometry
-from physcap_drake.perception.object_locator import grasp_point_from_points
+from physcap_drake.perception.grasp import grasp_point_from_points
 from physcap_drake.perception.offline_pointer import OfflinePointer, PointingError
 from physcap_drake.perception.visible_objects import VisibleObject
 from physcap_drake.resources import stations_dir
@@ -16,7 +16,8 @@ from physcap_drake.tasks.registry import TASKS
 
 
 def test_back_projection_inverts_projection():
-    camera = CameraGeometry(load_scenario(stations_dir() / "piper_table.yaml").cameras[0])
+    camera = CameraGeometry.from_config(
+        load_scenario(stations_dir() / "piper_table.yaml").cameras[0])
     points = np.array([[0.3, 0.1, 0.0], [0.45, -0.2, 0.12], [0.2, 0.25, 0.05]])
     pixels = camera.project(points)
     depths = (camera.X_WC.inverse().multiply(points.T))[2]

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -14,8 +15,9 @@ from pathlib import Path
 import cv2
 import numpy as np
 import pytest
-from browser import find_chromium, meshcat_scene_tree
-from mcap.reader import NonSeekingReader
+from browser import find_chromium, meshcat_scene_tree, meshcat_visibility
+from jsonschema import Draft202012Validator
+from mcap.reader import NonSeekingReader, make_reader
 from pydrake.geometry import Meshcat
 
 from physcap_drake.agent.llm import load_jsonl
@@ -28,6 +30,7 @@ TASK, SEED = "identify_empty_can", 0
 
 EXPECTED_SCHEMAS = {
     topics.JOINT_STATES: "foxglove.JointStates",
+    topics.GRIPPER_STATE: "physcap.GripperState",
     topics.TRANSFORMS: "foxglove.FrameTransforms",
     topics.SCENE: "foxglove.SceneUpdate",
     topics.CAMERA_IMAGE: "foxglove.CompressedImage",
@@ -91,6 +94,38 @@ def test_joint_states_and_frames_carry_the_robot_signals(recording):
     assert all(t.parent_frame_id == topics.WORLD_FRAME for t in frames)
 
 
+def test_every_json_message_follows_its_own_schema(episode_folder):
+    """Each agent topic's message validates against the JSON Schema its channel carries
+    (what Foxglove and any other reader are told to expect)."""
+    checked: dict[str, int] = {}
+    validators = {}
+    with (episode_folder / "episode.mcap").open("rb") as stream:
+        for schema, channel, message in make_reader(stream).iter_messages(log_time_order=False):
+            if schema is None or schema.encoding != "jsonschema":
+                continue
+            if schema.id not in validators:
+                definition = json.loads(schema.data)
+                Draft202012Validator.check_schema(definition)
+                validators[schema.id] = Draft202012Validator(definition)
+            errors = list(validators[schema.id].iter_errors(json.loads(message.data)))
+            assert not errors, (channel.topic, errors[0].message)
+            checked[channel.topic] = checked.get(channel.topic, 0) + 1
+    assert {topics.AGENT_PLANNER, topics.AGENT_PRIORITIZER, topics.AGENT_TRANSCRIPT,
+            topics.LLM_CALLS, topics.GRIPPER_STATE, topics.EPISODE_SUMMARY} <= set(checked)
+
+
+def test_gripper_effort_is_a_fraction_on_its_own_topic(recording):
+    """JointStates efforts are N·m (or N): the gripper's normalized effort is not one."""
+    gripper = [m.value for m in recording.on(topics.GRIPPER_STATE)]
+    assert len(gripper) == len(recording.on(topics.JOINT_STATES))
+    efforts = np.array([g["effort"] for g in gripper])
+    assert 0.0 <= efforts.min() and efforts.max() <= 1.0
+    assert efforts.max() > 0.3  # it squeezed a can
+    last = recording.on(topics.JOINT_STATES)[-1].value.joints[-1]
+    assert last.name == "gripper" and not last.HasField("effort")
+    assert abs(last.position - gripper[-1]["opening_m"]) < 1e-12
+
+
 def test_scene_and_camera_images(recording):
     scene = recording.on(topics.SCENE)[0].value
     frames = {entity.frame_id for entity in scene.entities}
@@ -131,6 +166,8 @@ def test_episode_folder_holds_transcript_summary_and_calls(episode_folder, recor
                        "git_commit": summary["git_commit"], "git_dirty": summary["git_dirty"]}
     transcript = (episode_folder / "transcript.md").read_text()
     assert "# Code block 0" in transcript and "# Code block 1" in transcript
+    assert "**Instruction:** Four soda cans" in transcript
+    assert f"| robot time | {summary['robot_time_s']:.1f} s |" in transcript
     assert len(load_jsonl(episode_folder / "calls.jsonl")) == summary["llm_calls"]
 
 
@@ -144,6 +181,9 @@ def test_meshcat_html_shows_the_arm_in_headless_chromium(episode_folder, tmp_pat
     assert "piper" in illustration and "piper_gripper" in illustration
     assert len(illustration["piper"]) >= 6  # the arm's links
     assert "red_can" in illustration
+    # framed on the table: no contact-force arrows unless asked for
+    assert meshcat_visibility(episode_folder / "meshcat.html", "/drake/contact_forces") == {
+        False}
 
 
 def test_replay_rebuilds_the_motion_from_the_mcap(episode_folder, recording):
@@ -168,42 +208,39 @@ def test_replay_refuses_a_file_that_is_not_an_episode(tmp_path):
 
 # --- a run that is stopped --------------------------------------------------------------
 
-_CHILD = """
-import sys
-from physcap_drake.recording.episode_folder import record_episode
-def told(entry):
-    print(entry.kind, entry.step, entry.robot_time_s, flush=True)
-record_episode(sys.argv[1], "empty_cup", 1, agent="cap_physx", on_entry=told)
-"""
+#: `physcap run` on a long episode (empty_cup with every cup weighed), recorded to a folder.
+_RUN = ["run", "--task", "empty_cup", "--seed", "1", "--agent", "cap_physx"]
+_CODE_ENTRY = re.compile(r"^code \(block (\d+), robot time ([\d.]+) s\)$")
 
 
-def _start_child(folder: Path) -> subprocess.Popen:
+def _start_run(folder: Path) -> subprocess.Popen:
     env = {**os.environ, "PYTHONUNBUFFERED": "1"}
-    return subprocess.Popen([sys.executable, "-c", _CHILD, str(folder)],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
+    return subprocess.Popen([sys.executable, "-m", "physcap_drake.cli", *_RUN, "--out",
+                             str(folder)], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            text=True, env=env)
 
 
 def _wait_for_code_block(child: subprocess.Popen, index: int) -> float:
-    """Reads the child's transcript lines until code block `index` starts executing; returns
-    its robot time (s)."""
+    """Reads the run's printed transcript until code block `index` starts executing;
+    returns its robot time (s)."""
     deadline = time.monotonic() + 240
     for line in child.stdout:
-        kind, step, robot_time = line.split()
-        if kind == "code" and int(step) == index:
-            return float(robot_time)
-        assert time.monotonic() < deadline, "the child episode did not get there in time"
-    raise AssertionError(f"the child ended early: {child.stderr.read()[-2000:]}")
+        match = _CODE_ENTRY.match(line.strip())
+        if match and int(match.group(1)) == index:
+            return float(match.group(2))
+        assert time.monotonic() < deadline, "the run did not get there in time"
+    raise AssertionError(f"the run ended early: {child.stderr.read()[-2000:]}")
 
 
 def _announced_code_blocks(child: subprocess.Popen, seen: int) -> list[int]:
-    """Indices of the code blocks the (ended) child announced: `seen` read so far plus those
-    still in the pipe. Each is announced after its transcript entry was flushed to disk."""
-    rest = [line.split() for line in child.stdout.read().splitlines()]
-    return list(range(seen)) + [int(step) for kind, step, _ in rest if kind == "code"]
+    """Indices of the code blocks the (ended) run printed: `seen` read so far plus those
+    still in the pipe. Each is printed after its transcript entry went to disk."""
+    rest = [_CODE_ENTRY.match(line.strip()) for line in child.stdout.read().splitlines()]
+    return list(range(seen)) + [int(m.group(1)) for m in rest if m]
 
 
-def test_a_killed_run_leaves_a_readable_recording_up_to_the_kill(tmp_path):
-    child = _start_child(tmp_path)
+def test_a_killed_run_leaves_files_every_reader_opens_up_to_the_kill(tmp_path):
+    child = _start_run(tmp_path)
     try:
         code_time = _wait_for_code_block(child, 1)
         time.sleep(2.0)  # the second block's motion is under way
@@ -211,33 +248,73 @@ def test_a_killed_run_leaves_a_readable_recording_up_to_the_kill(tmp_path):
         child.wait(timeout=30)
     finally:
         child.kill()
-    recording = read_recording(tmp_path / "episode.mcap")
+    announced = _announced_code_blocks(child, 2)
+    mcap_file = tmp_path / "episode.mcap"
+    # The mcap library's documented entry point reads the file as it is, no repair needed,
+    # and finds every message there is (a stream reader, record by record, finds no more).
+    with mcap_file.open("rb") as stream:
+        messages = [(channel.topic, message.log_time) for _, channel, message in
+                    make_reader(stream).iter_messages()]
+    with mcap_file.open("rb") as stream:
+        raw = sum(1 for _ in NonSeekingReader(stream).iter_messages(log_time_order=False))
+    assert len(messages) == raw > 500
+    recording = read_recording(mcap_file)
     assert not recording.complete
     recorded = [m.value["step"] for m in recording.on(topics.AGENT_CODE)]
-    announced = _announced_code_blocks(child, 2)
-    # Every code block announced before the kill is in the file (one more may have been
-    # written between its flush and its announcement).
+    # Every code block printed before the kill is in the file (one more may have been
+    # written between its flush and its printing).
     assert recorded[:len(announced)] == announced and len(recorded) <= len(announced) + 1
     states = recording.on(topics.JOINT_STATES)
     assert states and states[-1].time_s >= code_time - 1.0  # flushed every 1 s of sim time
+    # The transcript and the model calls were written as they happened.
+    transcript = (tmp_path / "transcript.md").read_text()
+    for index in announced:
+        assert f"# Code block {index}\n" in transcript
+    coder_calls = [c for c in load_jsonl(tmp_path / "calls.jsonl") if c.role == "coder"]
+    assert len(coder_calls) >= len(announced)
     assert not (tmp_path / "summary.json").exists()
+    # `physcap recover` turns it into a complete file with the same messages.
+    assert subprocess.run([sys.executable, "-m", "physcap_drake.cli", "recover",
+                           str(tmp_path)], capture_output=True, check=True).returncode == 0
+    assert read_recording(mcap_file).complete
+    with mcap_file.open("rb") as stream:
+        assert sorted((channel.topic, message.log_time) for _, channel, message in
+                      make_reader(stream).iter_messages()) == sorted(messages)
+    assert (tmp_path / "episode.mcap.orig").is_file()
 
 
 def test_ctrl_c_closes_the_recording_and_says_why(tmp_path):
-    child = _start_child(tmp_path)
+    child = _start_run(tmp_path)
     try:
         _wait_for_code_block(child, 1)
         child.send_signal(signal.SIGINT)
         child.wait(timeout=60)
     finally:
         child.kill()
+    assert child.returncode == 130
+    assert "interrupted; the recording so far is in" in child.stderr.read()
     recording = read_recording(tmp_path / "episode.mcap")
     assert recording.complete
     assert len(recording.on(topics.AGENT_CODE)) >= 2
     error = json.loads((tmp_path / "error.json").read_text())
     assert error["error"].startswith("KeyboardInterrupt")
-    assert "(stopped)" in (tmp_path / "transcript.md").read_text()
+    assert "**Stopped:** KeyboardInterrupt" in (tmp_path / "transcript.md").read_text()
     assert not (tmp_path / "summary.json").exists()
+
+
+def test_a_torn_recording_is_recovered(tmp_path, episode_folder):
+    """A file cut in the middle of a record (a kill inside a write, or an older recorder's
+    unfinished chunk) is made whole up to the last complete record."""
+    from physcap_drake.recording.recover import recover
+
+    data = (episode_folder / "episode.mcap").read_bytes()
+    torn = tmp_path / "torn.mcap"
+    torn.write_bytes(data[:len(data) // 2])
+    done = recover(torn)
+    assert done.needed and done.torn and 0 < done.messages
+    with torn.open("rb") as stream:
+        assert sum(1 for _ in make_reader(stream).iter_messages()) == done.messages
+    assert recover(torn).needed is False
 
 
 def _record_a_reach(path: Path, monkeypatch=None, kinematic: bool = False):

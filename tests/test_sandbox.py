@@ -18,9 +18,16 @@ import numpy as np
 import pytest
 
 from physcap_drake.agent.sandbox import (
+    ApiFunction,
     CodeOutcome,
     CodeRejected,
+    FunctionSpec,
+    Meters,
+    Number,
+    OrNone,
     SandboxLimits,
+    Text,
+    Vector,
     check_code,
     lockdown,
     protocol,
@@ -29,6 +36,9 @@ from physcap_drake.agent.sandbox import (
 )
 
 LIMITS = SandboxLimits(cpu_s=2, compute_wall_s=2, total_wall_s=30, memory_mb=512)
+# Filling 512 MB page by page (and freeing it after the MemoryError) takes seconds of wall
+# time on a loaded machine; these tests are about memory, so time is no constraint here.
+MEMORY = SandboxLimits(cpu_s=10, compute_wall_s=20, total_wall_s=30, memory_mb=512)
 
 
 class SkillRefused(RuntimeError):
@@ -37,6 +47,10 @@ class SkillRefused(RuntimeError):
 
 class WeirdError(Exception):
     """An API error class the sandboxed code has never heard of."""
+
+
+class FakeArmFault(RuntimeError):
+    """Stands in for control.errors.ArmFault: fatal, never to be caught by the code."""
 
 
 class FakeRobot:
@@ -50,9 +64,13 @@ class FakeRobot:
         self.position = np.array([0.2, 0.0, 0.2])
         self.safe = True
         self.breakpoints = 0
+        self.call_starts: list[float] = []  # monotonic time at which each sleep began
+        self.robot_time = 0.0  # s; each goto_pose takes 10 s
+        self.knowledge: list[str] = []  # what get_mass "measured"
 
     def goto_pose(self, position, quaternion_wxyz=None, z_approach=0.0):
         self.calls.append(("goto_pose", (position, quaternion_wxyz, z_approach)))
+        self.robot_time += 10.0
         target = np.asarray(position, dtype=float)
         if target.shape != (3,) or not np.all(np.isfinite(target)):
             raise SkillRefused(f"position must be three finite numbers, got {position!r}")
@@ -63,6 +81,7 @@ class FakeRobot:
 
     def get_mass(self, position, name=None) -> float:
         self.calls.append(("get_mass", (position, name)))
+        self.knowledge.append(f"{name}: mass = 0.350 kg")
         return 0.35
 
     def get_object_pose(self, name):
@@ -78,6 +97,7 @@ class FakeRobot:
 
     def sleep(self, seconds) -> None:
         self.calls.append(("sleep", (seconds,)))
+        self.call_starts.append(time.monotonic())
         time.sleep(seconds)
 
     def explode(self) -> None:
@@ -88,10 +108,36 @@ class FakeRobot:
         self.calls.append(("weird", ()))
         raise WeirdError("a class the code cannot know")
 
+    def fail_arm(self) -> None:
+        self.calls.append(("fail_arm", ()))
+        raise FakeArmFault("the arm reports: collision")
+
+    def huge_result(self) -> np.ndarray:
+        self.calls.append(("huge_result", ()))
+        return np.zeros(10**6)
+
+    def loud_refusal(self) -> None:
+        self.calls.append(("loud_refusal", ()))
+        raise SkillRefused("no! " * 10**6)
+
+    def meters(self) -> Meters:
+        return Meters(lambda: self.robot_time,
+                      lambda: sum(len(entry) for entry in self.knowledge))
+
     def api(self) -> dict:
-        return {name: getattr(self, name) for name in
-                ("goto_pose", "get_mass", "get_object_pose", "breakpoint_code_block", "sleep",
-                 "explode", "weird")}
+        """goto_pose and get_mass with parameter kinds (as the robot API declares them), the
+        rest checked as plain values."""
+        table = {name: getattr(self, name) for name in
+                 ("get_object_pose", "breakpoint_code_block", "sleep", "explode", "weird",
+                  "fail_arm", "huge_result", "loud_refusal")}
+        table["goto_pose"] = ApiFunction(self.goto_pose, FunctionSpec.of(
+            "goto_pose", self.goto_pose, {"position": Vector(3),
+                                          "quaternion_wxyz": OrNone(Vector(4)),
+                                          "z_approach": Number()}, motion=True))
+        table["get_mass"] = ApiFunction(self.get_mass, FunctionSpec.of(
+            "get_mass", self.get_mass, {"position": Vector(3), "name": OrNone(Text(120))},
+            motion=True))
+        return table
 
 
 @pytest.fixture
@@ -195,15 +241,22 @@ def test_exception_in_a_function_reports_the_innermost_generated_line(robot):
     assert outcome.stdout == "before\n"
 
 
-def test_nan_and_inf_survive_both_directions(robot):
+def test_nan_and_inf_reach_the_code_but_never_the_api(robot):
     code = ("p = get_object_pose('ghost')\n"
             "print(np.isnan(p[0]), np.isposinf(p[1]), np.isneginf(p[2]))\n"
-            "get_mass([float('nan'), float('inf'), -float('inf')])\n")
+            "try:\n"
+            "    get_mass([0.3, float('inf'), 0.0])\n"
+            "except ValueError as error:\n"
+            "    print('refused:', error)\n"
+            "get_mass([float('nan'), 0.0, 0.0])\n")
     outcome = run(code, robot)
-    assert outcome.ok, outcome.error
     assert "True True True" in outcome.stdout
-    sent = robot.calls[-1][1][0]
-    assert np.isnan(sent[0]) and sent[1] == float("inf") and sent[2] == -float("inf")
+    assert "refused: get_mass(): position must hold finite numbers, got [0.3, inf, 0.0]" in (
+        outcome.stdout)
+    assert outcome.kind == "exception"
+    assert outcome.error.startswith("ValueError at line 7: get_mass(): position must hold "
+                                    "finite numbers, got [nan, 0.0, 0.0]")
+    assert [name for name, _ in robot.calls] == ["get_object_pose"]
 
 
 def test_breakpoint_code_block_is_allowed_but_breakpoint_is_not(robot):
@@ -228,10 +281,14 @@ def test_api_call_time_does_not_count_as_compute_time(robot):
 
 
 def test_total_wall_time_counts_api_calls(robot):
+    """The block's clock starts when the code starts (not at the child's start-up, which a
+    loaded machine may make slow) and is checked before every call: no call starts after
+    0.8 s, so the third sleep never does."""
     limits = SandboxLimits(cpu_s=2, compute_wall_s=2, total_wall_s=0.8, memory_mb=512)
     outcome = run("sleep(0.5)\nsleep(0.5)\nsleep(0.5)\n", robot, limits)
     assert outcome.kind == "wall_limit" and "in total" in outcome.error
-    assert len(robot.calls) == 2
+    assert 1 <= len(robot.calls) <= 2
+    assert all(began - robot.call_starts[0] < 0.8 for began in robot.call_starts)
 
 
 def test_every_common_numpy_path_works_after_the_lockdown(robot):
@@ -340,9 +397,9 @@ RUNTIME = [
      SandboxLimits(cpu_s=10, compute_wall_s=1, memory_mb=512), "wall_limit", "computed for"),
     ("x = 0\nwhile True:\n    x += 1",
      SandboxLimits(cpu_s=1, compute_wall_s=10, memory_mb=512), "cpu_limit", "CPU time"),
-    ("x = [0] * 10**10", LIMITS, "memory_limit", "MemoryError at line 1"),
-    ("x = np.ones(10**10)", LIMITS, "memory_limit", "Unable to allocate"),
-    ("x = []\nwhile True:\n    x.append([1.5] * 10**6)", LIMITS, "memory_limit", "line 3"),
+    ("x = [0] * 10**10", MEMORY, "memory_limit", "MemoryError at line 1"),
+    ("x = np.ones(10**10)", MEMORY, "memory_limit", "Unable to allocate"),
+    ("x = []\nwhile True:\n    x.append([1.5] * 10**6)", MEMORY, "memory_limit", "line 3"),
     ("for i in range(1000):\n    get_mass([0.3, 0.0, 0.0])",
      SandboxLimits(cpu_s=2, compute_wall_s=2, memory_mb=512, max_api_calls=20),
      "api_call_limit", "more than 20 robot API calls"),
@@ -619,3 +676,160 @@ def test_limits_are_validated():
     with pytest.raises(ValueError):
         run_sandboxed("pass", {"_hidden": print})
 
+
+
+# -- the parent trusts nothing that crosses the boundary ------------------------------------
+
+
+def test_values_smuggled_past_the_childs_checks_are_refused_by_the_parent(robot):
+    """An ndarray subclass overriding tolist() sends whatever it likes: the parent refuses
+    each such call with a clear error the code can catch, and the robot never sees it."""
+    code = (
+        "class Sneaky(np.ndarray):\n"
+        "    def tolist(self):\n"
+        "        return PAYLOADS[int(self[0])]\n"
+        "deep = 0\n"
+        "for _ in range(30):\n"
+        "    deep = [deep]\n"
+        "PAYLOADS = [['red can'], 'x' * 500000, 'a\\nb', deep]\n"
+        "for i in range(4):\n"
+        "    try:\n"
+        "        get_mass([0.3, 0.0, 0.05], np.array([i, 0.0]).view(Sneaky))\n"
+        "    except TypeError as error:\n"
+        "        print('TypeError', error)\n"
+        "    except ValueError as error:\n"
+        "        print('ValueError', error)\n"
+        "print(get_mass([0.3, 0.0, 0.05], 'red can'))\n"
+    )
+    outcome = run(code, robot)
+    assert outcome.ok, outcome.error
+    lines = outcome.stdout.splitlines()
+    assert lines[0] == "TypeError get_mass(): name must be a string, got a list of 1 items"
+    assert lines[1] == ("ValueError get_mass(): name may be at most 120 characters long, "
+                        "got 500000")
+    assert lines[2] == ("ValueError get_mass(): name must be one line of printable text (no "
+                        "line breaks or control characters)")
+    assert lines[3] == "TypeError get_mass(): name must be a string, got a list of 1 items"
+    assert lines[4] == "0.35"
+    assert robot.calls == [("get_mass", (pytest.approx([0.3, 0.0, 0.05]), "red can"))]
+    assert [summary[:8] for _, summary in outcome.api_calls] == ["refused:"] * 4 + ["[0.3, 0."]
+
+
+FORGED_DONE = [
+    ({"t": "done", "error": {"type": "ValueError", "message": "x" * 100_000, "line": 1,
+                             "memory": False}, "truncated": False}, "100000 characters long"),
+    ({"t": "done", "error": None, "truncated": False, "kind": "ok"}, "keys"),
+    ({"t": "done", "error": {"type": "Bad Name", "message": "", "line": None,
+                             "memory": False}, "truncated": False}, "class name"),
+]
+
+
+@pytest.mark.parametrize(("message", "fragment"), FORGED_DONE,
+                         ids=["huge message", "unknown key", "bad class name"])
+def test_a_forged_outcome_is_a_protocol_error(robot, message, fragment):
+    code = ("import json, os\n"
+            f"body = json.dumps({message!r}).encode()\n"
+            "frame = len(body).to_bytes(4, 'big') + body\n"
+            "for fd in range(3, 10):\n    try:\n        os.write(fd, frame)\n"
+            "    except OSError:\n        pass\n"
+            "while True:\n    pass\n")
+    outcome = run_raw(code, robot)
+    assert outcome.kind == "protocol_error" and fragment in outcome.error
+    assert len(outcome.error) < 500
+
+
+def test_sysv_ipc_and_other_unmetered_kernel_memory_are_denied(robot):
+    """RLIMIT_AS does not count SysV shared memory, message queues, semaphores, memfd or
+    pipe buffers: the syscall filter refuses them all (EPERM) whatever the code does."""
+    code = (
+        "import ctypes, os\n"
+        "libc = ctypes.CDLL(None, use_errno=True)\n"
+        "def attempt(name, call):\n"
+        "    ctypes.set_errno(0)\n"
+        "    try:\n"
+        "        result = call()\n"
+        "    except OSError as error:\n"
+        "        return f'{name}:{error.errno}'\n"
+        "    return f'{name}:{result}:{ctypes.get_errno()}'\n"
+        "IPC_CREAT = 0o1000\n"
+        "print(attempt('shmget', lambda: libc.shmget(0, 1 << 30, IPC_CREAT | 0o600)),\n"
+        "      attempt('msgget', lambda: libc.msgget(0, IPC_CREAT | 0o600)),\n"
+        "      attempt('semget', lambda: libc.semget(0, 1, IPC_CREAT | 0o600)),\n"
+        "      attempt('memfd', lambda: os.memfd_create('x')),\n"
+        "      attempt('pipe', os.pipe),\n"
+        "      attempt('mlock', lambda: libc.mlockall(3)),\n"
+        "      attempt('getcwd', os.getcwd),\n"
+        "      attempt('unknown', lambda: libc.syscall(1000)))\n"
+    )
+    outcome = run_raw(code, robot)
+    assert outcome.ok, outcome.error
+    assert "seccomp" in outcome.isolation
+    # errno 1 is EPERM; harmless but unlisted calls (getcwd) and calls no kernel knows yet
+    # (which would fail with ENOSYS) are refused the same way: the list fails closed
+    assert outcome.stdout.split() == ["shmget:-1:1", "msgget:-1:1", "semget:-1:1", "memfd:1",
+                                      "pipe:1", "mlock:-1:1", "getcwd:1", "unknown:-1:1"]
+
+
+def test_the_allow_list_names_real_system_calls_on_x86_64_and_aarch64():
+    """libseccomp resolves each name per architecture; a misspelt name would silently allow
+    nothing. aarch64 has no time() (its C library uses clock_gettime)."""
+    import pyseccomp
+
+    for arch, missing in ((pyseccomp.Arch.X86_64, set()), (pyseccomp.Arch.AARCH64, {"time"})):
+        unknown = {name for name in (*seccomp.ALLOWED, seccomp.READ_ONLY_PRLIMIT)
+                   if pyseccomp.resolve_syscall(arch, name) < 0}
+        assert unknown == missing, arch
+    assert not {"shmget", "shmat", "msgget", "semget", "memfd_create", "pipe2", "socket",
+                "clone", "openat", "ioctl"} & set(seccomp.ALLOWED)
+
+
+def test_a_fatal_api_error_stops_the_code_at_once(robot):
+    code = ("print('moving')\n"
+            "try:\n"
+            "    fail_arm()\n"
+            "except BaseException as error:\n"
+            "    print('caught', error)\n"
+            "goto_pose([0.3, 0.1, 0.2])\n")
+    outcome = run_sandboxed(code, robot.api(), LIMITS, fatal=(FakeArmFault,))
+    assert outcome.kind == "fault" and not outcome.ok
+    assert outcome.error == ("fail_arm() failed with FakeArmFault: the arm reports: collision; "
+                             "the code was stopped at once")
+    assert outcome.stdout == "moving\n"
+    assert [name for name, _ in robot.calls] == ["fail_arm"]
+
+
+def test_robot_time_runs_out_inside_a_block(robot):
+    code = "for i in range(100):\n    get_object_pose('cube')\n    goto_pose([0.3, 0.1, 0.2])\n"
+    outcome = run_sandboxed(code, robot.api(), LIMITS, meters=robot.meters(),
+                            robot_time_s=25.0)
+    assert outcome.kind == "robot_time_limit"
+    assert "used 30.0 s of robot time (at most 25.0 s for this block)" in outcome.error
+    assert [name for name, _ in robot.calls].count("goto_pose") == 3
+    assert robot.calls[-1][0] == "get_object_pose"  # looking is not moving: still allowed
+
+
+def test_a_knowledge_flood_is_stopped(robot):
+    limits = SandboxLimits(cpu_s=2, compute_wall_s=2, memory_mb=512, knowledge_chars=500)
+    code = "for i in range(100):\n    get_mass([0.3, 0.0, 0.05], f'can {i} ' + 'x' * 100)\n"
+    outcome = run_sandboxed(code, robot.api(), limits, meters=robot.meters())
+    assert outcome.kind == "knowledge_limit"
+    assert "at most 500 per block" in outcome.error
+    assert len(robot.knowledge) == 5 and sum(len(e) for e in robot.knowledge) < 500 + 130
+
+
+def test_the_parents_own_oversized_replies_are_its_errors(robot):
+    code = ("try:\n    huge_result()\nexcept RuntimeError as error:\n    print(error)\n"
+            "try:\n    loud_refusal()\nexcept SkillRefused as error:\n"
+            "    print(len(str(error)), str(error)[-30:])\n")
+    outcome = run(code, robot)
+    assert outcome.ok, outcome.error
+    first, second = outcome.stdout.splitlines()
+    assert first.startswith("huge_result() returned a value the sandbox cannot hand to the "
+                            "code: message of")
+    assert 1900 < int(second.split()[0]) <= 2000 and second.endswith("characters cut]")
+
+
+def test_any_code_the_static_check_accepts_fits_in_the_start_message(robot):
+    code = "# " + "\U0001F600" * 99_000 + "\nprint('ran')\n"  # 1.2 MB as escaped JSON
+    outcome = run(code, robot)
+    assert outcome.ok and outcome.stdout == "ran\n", outcome.error

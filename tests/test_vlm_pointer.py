@@ -54,7 +54,10 @@ def test_a_model_answer_becomes_a_grasp_point():
     jpeg, prompt = requests[0]
     assert jpeg[:2] == b"\xff\xd8" and "green can" in prompt and "[y, x]" in prompt
     assert np.hypot(pointed[0] - pixel[0], pointed[1] - pixel[1]) <= 1.5
-    grasp = episode.api.locator.locate_pixel(pointed, depth)
+    locator = episode.api.locator
+    seen = locator.object_at(pointed, locator.perception.look(locator.images(rgb, depth, label)))
+    assert seen.name == "green can"
+    grasp = seen.grasp_point
     assert np.linalg.norm(grasp[:2] - np.array(target.xy)) < 0.015
     assert grasp[2] == pytest.approx(0.065, abs=0.005)
 
@@ -71,7 +74,7 @@ def test_get_object_pose_works_with_a_vlm_pointer():
         u, v = offline.point(label, phrase).pixel
         return f'<point x="{100 * (u + 0.5) / W:.2f}" y="{100 * (v + 0.5) / H:.2f}">x</point>'
 
-    episode.api.use_locator(ObjectLocator(episode.api.locator.camera, VlmPointer(ask)))
+    episode.api.use_locator(ObjectLocator(episode.api.locator.perception, VlmPointer(ask)))
     for obj in episode.instance.objects:
         grasp = episode.api.get_object_pose(obj.visible.name)
         assert np.linalg.norm(grasp[:2] - np.array(obj.xy)) < 0.015, obj.visible.name

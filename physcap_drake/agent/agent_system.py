@@ -1,9 +1,11 @@
 """AgentSystem: the agent in the diagram, deciding at its discrete events.
 
-Its input ports take the camera's images (`camera.rgb`, and `camera.label` for the simulated
-perception module), so what the agent sees is exactly what is wired to it: no plant, no
-poses, no masses. Its state is the agent's mind (`AgentMind`: phase, code blocks run, the code
-block waiting to run, ...) in the Context, published as a summary on `agent.progress`.
+Its input ports are the station outputs its perception module reads (`camera.rgb`,
+`camera.depth` and the arm's measured joints for RGB-D perception; `camera.label` instead of
+the joints for the simulator's segmenter), so what the agent sees is exactly what is wired
+to it: no plant, no poses, no masses. Its state is the agent's mind (`AgentMind`: phase,
+code blocks run, the code block waiting to run, ...) in the Context, published as a summary
+on `agent.progress`.
 
 Every `period` s a periodic unrestricted-update event runs; when the mind is "deciding", the
 event looks through the camera ports and lets the policy (`AgentLoop.think`) decide and write
@@ -20,12 +22,15 @@ from collections.abc import Callable
 
 from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import Context, LeafSystem, State
-from pydrake.systems.sensors import ImageLabel16I, ImageRgba8U
+from pydrake.systems.sensors import ImageDepth32F, ImageLabel16I, ImageRgba8U
 
 from physcap_drake.agent.loop import AgentLoop, AgentMind
 from physcap_drake.agent.observation import Observation, observe
-from physcap_drake.perception.offline_pointer import OfflinePointer
 from physcap_drake.station import ports
+
+#: The value type of each image input a perception module may read.
+_IMAGE_INPUTS = {ports.CAMERA_RGB: ImageRgba8U, ports.CAMERA_DEPTH: ImageDepth32F,
+                 ports.CAMERA_LABEL: ImageLabel16I}
 
 PROGRESS_PORT = "agent.progress"
 #: Period of the agent's events, s of simulated time (a multiple of the plant's 4 ms step, so
@@ -45,20 +50,24 @@ class AgentProgress:
 
 
 class AgentSystem(LeafSystem):
-    """See the module docstring. `pointer` is the simulated perception module; the policy is
-    attached with `attach` before the episode starts (it needs the robot API, which needs
-    the built diagram); `on_observe()` hears each look at the scene."""
+    """See the module docstring. `perception` finds the objects in view (an RgbdPerception
+    or the simulator's LabelPerception; its `input_ports` become this system's); the policy
+    is attached with `attach` before the episode starts (it needs the robot API, which
+    needs the built diagram); `on_observe()` hears each look at the scene."""
 
-    def __init__(self, pointer: OfflinePointer, period: float = AGENT_PERIOD):
+    def __init__(self, perception, period: float = AGENT_PERIOD):
         super().__init__()
-        self._pointer = pointer
+        self._perception = perception
         self._policy: AgentLoop | None = None
         self._robot_time: Callable[[], float] = lambda: 0.0
         self._on_observe: Callable[[], None] | None = None
-        self._rgb = self.DeclareAbstractInputPort(ports.CAMERA_RGB,
-                                                  AbstractValue.Make(ImageRgba8U()))
-        self._label = self.DeclareAbstractInputPort(ports.CAMERA_LABEL,
-                                                    AbstractValue.Make(ImageLabel16I()))
+        self._inputs = {}
+        for name in perception.input_ports:
+            if name in _IMAGE_INPUTS:
+                self._inputs[name] = self.DeclareAbstractInputPort(
+                    name, AbstractValue.Make(_IMAGE_INPUTS[name]()))
+            else:
+                self._inputs[name] = self.DeclareVectorInputPort(name, ports.VECTOR_OUTPUTS[name])
         self._mind = self.DeclareAbstractState(AbstractValue.Make(AgentMind()))
         self.DeclareAbstractOutputPort(PROGRESS_PORT, lambda: AbstractValue.Make(
             AgentProgress()), self._output_progress, {self.abstract_state_ticket(self._mind)})
@@ -73,8 +82,9 @@ class AgentSystem(LeafSystem):
         """What the camera shows now (renders the images if they are stale)."""
         if self._on_observe is not None:
             self._on_observe()
-        return observe(self._rgb.Eval(context).data, self._label.Eval(context).data,
-                       self._pointer, self._robot_time())
+        images = {name: (port.Eval(context).data if name in _IMAGE_INPUTS
+                         else port.Eval(context)) for name, port in self._inputs.items()}
+        return observe(images, self._perception, self._robot_time())
 
     def mind(self, context: Context) -> AgentMind:
         return context.get_abstract_state(self._mind).get_value()

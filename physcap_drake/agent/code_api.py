@@ -4,6 +4,11 @@ The functions are the RobotAPI's own methods (plus `breakpoint_code_block`), so 
 models read is generated from the same docstrings the code runs: one source of truth. Only
 these functions cross into the sandbox; the RobotAPI object itself (with its simulator) never
 does.
+
+Every call is checked in the parent before it reaches the RobotAPI: bound to the method's
+own signature, each argument checked by the kind in `PARAMETER_KINDS` (positions are three
+finite numbers, names one line of at most `MAX_NAME_CHARS` characters, ...). A call that
+does not fit is refused to the code as a TypeError or ValueError.
 """
 
 from __future__ import annotations
@@ -13,12 +18,42 @@ from collections.abc import Callable
 
 import numpy as np
 
+from physcap_drake.agent.sandbox import (
+    ApiFunction,
+    FunctionSpec,
+    Number,
+    OrNone,
+    ParameterKind,
+    Text,
+    Vector,
+)
 from physcap_drake.robot_api import RobotAPI
 
 #: The functions of every variant, and those only variants with the PhysX modules get.
 MOTION_FUNCTIONS = ("get_object_pose", "goto_pose", "open_gripper", "close_gripper",
                     "home_pose")
 PHYSX_FUNCTIONS = ("get_mass", "get_weight", "get_stiffness")
+
+#: Longest object name or description a call may carry (characters).
+MAX_NAME_CHARS = 120
+_POSITION = Vector(3)
+_NAME = Text(MAX_NAME_CHARS)
+#: What each parameter of each function must be (see the module docstring).
+PARAMETER_KINDS: dict[str, dict[str, ParameterKind]] = {
+    "get_object_pose": {"name": _NAME},
+    "goto_pose": {"position": _POSITION, "quaternion_wxyz": OrNone(Vector(4)),
+                  "z_approach": Number()},
+    "open_gripper": {},
+    "close_gripper": {},
+    "home_pose": {},
+    "get_mass": {"position": _POSITION, "name": OrNone(_NAME)},
+    "get_weight": {"position": _POSITION, "name": OrNone(_NAME)},
+    "get_stiffness": {"position": _POSITION, "name": OrNone(_NAME)},
+    "breakpoint_code_block": {},
+}
+#: The functions that move the robot (robot-time budgets are checked before each call).
+MOVING = frozenset({"goto_pose", "open_gripper", "close_gripper", "home_pose", "get_mass",
+                    "get_weight", "get_stiffness"})
 
 
 def breakpoint_code_block() -> None:
@@ -34,10 +69,15 @@ class CodeAPI:
         names = MOTION_FUNCTIONS + (PHYSX_FUNCTIONS if physx else ())
         self._functions: dict[str, Callable] = {name: getattr(api, name) for name in names}
         self._functions["breakpoint_code_block"] = breakpoint_code_block
+        # Built here, so a RobotAPI signature that PARAMETER_KINDS does not match fails now.
+        self._table = {name: ApiFunction(_plain_results(function), spec_of(name, function))
+                       for name, function in self._functions.items()}
 
-    def functions(self) -> dict[str, Callable]:
-        """name -> callable; numpy results are turned into lists for the RPC."""
-        return {name: _plain_results(function) for name, function in self._functions.items()}
+    def functions(self) -> dict[str, ApiFunction]:
+        """name -> the function (numpy results turned into lists for the RPC) with the spec
+        its calls are checked against (the RobotAPI method's signature and
+        PARAMETER_KINDS)."""
+        return dict(self._table)
 
     def names(self) -> list[str]:
         return list(self._functions)
@@ -55,6 +95,15 @@ class CodeAPI:
             parts.append(f"def {name}{shown}:\n    \"\"\"{inspect.cleandoc(target.__doc__ or '')}"
                          .replace("\n", "\n    ") + "\n    \"\"\"")
         return "\n\n".join(parts)
+
+
+def spec_of(name: str, function: Callable) -> FunctionSpec:
+    """The spec of one function: the signature of the RobotAPI method of that name (or of
+    `function` itself if RobotAPI has none), the kinds of PARAMETER_KINDS, and whether it
+    moves the robot."""
+    method = getattr(RobotAPI, name, None)
+    return FunctionSpec.of(name, method or function, PARAMETER_KINDS[name],
+                           motion=name in MOVING, drop_self=method is not None)
 
 
 def _plain_results(function: Callable) -> Callable:

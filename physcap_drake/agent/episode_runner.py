@@ -81,7 +81,9 @@ def run_agent_episode(task: str, seed: int, *, agent: str = "physcap", llm: str 
                       on_entry: Callable[[TranscriptEntry], None] | None = None,
                       robot_time_limit: float = ROBOT_TIME_LIMIT,
                       pointer: str = "offline", sink: McapSink | None = None,
-                      scenario_file: str | Path | None = None) -> AgentRun:
+                      scenario_file: str | Path | None = None,
+                      perception: str = "label", judge: str = "simulator",
+                      on_start: Callable[[Episode], None] | None = None) -> AgentRun:
     """Runs one episode of `task` with layout `seed`. `llm` is a backend spec (see
     physcap_drake.agent.llm.factory); `client` overrides it with a ready client (it should
     be a RecordingClient for the calls to be reported). `on_entry` hears each transcript
@@ -90,15 +92,21 @@ def run_agent_episode(task: str, seed: int, *, agent: str = "physcap", llm: str 
     the model must take images). With a `sink`, the run is recorded to it (robot signals by
     an McapRecorder in the diagram, the agent's messages by an AgentRecording); the caller
     closes the sink. `scenario_file` replaces the task's own scenario (e.g. the same scene
-    with `station: !PiperCan`); a CAN station is released when the episode ends."""
+    with `station: !PiperCan`); a CAN station is released when the episode ends.
+    `perception`: "rgbd" (from the colour and depth images alone) or "label" (the
+    simulator's perfect segmenter); `judge`: "simulator" (ground truth) or "perception"
+    (the final camera view); see tasks.episode.
+    `on_start(episode)` is called once the episode is built and its simulator initialized,
+    before the agent's first decision (a live viewer paces the simulator and frames its
+    view there)."""
     if pointer not in ("offline", "vlm"):
         raise ValueError(f"pointer must be 'offline' or 'vlm', got {pointer!r}")
     variant = load_variant(agent)
     client = client or make_llm(llm, model, seed=seed)
     episode = make_episode(task, seed, meshcat=meshcat, with_agent=True, sink=sink,
-                           scenario_file=scenario_file)
+                           scenario_file=scenario_file, perception=perception, judge=judge)
     if pointer == "vlm":
-        episode.api.use_locator(ObjectLocator(episode.api.locator.camera,
+        episode.api.use_locator(ObjectLocator(episode.api.locator.perception,
                                               VlmPointer(pointer_ask(client))))
     simulator, system = episode.api.simulator, episode.robot.agent
     root = simulator.get_mutable_context()
@@ -128,12 +136,15 @@ def run_agent_episode(task: str, seed: int, *, agent: str = "physcap", llm: str 
                      on_phase=on_phase)
     system.attach(loop, lambda: episode.api.robot_time,
                   recording.on_observe if recording is not None else None)
-    start = time.monotonic()
     try:
+        if on_start is not None:
+            on_start(episode)
+        start = time.monotonic()
         mind = drive_agent(simulator, system, agent_context, loop)
+        # Judged before the station is released: a camera judge still needs its camera.
+        outcome = loop.outcome(mind, time.monotonic() - start)
     finally:
         episode.close()
-    outcome = loop.outcome(mind, time.monotonic() - start)
     run = AgentRun(task, variant.name, seed, getattr(client, "name", llm),
                    getattr(client, "model", model or ""), outcome, transcript,
                    list(getattr(client, "records", [])), episode)

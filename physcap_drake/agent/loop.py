@@ -17,6 +17,13 @@ the final code block (the planner found the information sufficient, or the coder
 task is complete), or at the step limit, the robot-time limit, or when an agent gives no
 usable answer: the mind is then "done" or "failed". The task's success check (ground truth)
 runs only after that, the same way for every variant, and is never shown to the agents.
+
+A code block is untrusted input: each robot call it makes is checked in the parent before
+it reaches the RobotAPI (`code_api`), and its budgets are checked per call (API calls, wall
+time, robot time before each motion: at most what is left of the episode's, and what it
+adds to the scene knowledge). A block that breaks any of these ends with the reason, which
+the next model call sees; an arm fault stops the code at once (it cannot catch it) and ends
+the episode with the reason, the arm holding where it stopped.
 """
 
 from __future__ import annotations
@@ -32,7 +39,7 @@ from physcap_drake.agent.history import StepRecord
 from physcap_drake.agent.llm.base import LLMClient, LLMError
 from physcap_drake.agent.observation import Observation
 from physcap_drake.agent.prompts import AgentContext, PromptBook
-from physcap_drake.agent.sandbox import CodeOutcome, SandboxLimits, run_sandboxed
+from physcap_drake.agent.sandbox import CodeOutcome, Meters, SandboxLimits, run_sandboxed
 from physcap_drake.agent.schemas import (
     Candidate,
     CoderAnswer,
@@ -182,13 +189,18 @@ class AgentLoop:
     # --- between events ------------------------------------------------------------------
 
     def execute(self, mind: AgentMind) -> AgentMind:
-        """Runs the pending code block in the sandbox (this advances the simulation)."""
+        """Runs the pending code block in the sandbox (this advances the simulation). Never
+        raises for anything the block does: the block ends with a reason the next model
+        call sees, or the episode ends with a reason in its summary."""
         if mind.phase != "executing" or mind.pending is None:
             raise ValueError(f"no code block to run (phase {mind.phase!r})")
         try:
             return self._run_block(mind)
-        except ArmFault as fault:  # the arm's error state ends the episode; it holds
+        except ArmFault as fault:  # raised while the arm was brought to rest: it holds
             return self.fault(mind, fault)
+        except Exception as error:  # noqa: BLE001 - the last line of defence, see above
+            return self._end(dc.replace(mind, pending=None), "the agent could not take in "
+                             f"what the code block did ({type(error).__name__}: {error})")
 
     def fault(self, mind: AgentMind, fault: ArmFault) -> AgentMind:
         """Ends the episode on an arm fault (raised by the station while time advanced)."""
@@ -196,20 +208,28 @@ class AgentLoop:
 
     def _run_block(self, mind: AgentMind) -> AgentMind:
         pending = mind.pending
-        outcome: CodeOutcome = run_sandboxed(pending.answer.code, self._code_api.functions(),
-                                             self._limits)
+        api = self.api
+        # The block's robot-time budget is what is left of the episode's, checked before
+        # each motion; an arm fault stops the code at once (it never gets to catch it).
+        outcome: CodeOutcome = run_sandboxed(
+            pending.answer.code, self._code_api.functions(), self._limits,
+            meters=Meters(lambda: api.robot_time, api.knowledge.size_chars),
+            robot_time_s=max(self._robot_time_limit - api.robot_time, 0.0), fatal=(ArmFault,))
         if outcome.stdout.strip():
             self._note(mind, "output", outcome.stdout, {"stdout": outcome.stdout})
         if not outcome.ok:
             self._note(mind, "error", f"{outcome.kind}: {outcome.error}",
                        {"kind": outcome.kind, "error": outcome.error})
-            self._make_safe(mind)
-        entries = self.api.knowledge.entries
+            if outcome.kind != "fault":  # after a fault the arm holds; nothing may move it
+                self._make_safe(mind)
+        entries = api.knowledge.entries
         for entry in entries[mind.known:]:
             self._note(mind, "measurement", entry.describe(), dc.asdict(entry))
-        return dc.replace(mind, phase="deciding", pending=None, known=len(entries),
-                          ran=RanBlock(pending.decision, pending.answer, outcome,
-                                       self.api.robot_time))
+        mind = dc.replace(mind, pending=None, known=len(entries))
+        if outcome.kind == "fault":
+            return self._end(mind, f"arm fault: {outcome.error}")
+        return dc.replace(mind, phase="deciding", ran=RanBlock(
+            pending.decision, pending.answer, outcome, api.robot_time))
 
     def outcome(self, mind: AgentMind, wall_time_s: float) -> EpisodeOutcome:
         """The episode's result once the mind is done or failed (or interrupted)."""
@@ -245,8 +265,8 @@ class AgentLoop:
             last = mind.steps[-1]
             if last.kind == "final":
                 return "done", ""
-        if self.api.robot_time > self._robot_time_limit:
-            return "failed", (f"robot-time limit reached ({self.api.robot_time:.0f} s > "
+        if self.api.robot_time >= self._robot_time_limit:
+            return "failed", (f"robot-time limit reached ({self.api.robot_time:.0f} s >= "
                               f"{self._robot_time_limit:.0f} s)")
         if len(mind.steps) >= self.variant.max_steps:
             return "failed", f"step limit reached ({self.variant.max_steps} code blocks)"

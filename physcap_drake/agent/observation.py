@@ -1,5 +1,6 @@
 """What the agent sees at a decision: the camera image and the objects the perception module
-finds in it, left to right. Nothing here reads poses, masses or any other hidden state."""
+finds in it, left to right (RGB-D perception, or the simulator's label segmenter as an
+ablation). Nothing here reads poses, masses or any other hidden state."""
 
 from __future__ import annotations
 
@@ -8,7 +9,7 @@ import dataclasses as dc
 import numpy as np
 
 from physcap_drake.perception.jpeg import encode_jpeg
-from physcap_drake.perception.offline_pointer import OfflinePointer
+from physcap_drake.station import ports
 
 #: JPEG quality of the images sent to the models.
 JPEG_QUALITY = 85
@@ -17,21 +18,24 @@ JPEG_QUALITY = 85
 @dc.dataclass(frozen=True)
 class ObjectInView:
     """One object the perception module finds in the image: its name (the handle
-    get_object_pose accepts), its visible attributes, and where it appears in the image
-    (mean column and row of its pixels, px; columns grow to the image's right)."""
+    get_object_pose accepts), its visible attributes, how high its top stands above the
+    table (m), and where it appears in the image (mean column and row of its pixels, px;
+    columns grow to the image's right)."""
 
     name: str
     category: str
     color: str
     straw: bool
     size: str
+    height_m: float
     image_x: float
     image_y: float
 
     def describe(self) -> str:
         size = f"{self.size} " if self.size else ""
         straw = ", with a straw (opened)" if self.straw else ""
-        return f"'{self.name}': {size}{self.color} {self.category}{straw}"
+        return (f"'{self.name}': {size}{self.color} {self.category}{straw}, "
+                f"{100 * self.height_m:.0f} cm high")
 
     def as_context(self) -> dict:
         return dc.asdict(self)
@@ -55,13 +59,14 @@ class Observation:
         return "\n".join(f"- {obj.describe()}" for obj in self.objects)
 
 
-def observe(rgb: np.ndarray, label: np.ndarray, pointer: OfflinePointer,
-            robot_time_s: float) -> Observation:
-    """The observation from one camera frame: the objects the simulated perception module
-    (a perfect segmenter) recognizes in the label image, and the RGB image as JPEG."""
-    objects = []
-    for obj, mask, column in pointer.visible(label):
-        rows = np.nonzero(mask)[0]
-        objects.append(ObjectInView(obj.name, obj.category, obj.color, obj.straw, obj.size,
-                                    round(column, 1), round(float(rows.mean()), 1)))
-    return Observation(tuple(objects), encode_jpeg(rgb, JPEG_QUALITY), robot_time_s)
+def observe(images: dict[str, np.ndarray], perception, robot_time_s: float) -> Observation:
+    """The observation from one camera frame (`images`: the station outputs the perception
+    reads, by port name): the objects the perception module finds, and the RGB image as
+    JPEG."""
+    objects = tuple(
+        ObjectInView(seen.visible.name, seen.visible.category, seen.visible.color,
+                     seen.visible.straw, seen.visible.size, round(seen.top_height, 3),
+                     round(seen.column, 1), round(seen.row, 1))
+        for seen in perception.look(images))
+    return Observation(objects, encode_jpeg(images[ports.CAMERA_RGB], JPEG_QUALITY),
+                       robot_time_s)

@@ -1,10 +1,20 @@
 """The episode's transcript: what the agents thought, the code they wrote, what it printed,
-what was measured, in order. Rendered as markdown with code blocks headed "# Code block N"."""
+what was measured, in order; and how it reads, as markdown (transcript.md) and as plain text
+(the console).
+
+The markdown reads like the paper's code-policy listings: the task's instruction first, then
+each decision with the planner's and prioritizer's answers as compact tables, each code block
+headed "# Code block N" after the coder's thought, its output and the measurements, and at
+the end the outcome: the answer the success check gave, OI and robot time. It can be written
+as the episode goes (`markdown_header`, then `entry_markdown` per entry) and once more whole
+at the end (`Transcript.as_markdown` with the summary).
+"""
 
 from __future__ import annotations
 
 import dataclasses as dc
 from collections.abc import Callable
+from typing import Any
 
 #: Entry kinds, in the order they typically appear in one step.
 KINDS = ("observation", "planner", "prioritizer", "decision", "code", "output", "error",
@@ -46,16 +56,131 @@ class Transcript:
     def code_blocks(self) -> list[str]:
         return [e.text for e in self.entries if e.kind == "code"]
 
-    def as_markdown(self, title: str = "Transcript") -> str:
-        lines = [f"# {title}", ""]
-        for entry in self.entries:
-            stamp = f"[robot time {entry.robot_time_s:.1f} s]"
-            if entry.kind == "code":
-                lines += [f"```python\n# Code block {entry.step}\n{entry.text.rstrip()}\n```",
-                          ""]
-            elif entry.kind in ("output", "planner", "prioritizer"):
-                lines += [f"**{entry.kind}** {stamp}", "", "```", entry.text.rstrip(), "```",
-                          ""]
-            else:
-                lines += [f"**{entry.kind}** {stamp} {entry.text.rstrip()}", ""]
+    def as_markdown(self, title: str = "Transcript", instruction: str = "",
+                    summary: dict[str, Any] | None = None) -> str:
+        """The whole transcript: `markdown_header`, every entry, and the outcome when the
+        episode's `summary` (AgentRun.summary()) is given."""
+        parts = [markdown_header(title, instruction)]
+        parts += [entry_markdown(entry) for entry in self.entries]
+        if summary is not None:
+            parts.append(outcome_markdown(summary))
+        return "".join(parts)
+
+
+# --- markdown --------------------------------------------------------------------------------
+
+
+def markdown_header(title: str, instruction: str = "") -> str:
+    """The title and, when known, the task's instruction (what the agent was told)."""
+    text = f"# {title}\n\n"
+    if instruction:
+        text += f"**Instruction:** {instruction.strip()}\n\n"
+    return text
+
+
+def entry_markdown(entry: TranscriptEntry) -> str:
+    """One entry as markdown: paragraphs separated, and ended, by a blank line."""
+    at = f"(robot time {entry.robot_time_s:.1f} s)"
+    kind, data = entry.kind, entry.data
+    if kind == "code":
+        thought = data.get("thought", "").strip()
+        code = f"```python\n# Code block {entry.step}\n{entry.text.rstrip()}\n```"
+        blocks = [f"**Thought:** {thought}", code] if thought else [code]
+    elif kind == "planner" and "sufficient" in data:
+        blocks = [f"**Planner** {at}: {_verdict(data)}", *_planner_blocks(data)]
+    elif kind == "prioritizer" and "scored_candidates" in data:
+        blocks = [f"**Prioritizer** {at}:", _priority_table(data)]
+    elif kind == "observation":  # "objects in view:" and a markdown list, one per object
+        first, _, rest = entry.text.strip().partition("\n")
+        blocks = [f"**Observation** {at}: {first}", *([rest] if rest else [])]
+    elif kind == "output":
+        blocks = [f"**Output** {at}:", f"```\n{entry.text.rstrip()}\n```"]
+    else:
+        label = {"measurement": "Measured", "result": "Result"}.get(kind, kind.capitalize())
+        blocks = [f"**{label}** {at}: {entry.text.strip()}"]
+    return "\n\n".join(blocks) + "\n\n"
+
+
+def outcome_markdown(summary: dict[str, Any]) -> str:
+    """The episode's result: the answer the success check gave, OI, robot time and the
+    model calls (see AgentRun.summary for the keys)."""
+    success = summary.get("success")
+    verdict = "n/a" if success is None else ("success" if success else "failure")
+    rows = [("answer", f"{verdict}: {summary.get('reason', '')}".rstrip(": ")),
+            ("OI (exploratory object interactions)", str(summary.get("oi", ""))),
+            ("robot time", f"{summary.get('robot_time_s', 0.0):.1f} s"),
+            ("code blocks", str(summary.get("code_blocks", ""))),
+            ("model calls", f"{summary.get('llm_calls', 0)} ({summary.get('input_tokens', 0)} "
+                            f"tokens in, {summary.get('output_tokens', 0)} out, "
+                            f"{summary.get('llm_latency_s', 0.0):.1f} s)"),
+            ("wall time", f"{summary.get('wall_time_s', 0.0):.1f} s")]
+    if summary.get("failure"):
+        rows.insert(1, ("stopped", summary["failure"]))
+    return "## Outcome\n\n" + _table(("", ""), rows) + "\n"
+
+
+def _verdict(plan: dict) -> str:
+    enough = "enough is known" if plan["sufficient"] else "more information is needed"
+    return f"{enough}: {plan.get('reason', '').strip()}"
+
+
+def _planner_blocks(plan: dict) -> list[str]:
+    blocks = []
+    central = plan.get("central_objects") or []
+    if central:
+        blocks.append("Central objects: " + "; ".join(
+            f"{o['name']} ({', '.join(o.get('required_properties', [])) or '-'})"
+            for o in central))
+    candidates = plan.get("exploration_candidates") or []
+    if candidates:
+        blocks.append(_table(("candidate", "action", "reveals", "cost"), [
+            (c["name"], call_signature(c), c.get("expected_info", ""),
+             c.get("estimated_cost", "")) for c in candidates]))
+    if plan.get("ordering_reason"):
+        blocks.append(f"Order: {plan['ordering_reason']}")
+    return blocks
+
+
+def _priority_table(answer: dict) -> str:
+    scores = {s["name"]: s for s in answer["scored_candidates"]}
+    order = [c["name"] for c in answer.get("prioritized_candidates", [])] or list(scores)
+    rows = [(str(rank), name, f"{scores[name]['priority_score']:.1f}",
+             scores[name].get("reason", "")) for rank, name in enumerate(order, start=1)
+            if name in scores]
+    return _table(("order", "candidate", "score", "reason"), rows)
+
+
+def call_signature(candidate: dict) -> str:
+    """A candidate's action as a call, e.g. "get_mass(name: str)"."""
+    parameters = candidate.get("parameters") or {}
+    return f"{candidate.get('action', '')}(" + ", ".join(
+        f"{name}: {kind}" for name, kind in parameters.items()) + ")"
+
+
+def _table(header: tuple[str, ...], rows: list[tuple[str, ...]]) -> str:
+    def cell(text: str) -> str:
+        return " ".join(str(text).split()).replace("|", "\\|")
+
+    lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
+    lines += ["| " + " | ".join(cell(value) for value in row) + " |" for row in rows]
+    return "\n".join(lines)
+
+
+# --- plain text (the console) ----------------------------------------------------------------
+
+
+def entry_text(entry: TranscriptEntry) -> str:
+    """One entry as compact plain text: the planner's verdict with one line per candidate
+    instead of its JSON, the coder's thought before its code, the rest as written."""
+    data = entry.data
+    if entry.kind == "planner" and "sufficient" in data:
+        lines = [_verdict(data)]
+        lines += [f"  - {call_signature(c)} on '{c['name']}': {c.get('expected_info', '')} "
+                  f"(cost {c.get('estimated_cost', '?')})"
+                  for c in data.get("exploration_candidates") or []]
+        if data.get("ordering_reason"):
+            lines.append(f"  order: {data['ordering_reason']}")
         return "\n".join(lines)
+    if entry.kind == "code" and data.get("thought"):
+        return f"thought: {data['thought'].strip()}\n{entry.text.rstrip()}"
+    return entry.text.rstrip()

@@ -10,9 +10,13 @@ import typer
 from rich.table import Table
 
 from physcap_drake.bench.can_loop_bench import run_can_loop
+from physcap_drake.bench.perception_bench import bench_episode
+from physcap_drake.bench.perception_bench import summarize as summarize_perception
 from physcap_drake.bench.pick_place_bench import run_trial, summarize
 from physcap_drake.bench.station_bench import CASES, DURATION, run_station_case
 from physcap_drake.commands.common import console, save_json, sim_progress, trial_progress
+from physcap_drake.commands.task import parse_seeds
+from physcap_drake.tasks.registry import TASKS
 
 app = typer.Typer(help="Benchmarks that print figures.", no_args_is_help=True)
 
@@ -20,8 +24,11 @@ app = typer.Typer(help="Benchmarks that print figures.", no_args_is_help=True)
 @app.command("station")
 def station(json_path: Annotated[Path | None, typer.Option(
         "--json", help="Also write the results to this JSON file.")] = None) -> None:
-    """Real-time factor of the simulated station: holding home, a six-joint sweep, and
-    holding a 0.35 kg can in the gripper."""
+    """Real-time factor of the simulated station.
+
+    Three cases: holding home, a six-joint sweep, and holding a 0.35 kg can in the
+    gripper (with how far it slipped).
+    """
     results = []
     for case in CASES:
         with sim_progress(f"bench {case}", DURATION) as progress:
@@ -46,8 +53,11 @@ def pick_place(
     json_path: Annotated[Path | None, typer.Option(
         "--json", help="Also write the results to this JSON file.")] = None,
 ) -> None:
-    """Pick a can from random places on the table and put it on the tray: success count,
-    mean robot execution time and the worst fingertip error at the end of a goto_pose."""
+    """Pick and place a can from random places.
+
+    Picks the can from random places on the table and puts it on the tray: success count,
+    mean robot execution time and the worst fingertip error at the end of a goto_pose.
+    """
     results = []
     with trial_progress("pick and place", trials) as advance:
         for trial in range(trials):
@@ -73,8 +83,11 @@ def can_loop(
     json_path: Annotated[Path | None, typer.Option(
         "--json", help="Also write the results to this JSON file.")] = None,
 ) -> None:
-    """Period jitter of the CAN station's command loop over the virtual bus, against the
-    emulator, while the arm sweeps in real time: p50_ms, p99_ms (target 1000 / rate)."""
+    """Period jitter of the CAN station's command loop.
+
+    Streams commands over the virtual bus to the emulator while the arm sweeps in real
+    time, and reports the loop period's p50_ms and p99_ms (target 1000 / rate).
+    """
     with sim_progress("bench can-loop", seconds) as progress:
         result = run_can_loop(seconds, rate, progress)
     console.print(f"control loop at {result.control_rate_hz:g} Hz over {result.cycles} "
@@ -83,3 +96,41 @@ def can_loop(
                   f"{result.commands_sent} commands sent")
     if json_path is not None:
         save_json(json_path, dataclasses.asdict(result))
+
+
+@app.command("perception")
+def perception(
+    seeds: Annotated[str, typer.Option("--seeds", help="Layout seeds, e.g. 0-9.")] = "0-9",
+    tasks: Annotated[str, typer.Option("--tasks", help="Comma-separated tasks, or all.")
+                     ] = "all",
+    json_path: Annotated[Path | None, typer.Option(
+        "--json", help="Also write the results to this JSON file.")] = None,
+) -> None:
+    """RGB-D perception on each task's first view through an emulated RealSense: every
+    visible object located by its task name; worst and mean grasp-point error against the
+    simulator's ground truth, objects not found, attributes seen wrong."""
+    names = list(TASKS) if tasks == "all" else tasks.split(",")
+    jobs = [(task, seed) for task in names for seed in parse_seeds(seeds)]
+    results = []
+    with trial_progress("perception", len(jobs)) as advance:
+        for task, seed in jobs:
+            found = bench_episode(task, seed)
+            results.extend(found)
+            advance(all(r.error_m < 0.015 and not r.mismatch for r in found))
+    summary = summarize_perception(results)
+    table = Table(title="physcap bench perception (RGB-D, emulated RealSense)")
+    for column in ("task", "objects", "not found", "worst error (mm)", "mean error (mm)",
+                   "attributes wrong"):
+        table.add_column(column, justify="right")
+    for task, row in [*summary["tasks"].items(), ("all", summary["all"])]:
+        table.add_row(task, str(row["objects"]), str(row["not_found"]),
+                      f"{row['worst_error_mm']:.2f}", f"{row['mean_error_mm']:.2f}",
+                      str(row["attribute_mismatches"]))
+    console.print(table)
+    for item in summary["mismatches"]:
+        console.print(f"{item['task']} seed {item['seed']}: {item['name']} seen as "
+                      f"'{item['seen_as']}': {item['mismatch']}")
+    console.print(f"worst grasp-point error over all objects: "
+                  f"{summary['all']['worst_error_mm']:.2f} mm")
+    if json_path is not None:
+        save_json(json_path, summary)

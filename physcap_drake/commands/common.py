@@ -1,23 +1,69 @@
-"""Helpers shared by the command-line sub-commands."""
+"""Helpers shared by the command-line sub-commands: the consoles, one-line errors, scenario
+loading, the Meshcat viewer, progress and `--json` files."""
 
 from __future__ import annotations
 
+import functools
 import json
-from contextlib import contextmanager
+import logging
+from collections.abc import Callable
 from pathlib import Path
-from typing import Any
+from typing import Any, NoReturn
 
 import typer
 from pydrake.geometry import Meshcat
 from rich.console import Console
 from rich.markup import escape
-from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
 
+from physcap_drake.commands import progress
+from physcap_drake.recording.reading import RecordingError
 from physcap_drake.scenario import Scenario, load_scenario
 from physcap_drake.scenario_errors import ScenarioError
 
-console = Console()
-error_console = Console(stderr=True)
+# Lines are never broken to fit the width (a pipe or a log file has none): paths and units
+# stay whole; tables still fit the terminal.
+console = Console(soft_wrap=True)
+error_console = Console(stderr=True, soft_wrap=True)
+
+#: Exit code for bad input (a missing file, a file of the wrong kind, a bad name or value).
+BAD_INPUT = 2
+
+
+def print_error(message: str) -> None:
+    """Prints `error: <message>` as one line on stderr."""
+    error_console.print(f"[bold red]error:[/] {escape(' '.join(message.split()))}",
+                        highlight=False)
+
+
+def fail(message: str, code: int = BAD_INPUT) -> NoReturn:
+    """Prints `error: <message>` as one line on stderr and exits with `code`."""
+    print_error(message)
+    raise typer.Exit(code=code)
+
+
+#: Errors that mean the input is wrong, whichever command meets them.
+INPUT_ERRORS = (ScenarioError, RecordingError, FileNotFoundError, FileExistsError,
+                IsADirectoryError, NotADirectoryError, PermissionError)
+
+
+def describe_error(error: Exception) -> str:
+    """An input error in words: for a file error, what is wrong and with which file."""
+    if isinstance(error, OSError) and error.strerror and error.filename:
+        return f"{error.strerror[0].lower()}{error.strerror[1:]}: {error.filename}"
+    return str(error)
+
+
+def exit_2_on_bad_input(command: Callable) -> Callable:
+    """Wraps a command so that an INPUT_ERRORS exception ends it with `fail` (one line on
+    stderr, exit 2) instead of a traceback."""
+    @functools.wraps(command)
+    def guarded(*args, **kwargs):
+        try:
+            return command(*args, **kwargs)
+        except INPUT_ERRORS as error:
+            fail(describe_error(error))
+
+    return guarded
 
 
 def load_scenario_or_exit(path: Path) -> Scenario:
@@ -25,44 +71,33 @@ def load_scenario_or_exit(path: Path) -> Scenario:
     try:
         return load_scenario(path)
     except ScenarioError as error:
-        error_console.print(f"[bold red]scenario error:[/] {escape(str(error))}",
-                            soft_wrap=True, highlight=False)
-        raise typer.Exit(code=2) from None
+        fail(str(error))
 
 
-def make_meshcat(scenario: Scenario) -> Meshcat:
-    """Drake's Meshcat, with the scenario's server parameters (localhost by default)."""
-    meshcat = Meshcat(scenario.meshcat)
-    console.print(f"Meshcat is at [link={meshcat.web_url()}]{meshcat.web_url()}[/link]")
+def make_meshcat(scenario: Scenario | None = None, *, live: bool) -> Meshcat:
+    """Drake's Meshcat, with the scenario's server parameters (localhost by default); its
+    address is printed (once: Drake's own "listening" log line is held back) when someone
+    is to look at it `live`, and only then: an HTML file needs no server address."""
+    drake_log = logging.getLogger("drake")
+    level = drake_log.level
+    drake_log.setLevel(logging.WARNING)
+    try:
+        meshcat = Meshcat() if scenario is None else Meshcat(scenario.meshcat)
+    finally:
+        drake_log.setLevel(level)
+    if live:
+        console.print(f"Meshcat is at [link={meshcat.web_url()}]{meshcat.web_url()}[/link]")
     return meshcat
 
 
-@contextmanager
-def sim_progress(description: str, total: float):
-    """A progress bar over simulated seconds; yields a callback taking the seconds done."""
-    columns = (TextColumn("[progress.description]{task.description}"), BarColumn(),
-               TextColumn("{task.completed:.1f}/{task.total:.1f} s sim"), TimeRemainingColumn())
-    with Progress(*columns, console=console, transient=True) as progress:
-        task = progress.add_task(description, total=total)
-        yield lambda done: progress.update(task, completed=done)
+def sim_progress(description: str, total_s: float):
+    """Progress over simulated seconds (see progress.sim_progress)."""
+    return progress.sim_progress(console, description, total_s)
 
 
-@contextmanager
 def trial_progress(description: str, total: int):
-    """A progress bar over trials; yields a callback taking whether a trial succeeded."""
-    columns = (TextColumn("[progress.description]{task.description}"), BarColumn(),
-               TextColumn("{task.completed}/{task.total} trials, {task.fields[ok]} ok"),
-               TimeRemainingColumn())
-    with Progress(*columns, console=console, transient=True) as progress:
-        task = progress.add_task(description, total=total, ok=0)
-        successes = 0
-
-        def advance(success: bool) -> None:
-            nonlocal successes
-            successes += bool(success)
-            progress.update(task, advance=1, ok=successes)
-
-        yield advance
+    """Progress over trials (see progress.trial_progress)."""
+    return progress.trial_progress(console, description, total)
 
 
 def save_json(path: Path, data: Any) -> None:

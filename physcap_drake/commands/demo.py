@@ -7,51 +7,68 @@ from typing import Annotated
 
 import typer
 
-from physcap_drake.commands.common import console, load_scenario_or_exit, make_meshcat
+from physcap_drake.commands.common import console, fail, load_scenario_or_exit, make_meshcat
+from physcap_drake.commands.live_view import hold_open, pace_in_real_time
+from physcap_drake.commands.options import ContactForces, Hold, HtmlOut, LiveMeshcat
 from physcap_drake.control.errors import SkillError
 from physcap_drake.demos.pick_place import check_can_in_tray, pick_and_place
-from physcap_drake.demos.scene_layout import object_position
+from physcap_drake.demos.scene_layout import check_placed, object_position
 from physcap_drake.robot_api import RobotAPI
 from physcap_drake.robot_diagram import build_robot_diagram
 from physcap_drake.sim_runner import save_meshcat_html
+from physcap_drake.station.view import frame_on_table
 
 app = typer.Typer(help="Scripted demonstrations of the robot skills.", no_args_is_help=True)
+
+#: The models the pick-and-place demo needs in its scenario.
+DEMO_MODELS = ("soda_can", "tray")
 
 
 @app.command("pick-place")
 def pick_place(
     scenario: Annotated[Path, typer.Option("--scenario", "-s", help="Scenario YAML file; it "
                                            "must add a 'soda_can' and a 'tray'.")],
-    meshcat: Annotated[bool, typer.Option(
-        "--meshcat", help="Show the run in Meshcat (paced at real time).")] = False,
-    html: Annotated[Path | None, typer.Option(
-        "--html", help="Save the run as a standalone HTML replay.")] = None,
+    meshcat: LiveMeshcat = False,
+    hold: Hold = None,
+    html: HtmlOut = None,
+    contact_forces: ContactForces = False,
 ) -> None:
-    """Pick the soda can and put it on the tray, using the object positions the scenario
-    sets up (camera-based localization replaces them once perception exists)."""
+    """Put the soda can on the tray with the robot skills.
+
+    Opens the gripper above the can, grasps it, carries it to the tray, sets it down and
+    goes home, printing each skill as it ends, the robot execution time and whether the
+    can ended upright in the tray. The can and the tray are where the scenario puts them
+    (this demo shows the skills; `physcap run` finds objects with the camera).
+    """
     loaded = load_scenario_or_exit(scenario)
-    if meshcat:
-        loaded.simulator_config.target_realtime_rate = 1.0
-    viewer = make_meshcat(loaded) if (meshcat or html) else None
+    check_placed(loaded, DEMO_MODELS, scenario)
+    viewer = make_meshcat(loaded, live=meshcat) if (meshcat or html) else None
     robot = build_robot_diagram(loaded, viewer)
     simulator = robot.make_simulator()
+    if meshcat:
+        pace_in_real_time(simulator)
     api = RobotAPI(robot, simulator, on_skill_done=lambda status: console.print(
         f"  {status.finished_at:6.2f} s  {status.state}: {status.message}", highlight=False))
     if viewer is not None:
+        frame_on_table(viewer, contact_forces=contact_forces)
         viewer.StartRecording(frames_per_second=32.0, set_visualizations_while_recording=True)
     try:
         pick_and_place(api, object_position(loaded, "soda_can"),
                        object_position(loaded, "tray"))
     except SkillError as error:
-        console.print(f"[bold red]skill error:[/] {error}")
-        raise typer.Exit(code=1) from None
+        fail(f"skill failed: {error}", code=1)
     finally:
         if viewer is not None and html is not None:
             save_meshcat_html(viewer, html)
-            console.print(f"Saved the Meshcat replay to {html}")
+            console.print(f"saved the Meshcat replay to {html}")
     plant = robot.station.GetSubsystemByName("plant")
     check = check_can_in_tray(plant, plant.GetMyContextFromRoot(simulator.get_context()))
     console.print(f"robot execution time {api.robot_time:.2f} s; "
                   f"{'success' if check.success else 'failure'}: {check.reason}")
+    if meshcat:
+        if html is None:
+            viewer.StopRecording()
+            viewer.PublishRecording()
+        hold_open(viewer, hold)
     if not check.success:
         raise typer.Exit(code=1)

@@ -11,9 +11,7 @@ import typer
 
 from physcap_drake.can.emulator import PiperEmulator
 from physcap_drake.can.simulated_motion import simulated_motion
-from physcap_drake.commands.common import console
-from physcap_drake.scenario import load_scenario
-from physcap_drake.scenario_errors import ScenarioError
+from physcap_drake.commands.common import console, fail, load_scenario_or_exit
 
 
 def emulate_piper(
@@ -34,16 +32,11 @@ def emulate_piper(
         raise typer.BadParameter(f"--interface must be socketcan or virtual, not {interface!r}")
     motion = None
     if scenario is not None:
-        try:
-            motion = simulated_motion(load_scenario(scenario))
-        except ScenarioError as error:
-            console.print(f"[bold red]error:[/] {error}")
-            raise typer.Exit(code=2) from None
+        motion = simulated_motion(load_scenario_or_exit(scenario))
     try:
         bus = can.Bus(interface=interface, channel=channel)
     except (OSError, can.CanError) as error:
-        console.print(f"[bold red]cannot open {interface} channel {channel!r}:[/] {error}")
-        raise typer.Exit(code=2) from None
+        fail(f"cannot open {interface} channel {channel!r}: {error}")
     console.print(f"emulating a PiPER (firmware {firmware}) on {interface}:{channel}; "
                   "Ctrl-C to stop")
     try:

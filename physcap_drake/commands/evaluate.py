@@ -9,17 +9,11 @@ from typing import Annotated
 
 import typer
 from rich.markup import escape
-from rich.progress import (
-    BarColumn,
-    MofNCompleteColumn,
-    Progress,
-    TextColumn,
-    TimeElapsedColumn,
-    TimeRemainingColumn,
-)
 
 from physcap_drake.agent.llm.factory import VALID_SPECS
-from physcap_drake.commands.common import console, error_console
+from physcap_drake.commands.common import console, fail
+from physcap_drake.commands.model_options import ModelChoice
+from physcap_drake.commands.progress import ProgressReport
 from physcap_drake.eval.grid import (
     PAPER_TRIALS,
     all_agents,
@@ -64,10 +58,12 @@ def evaluate(
     out: Annotated[Path, typer.Option("--out", help="Folder of the episode folders and the "
                                       "result files.")] = Path("eval_runs"),
 ) -> None:
-    """Run the evaluation grid and write results.md, results.csv, results.json and
-    results.png (the paper's Table 1 layout and its simulation table, with 95 % intervals).
-    Finished episodes are not run again: rerunning the same command resumes an interrupted
-    grid."""
+    """Run the evaluation grid of tasks and agent variants.
+
+    Writes results.md, results.csv, results.json and results.png (the paper's Table 1
+    layout and its simulation table, with 95 % intervals). Finished episodes are not run
+    again: rerunning the same command resumes an interrupted grid.
+    """
     try:
         if paper and (tasks or agents or trials):
             raise ValueError("--paper runs the paper's grid; leave out --tasks, --agents "
@@ -82,8 +78,8 @@ def evaluate(
             specs = make_grid(task_names, agent_names, trials)
         run_specs = _runner(ray or ray_address is not None, ray_address)
     except ValueError as error:
-        error_console.print(f"[bold red]error:[/] {escape(str(error))}")
-        raise typer.Exit(code=2) from None
+        fail(str(error))
+    ModelChoice(llm, model).client(seed=0)  # a bad --llm fails here, not in every episode
     todo = pending(specs, out)
     where = (f"on the Ray cluster at {ray_address}" if ray_address else
              f"on a local Ray instance with {workers} CPU(s)" if ray else
@@ -91,20 +87,16 @@ def evaluate(
     console.print(f"{len(specs)} episodes in the grid, {len(specs) - len(todo)} already "
                   f"finished in {out}, {len(todo)} to run {where}", soft_wrap=True)
     start = time.monotonic()
-    columns = (TextColumn("[progress.description]{task.description}"), BarColumn(),
-               MofNCompleteColumn(), TimeElapsedColumn(), TextColumn("ETA"),
-               TimeRemainingColumn(), TextColumn("{task.fields[last]}"))
-    with Progress(*columns, console=console) as progress:
-        bar = progress.add_task("episodes", total=len(todo), last="")
+    with ProgressReport(console, "episodes", len(todo), "episodes") as progress:
 
         def on_done(result) -> None:
             spec = result["spec"]
             if "error" in result:
-                progress.console.print(f"[bold red]{spec.label()}: {escape(result['error'])}")
+                progress.print(f"[bold red]{spec.label()}: {escape(result['error'])}")
                 verdict = "error"
             else:
                 verdict = "ok" if result["summary"]["success"] else "failed"
-            progress.update(bar, advance=1, last=f"{spec.label()}: {verdict}")
+            progress.advance(note=f"last {spec.label()}: {verdict}")
 
         run_specs(todo, out, llm=llm, model=model, workers=workers, on_done=on_done)
     wall = time.monotonic() - start
@@ -126,9 +118,8 @@ def evaluate(
                   soft_wrap=True)
     console.print("written: " + ", ".join(str(f) for f in files), soft_wrap=True)
     if unfinished:
-        error_console.print(f"[bold red]{len(unfinished)} episode(s) did not finish[/]; "
-                            "rerun the command to retry them (see error.json in their folders)")
-        raise typer.Exit(code=1)
+        fail(f"{len(unfinished)} episode(s) did not finish; rerun the command to retry "
+             "them (see error.json in their folders)", code=1)
 
 
 def _runner(ray: bool, address: str | None):

@@ -6,45 +6,53 @@ from pathlib import Path
 from typing import Annotated
 
 import typer
-from pydrake.geometry import Meshcat
-from rich.markup import escape
 
-from physcap_drake.commands.common import console, error_console
+from physcap_drake.commands.common import console, fail, make_meshcat
+from physcap_drake.commands.live_view import hold_open
+from physcap_drake.commands.options import ContactForces, Hold, HtmlOut
+from physcap_drake.commands.recover import report_recovery
+from physcap_drake.recording.episode_folder import MCAP_FILE
+from physcap_drake.recording.reading import check_is_mcap
+from physcap_drake.recording.recover import recover
 from physcap_drake.recording.replay import ReplayError, replay_in_meshcat, transcript_markdown
 from physcap_drake.sim_runner import save_meshcat_html
+from physcap_drake.station.view import frame_on_table
 
 
 def replay(
-    recording: Annotated[Path, typer.Argument(help="An episode.mcap written by physcap run "
-                                              "--out or physcap eval.")],
-    html: Annotated[Path | None, typer.Option(
-        "--html", help="Save the replay as one HTML file and exit (no server kept).")] = None,
+    recording: Annotated[Path, typer.Argument(
+        help=f"An {MCAP_FILE} written by physcap run --out or physcap eval, or its folder.")],
+    html: HtmlOut = None,
+    hold: Hold = None,
+    contact_forces: ContactForces = False,
     quiet: Annotated[bool, typer.Option("--quiet", help="Do not print the transcript.")
                      ] = False,
 ) -> None:
-    """Replay a recorded episode's robot motion in Meshcat (the browser plays the animation)
-    and print its transcript."""
-    meshcat = Meshcat()
+    """Replay a recorded episode in Meshcat.
+
+    Prints the episode's transcript, rebuilds the task's scene (nothing is simulated),
+    poses the arm, gripper and objects from the recorded joint states and frames, and
+    loads them as an animation: press play in Meshcat's Animation panel, or save it with
+    --html. A recording cut short by a crash is made complete first (see physcap recover).
+    """
+    path = recording / MCAP_FILE if recording.is_dir() else recording
+    check_is_mcap(path)
+    repaired = recover(path)
+    if repaired.needed:
+        report_recovery(repaired)
+    meshcat = make_meshcat(live=html is None)
     try:
-        replayed = replay_in_meshcat(recording, meshcat)
-    except (ReplayError, FileNotFoundError, KeyError) as error:
-        error_console.print(f"[bold red]error:[/] {escape(str(error))}", soft_wrap=True)
-        raise typer.Exit(code=2) from None
+        replayed = replay_in_meshcat(path, meshcat)
+    except (ReplayError, KeyError) as error:  # not an episode; a task this version lacks
+        fail(error.args[0] if isinstance(error, KeyError) else str(error))
+    frame_on_table(meshcat, contact_forces=contact_forces)
     if not quiet:
-        console.print(transcript_markdown(replayed.recording), markup=False, highlight=False,
-                      soft_wrap=True)
+        console.print(transcript_markdown(replayed.recording), markup=False, highlight=False)
     console.print(f"{replayed.task}, seed {replayed.seed}: {replayed.samples} samples over "
                   f"{replayed.duration_s:.1f} s of robot time, "
-                  f"{len(replayed.moved_objects)} objects moved from recorded frames"
-                  + ("" if replayed.recording.complete else
-                     " (the recording was cut short; replayed up to its end)"))
+                  f"{len(replayed.moved_objects)} objects moved from recorded frames")
     if html is not None:
         save_meshcat_html(meshcat, html)
         console.print(f"replay saved to {html}")
         return
-    console.print(f"Meshcat is at {meshcat.web_url()}: press play in its Animation panel. "
-                  "Ctrl-C to quit.")
-    try:
-        typer.prompt("Press Enter to quit", default="", show_default=False)
-    except (KeyboardInterrupt, typer.Abort, EOFError):
-        pass
+    hold_open(meshcat, hold)

@@ -6,96 +6,177 @@ from pathlib import Path
 from typing import Annotated
 
 import typer
-from pydrake.geometry import Meshcat
 from rich.markup import escape
 
 from physcap_drake.agent.episode_runner import run_agent_episode
 from physcap_drake.agent.llm import LLMError, save_jsonl
-from physcap_drake.agent.llm.factory import VALID_SPECS
-from physcap_drake.agent.transcript import TranscriptEntry
+from physcap_drake.agent.transcript import TranscriptEntry, entry_text
 from physcap_drake.agent.variant import variant_names
 from physcap_drake.can.link import StartupError
-from physcap_drake.commands.common import console, error_console, save_json
+from physcap_drake.commands.common import (
+    console,
+    error_console,
+    fail,
+    load_scenario_or_exit,
+    make_meshcat,
+    save_json,
+)
+from physcap_drake.commands.live_view import hold_open, pace_in_real_time
+from physcap_drake.commands.model_options import (
+    Llm,
+    Model,
+    ModelChoice,
+    VertexLocation,
+    VertexProject,
+)
+from physcap_drake.commands.options import ContactForces, Hold, LiveMeshcat
+from physcap_drake.commands.progress import Heartbeat
+from physcap_drake.config_checks import check_scenario_task
 from physcap_drake.recording.episode_folder import MCAP_FILE, record_episode
 from physcap_drake.scenario_errors import ScenarioError
+from physcap_drake.station.view import frame_on_table
 from physcap_drake.tasks.registry import TASKS
 
 STYLES = {"decision": "bold cyan", "error": "bold red", "measurement": "bold green",
-          "result": "bold magenta", "code": "yellow"}
+          "code": "yellow", "planner": "cyan", "prioritizer": "cyan"}
 
 
-def _print_entry(entry: TranscriptEntry) -> None:
-    style = STYLES.get(entry.kind, "dim")
-    header = f"[{style}]{entry.kind}[/] [dim](block {entry.step}, robot time " \
-             f"{entry.robot_time_s:.1f} s)[/]"
-    console.print(header)
-    console.print(escape(entry.text.rstrip()), highlight=False, soft_wrap=True)
+class EntryPrinter:
+    """Prints transcript entries as they come (compact: the planner's verdict and candidates,
+    not its JSON), and a heartbeat while a code block runs. The final "result" entries are
+    left to the summary printed at the end, which says the same once."""
+
+    def __init__(self):
+        self._heartbeat = Heartbeat(console)
+
+    def __call__(self, entry: TranscriptEntry) -> None:
+        self._heartbeat.stop()
+        if entry.kind == "result":
+            return
+        style = STYLES.get(entry.kind, "dim")
+        console.print(f"[{style}]{entry.kind}[/] [dim](block {entry.step}, robot time "
+                      f"{entry.robot_time_s:.1f} s)[/]")
+        console.print(escape(entry_text(entry)), highlight=False)
+        if entry.kind == "code":
+            self._heartbeat.start(f"code block {entry.step} running")
+
+    def stop(self) -> None:
+        self._heartbeat.stop()
 
 
 def run(task: Annotated[str, typer.Option("--task", help=f"One of: {', '.join(TASKS)}.")],
         agent: Annotated[str, typer.Option("--agent", help="Agent variant (agents/*.yaml): "
-                                           + ", ".join(variant_names()))] = "physcap",
-        llm: Annotated[str, typer.Option("--llm", help="Language model: "
-                                         + ", ".join(VALID_SPECS))] = "reference",
-        model: Annotated[str | None, typer.Option("--model", help="Model name for the "
-                                                  "backend.")] = None,
-        seed: Annotated[int, typer.Option("--seed", min=0)] = 0,
-        meshcat: Annotated[bool, typer.Option("--meshcat", help="Show the run in "
-                                              "Meshcat.")] = False,
-        json_path: Annotated[Path | None, typer.Option("--json", help="Write the summary "
-                                                       "here.")] = None,
-        record: Annotated[Path | None, typer.Option(
-            "--record", help="Save the model calls as JSON Lines (replay with "
-                             "--llm replay:FILE).")] = None,
+                                           + ", ".join(variant_names()) + ".")] = "physcap",
+        seed: Annotated[int, typer.Option("--seed", min=0, help="Layout seed of the task's "
+                                          "objects.")] = 0,
+        scenario: Annotated[Path | None, typer.Option(
+            "--scenario", metavar="FILE", help="Scenario file instead of the task's own (it "
+            "must set up the same task), e.g. stations/identify_empty_can_piper_can.yaml "
+            "(over CAN).")] = None,
         pointer: Annotated[str, typer.Option(
-            "--pointer", help="How get_object_pose finds objects: offline (simulated "
-                              "segmenter) or vlm (the model points; needs an image model).")
-                           ] = "offline",
+            "--pointer", help="How get_object_pose finds objects: offline (phrases resolved "
+                              "against the perceived objects) or vlm (the model points; "
+                              "needs an image model).")] = "offline",
+        perception: Annotated[str, typer.Option(
+            "--perception", help="What sees the objects: rgbd (colour and depth images "
+                                 "alone, the camera emulated as a RealSense in simulation) "
+                                 "or label (the simulator's perfect segmenter).")] = "label",
+        judge: Annotated[str, typer.Option(
+            "--judge", help="Who decides success: simulator (ground truth) or perception "
+                            "(the final camera view).")] = "simulator",
+        llm: Llm = "reference",
+        model: Model = None,
+        vertex_project: VertexProject = None,
+        vertex_location: VertexLocation = None,
         quiet: Annotated[bool, typer.Option("--quiet", help="Print only the summary.")] = False,
+        json_path: Annotated[Path | None, typer.Option(
+            "--json", metavar="FILE", help="Write the summary here.")] = None,
+        record: Annotated[Path | None, typer.Option(
+            "--record", metavar="FILE", help="Save the model calls as JSON Lines (replay "
+            "with --llm replay:FILE).")] = None,
         out: Annotated[Path | None, typer.Option(
-            "--out", help="Write the episode's folder here: episode.mcap (open it in "
-                          "Foxglove), transcript.md, summary.json, calls.jsonl.")] = None,
+            "--out", metavar="DIR", help="Write the episode's folder here: episode.mcap, "
+            "transcript.md, calls.jsonl (all three as the run goes) and summary.json.")
+                       ] = None,
+        overwrite: Annotated[bool, typer.Option(
+            "--overwrite", help="With --out: replace a recording already there.")] = False,
         meshcat_html: Annotated[bool, typer.Option(
             "--meshcat-html", help="With --out: also save meshcat.html, a replay of the run "
                                    "for any browser.")] = False,
-        overwrite: Annotated[bool, typer.Option(
-            "--overwrite", help="With --out: replace a recording already there.")] = False,
-        scenario: Annotated[Path | None, typer.Option(
-            "--scenario", help="Scenario file instead of the task's own, e.g. "
-                               "stations/identify_empty_can_piper_can.yaml (over CAN).")] = None,
+        meshcat: LiveMeshcat = False,
+        hold: Hold = None,
+        contact_forces: ContactForces = False,
         ) -> None:
-    """Run one episode of a task with an agent and print success, OI, robot time and the
-    transcript (thoughts, code blocks, measurements)."""
+    """Run one episode of a task with an agent.
+
+    Prints the transcript as it goes (observations, the planner's and prioritizer's
+    answers, each code block and its output, the measurements), then success, OI
+    (exploratory object interactions) and robot time. Exit code 1 if the task failed.
+    """
     if task not in TASKS:
-        error_console.print(f"[bold red]error:[/] unknown task {task!r}; one of "
-                            f"{', '.join(TASKS)}")
-        raise typer.Exit(code=2)
+        fail(f"unknown task {task!r}; one of {', '.join(TASKS)}")
     if meshcat_html and out is None:
-        error_console.print("[bold red]error:[/] --meshcat-html needs --out DIR")
-        raise typer.Exit(code=2)
-    viewer = Meshcat() if (meshcat or meshcat_html) else None
-    if viewer is not None and meshcat:
-        console.print(f"Meshcat is at {viewer.web_url()}")
-    options = dict(agent=agent, llm=llm, model=model, meshcat=viewer, pointer=pointer,
-                   scenario_file=scenario, on_entry=None if quiet else _print_entry)
+        fail("--meshcat-html needs --out DIR")
+    if hold is not None and not meshcat:
+        fail("--hold needs --meshcat")
+    if out is not None and out.exists() and not out.is_dir():
+        fail(f"--out {out} is a file; give a folder for the episode")
+    if scenario is not None:
+        try:
+            check_scenario_task(task, load_scenario_or_exit(scenario).task.name, str(scenario))
+        except ScenarioError as error:
+            fail(str(error))
+    client = ModelChoice(llm, model, vertex_project, vertex_location).client(seed)
+    viewer = make_meshcat(live=meshcat) if (meshcat or meshcat_html) else None
+
+    def on_start(episode) -> None:
+        if meshcat:
+            pace_in_real_time(episode.api.simulator)
+        if out is None and viewer is not None:  # record_episode frames its own
+            frame_on_table(viewer, contact_forces=contact_forces)
+            viewer.StartRecording(frames_per_second=32.0,
+                                  set_visualizations_while_recording=True)
+
+    printer = None if quiet else EntryPrinter()
+    if printer is not None:
+        console.print(f"[bold]{task}[/], seed {seed}, agent {escape(agent)}: "
+                      f"{escape(TASKS[task].prompt)}")
+    options = dict(agent=agent, client=client, meshcat=viewer, pointer=pointer,
+                   perception=perception, judge=judge, scenario_file=scenario,
+                   on_entry=printer, on_start=on_start)
     try:
         if out is None:
             result = run_agent_episode(task, seed, **options)
         else:
             result = record_episode(out, task, seed, meshcat_html=meshcat_html,
-                                    overwrite=overwrite, **options)
-    except (ValueError, ScenarioError, LLMError, ImportError, FileExistsError,
-            ConnectionError, StartupError) as error:
-        error_console.print(f"[bold red]error:[/] {escape(str(error))}", soft_wrap=True)
-        raise typer.Exit(code=2) from None
+                                    overwrite=overwrite, contact_forces=contact_forces,
+                                    **options)
+    except FileExistsError as error:
+        fail(f"{error}; pass --overwrite to replace it")
+    except (ValueError, LLMError, ImportError, ConnectionError, StartupError) as error:
+        fail(str(error))
     except KeyboardInterrupt:
         where = f"; the recording so far is in {out}" if out is not None else ""
-        error_console.print(f"[bold red]interrupted[/]{where}", soft_wrap=True)
+        error_console.print(f"[bold red]interrupted[/]{escape(where)}")
         raise typer.Exit(code=130) from None
-    summary = result.summary()
+    finally:
+        if printer is not None:
+            printer.stop()
+    _report(result.summary(), json_path, out)
     if record is not None:
         save_jsonl(result.calls, record)
         console.print(f"model calls saved to {record}")
+    if meshcat and viewer is not None:
+        if out is None:
+            viewer.StopRecording()
+            viewer.PublishRecording()
+        hold_open(viewer, hold)
+    if not result.summary()["success"]:
+        raise typer.Exit(code=1)
+
+
+def _report(summary: dict, json_path: Path | None, out: Path | None) -> None:
+    """The outcome, once: success or failure with the check's reason, then the figures."""
     verdict = "[bold green]success[/]" if summary["success"] else "[bold red]failure[/]"
     console.print(f"{verdict}: {escape(summary['reason'])}")
     if summary["failure"]:
@@ -107,5 +188,3 @@ def run(task: Annotated[str, typer.Option("--task", help=f"One of: {', '.join(TA
         save_json(json_path, summary)
     if out is not None:
         console.print(f"episode folder: {out} (open {out / MCAP_FILE} in Foxglove)")
-    if not summary["success"]:
-        raise typer.Exit(code=1)

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import sys
 from pathlib import Path
 from typing import Annotated
 
@@ -14,7 +13,10 @@ from physcap_drake.commands.common import (
     make_meshcat,
     sim_progress,
 )
+from physcap_drake.commands.live_view import hold_open, pace_in_real_time
+from physcap_drake.commands.options import ContactForces, Hold, HtmlOut, LiveMeshcat
 from physcap_drake.sim_runner import advance, make_simulator, save_meshcat_html
+from physcap_drake.station.view import frame_on_table
 from physcap_drake.station_commands import build_commanded_station
 
 
@@ -23,10 +25,10 @@ def sim(
     duration: Annotated[float | None, typer.Option(
         "--duration", "-d", min=0.0,
         help="Simulated seconds to run (default: the scenario's simulation_duration).")] = None,
-    meshcat: Annotated[bool, typer.Option(
-        "--meshcat", help="Show the run in Meshcat (paced at real time).")] = False,
-    html: Annotated[Path | None, typer.Option(
-        "--html", help="Save the run as a standalone HTML replay.")] = None,
+    meshcat: LiveMeshcat = False,
+    hold: Hold = None,
+    html: HtmlOut = None,
+    contact_forces: ContactForces = False,
     wiggle: Annotated[bool, typer.Option(
         "--wiggle", help="Sweep all six joints and the gripper instead of holding.")] = False,
     realtime_rate: Annotated[float | None, typer.Option(
@@ -34,18 +36,20 @@ def sim(
         help="Pace at this multiple of real time, 0 for as fast as possible (default: 1 with "
              "--meshcat, else the scenario's simulator_config.target_realtime_rate).")] = None,
 ) -> None:
-    """Build the scenario's station and run it, printing sim time, wall time and the
-    real-time factor."""
+    """Run a scenario's station and report its speed.
+
+    Builds the station, holds the arm at its initial pose (or sweeps the joints with
+    --wiggle) and prints the simulated time, the wall time and the real-time factor.
+    """
     loaded = load_scenario_or_exit(scenario)
     seconds = loaded.simulation_duration if duration is None else duration
-    if realtime_rate is None and meshcat:
-        realtime_rate = 1.0
-    if realtime_rate is not None:
-        loaded.simulator_config.target_realtime_rate = realtime_rate
-    viewer = make_meshcat(loaded) if (meshcat or html) else None
+    viewer = make_meshcat(loaded, live=meshcat) if (meshcat or html) else None
     diagram, _ = build_commanded_station(loaded, meshcat=viewer, sweep=wiggle, duration=seconds)
     simulator = make_simulator(diagram, loaded)
+    if realtime_rate is not None or meshcat:
+        pace_in_real_time(simulator, 1.0 if realtime_rate is None else realtime_rate)
     if viewer is not None:
+        frame_on_table(viewer, contact_forces=contact_forces)
         viewer.StartRecording(frames_per_second=32.0, set_visualizations_while_recording=True)
     with sim_progress("Simulating" + (" (joint sweep)" if wiggle else " (holding)"),
                       seconds) as progress:
@@ -56,9 +60,9 @@ def sim(
         return
     if html is not None:
         save_meshcat_html(viewer, html)
-        console.print(f"Saved the Meshcat replay to {html}")
+        console.print(f"saved the Meshcat replay to {html}")
     else:
         viewer.StopRecording()
         viewer.PublishRecording()
-    if meshcat and sys.stdin.isatty():
-        console.input("The run can be replayed in Meshcat (Animations). Press Enter to exit. ")
+    if meshcat:
+        hold_open(viewer, hold)

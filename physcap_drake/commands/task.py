@@ -10,7 +10,8 @@ import numpy as np
 import typer
 from rich.table import Table
 
-from physcap_drake.commands.common import console, error_console, save_json, trial_progress
+from physcap_drake.commands.common import console, fail, save_json, trial_progress
+from physcap_drake.commands.options import JsonOut
 from physcap_drake.control.errors import SkillError
 from physcap_drake.perception.offline_pointer import PointingError
 from physcap_drake.station import ports
@@ -26,16 +27,20 @@ def _task_or_exit(name: str):
     try:
         return get_task(name)
     except KeyError as error:
-        error_console.print(f"[bold red]error:[/] {error.args[0]}")
-        raise typer.Exit(code=2) from None
+        fail(error.args[0])
 
 
 def parse_seeds(text: str) -> list[int]:
-    """"0-9" -> 0..9; "1,4,7" -> [1, 4, 7]; "3" -> [3]."""
+    """"0-9" -> 0..9; "1,4,7" -> [1, 4, 7]; "3" -> [3]. Raises ValueError naming the text."""
     seeds = []
     for part in text.split(","):
         low, _, high = part.partition("-")
-        seeds.extend(range(int(low), int(high or low) + 1))
+        try:
+            seeds.extend(range(int(low), int(high or low) + 1))
+        except ValueError:
+            raise ValueError(f"--seeds {text!r}: expected seeds like 0-9, 1,4,7 or 3") from None
+    if not seeds:
+        raise ValueError(f"--seeds {text!r} names no seed (write low-high with low <= high)")
     return seeds
 
 
@@ -43,8 +48,12 @@ def parse_seeds(text: str) -> list[int]:
 def show(task: TaskName, seed: Annotated[int, typer.Option("--seed", min=0)] = 0,
          png: Annotated[Path | None, typer.Option("--png", help="Save the labelled camera "
                                                    "view here.")] = None) -> None:
-    """Print the episode's objects and prompt, and save the camera view with each visible
-    object's name drawn where the camera-based locator finds it."""
+    """Show a task's scene: its objects and prompt.
+
+    Prints the episode's prompt and objects with the grasp point the camera-based locator
+    finds for each, and with --png saves the camera view with each object's name drawn
+    where it was found.
+    """
     _task_or_exit(task)
     episode = make_episode(task, seed)
     console.print(f"[bold]{task}[/], seed {seed}: {episode.instance.prompt}")
@@ -76,14 +85,23 @@ def check(task: TaskName,
           seeds: Annotated[str, typer.Option("--seeds", help="e.g. 0-9 or 1,3,5")] = "0-9",
           wrong: Annotated[bool, typer.Option(
               "--wrong", help="Run a deliberately wrong solution instead (it must fail).")] = False,
-          json_path: Annotated[Path | None, typer.Option("--json")] = None) -> None:
-    """Run the scripted oracle solution (it knows the answer; for testing the task only) on
-    each seed and report whether the task's success check passes."""
+          json_path: JsonOut = None) -> None:
+    """Check a task with a scripted solution.
+
+    Runs the oracle solution (it knows the answer: for testing the task, not the agent) on
+    each seed and reports whether the task's success check passes; with --wrong, a
+    deliberately wrong solution that must fail. --json writes one row per seed (seed,
+    answer, success, skill_error, reason, robot_time_s).
+    """
     solver = _task_or_exit(task)
+    try:
+        seed_list = parse_seeds(seeds)
+    except ValueError as error:
+        fail(str(error))
     rows = []
     with trial_progress(f"{task} ({'wrong' if wrong else 'oracle'})",
-                        len(parse_seeds(seeds))) as advance:
-        for seed in parse_seeds(seeds):
+                        len(seed_list)) as advance:
+        for seed in seed_list:
             episode = make_episode(task, seed)
             crashed = False
             try:

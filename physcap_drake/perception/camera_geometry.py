@@ -6,16 +6,27 @@ import numpy as np
 from pydrake.math import RigidTransform
 from pydrake.systems.sensors import CameraConfig
 
+from physcap_drake.station.camera_intrinsics import rendered_intrinsics
+
 
 class CameraGeometry:
-    """The calibrated camera: intrinsics from its CameraConfig and its pose in the world
-    (the extrinsics; X_PB with the world as parent, and the colour camera's X_BC).
+    """The calibrated camera: its intrinsics and its pose in the world (the extrinsics X_WC,
+    the colour camera's optical frame C in the world).
 
-    Pixel (u, v): column and row, the origin at the top-left pixel's centre. Depth: metres
-    along the optical axis (the camera frame's +z; +x right, +y down in the image).
+    Pixel (u, v): column and row, the origin at the top-left pixel's centre (OpenCV's and
+    librealsense's convention). Depth: metres along the optical axis (the camera frame's +z;
+    +x right, +y down in the image).
     """
 
-    def __init__(self, config: CameraConfig):
+    def __init__(self, width: int, height: int, fx: float, fy: float, cx: float, cy: float,
+                 X_WC: RigidTransform):
+        self.width, self.height = int(width), int(height)
+        self.fx, self.fy, self.cx, self.cy = float(fx), float(fy), float(cx), float(cy)
+        self.X_WC = X_WC
+
+    @classmethod
+    def from_config(cls, config: CameraConfig) -> CameraGeometry:
+        """The geometry of a rendered camera (Drake CameraConfig) fixed in the world."""
         if config.X_PB.base_frame:
             raise ValueError(f"camera '{config.name}' is mounted on '{config.X_PB.base_frame}'; "
                              "back-projection needs a camera fixed in the world")
@@ -23,13 +34,20 @@ class CameraGeometry:
                 config.X_BD.GetDeterministicValue()):
             raise ValueError(f"camera '{config.name}': the colour and depth cameras must share "
                              "one pose (X_BC == X_BD) to back-project depth at colour pixels")
+        fx, fy, cx, cy = rendered_intrinsics(config)
         color, _ = config.MakeCameras()
         intrinsics = color.core().intrinsics()
-        self.width, self.height = intrinsics.width(), intrinsics.height()
-        self.fx, self.fy = intrinsics.focal_x(), intrinsics.focal_y()
-        self.cx, self.cy = intrinsics.center_x(), intrinsics.center_y()
-        self.X_WC: RigidTransform = (config.X_PB.GetDeterministicValue()
-                                     @ config.X_BC.GetDeterministicValue())
+        return cls(intrinsics.width(), intrinsics.height(), fx, fy, cx, cy,
+                   config.X_PB.GetDeterministicValue() @ config.X_BC.GetDeterministicValue())
+
+    @classmethod
+    def from_entry(cls, entry) -> CameraGeometry:
+        """The geometry of a scenario camera entry: a rendered CameraConfig, or a RealSense
+        (an emulated one renders with exactly these intrinsics; a live device's must match
+        its calibration file, which the driver checks)."""
+        if isinstance(entry, CameraConfig):
+            return cls.from_config(entry)
+        return cls.from_config(entry.rendering_config())
 
     def back_project(self, u, v, depth) -> np.ndarray:
         """World points (N × 3, m) of pixels (u, v) seen at `depth` (m); arrays broadcast."""

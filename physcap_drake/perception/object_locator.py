@@ -1,98 +1,96 @@
-"""ObjectLocator: get_object_pose from the camera — point, back-project, derive a grasp point."""
+"""ObjectLocator: get_object_pose from the camera — find the object a phrase names, and its
+top-down grasp point.
+
+The perception module (`RgbdPerception`, or the simulator's `LabelPerception`) reports the
+objects in view with their grasp points; a phrase resolves against them (`phrases`), or a
+vision-language model points at a pixel (`VlmPointer`) and the object under that pixel is
+taken.
+"""
 
 from __future__ import annotations
 
-import dataclasses as dc
+from collections.abc import Callable, Mapping
 
 import numpy as np
 
 from physcap_drake.perception.camera_geometry import CameraGeometry
-from physcap_drake.perception.offline_pointer import OfflinePointer, PointResult
-from physcap_drake.perception.visible_objects import VisibleObject
+from physcap_drake.perception.phrases import PointingError, resolve
+from physcap_drake.perception.seen_object import SeenObject
 from physcap_drake.perception.vlm_pointer import VlmPointer
+from physcap_drake.station import ports
 
-#: Top-down grasps take an object at half its height, but never deeper than this below its
-#: top (the finger pads are 40 mm long; a tall can is held around its middle), m.
-MAX_GRASP_DEPTH = 0.057
-#: Lowest fingertip height of a grasp above the table, m.
-MIN_GRASP_HEIGHT = 0.015
-#: Without a mask (a VLM pointer gives a pixel only), the object's points are those within
-#: this horizontal distance of the pointed point and above the table, m.
-NEIGHBOURHOOD = 0.045
-TABLE_CLEARANCE = 0.004
-#: The top of an object: its points within this distance below the 90th-percentile height
-#: (thin parts such as a straw stick out above it and are ignored), m.
-TOP_BAND = 0.012
-
-
-@dc.dataclass(frozen=True)
-class ObjectLocation:
-    """Where an object is, from one camera view (world frame, m).
-
-    point: the back-projected pointed pixel (a point on the object's visible surface).
-    grasp_point: the fingertip target of a top-down grasp (centre of its top, at grasp height).
-    top_height: the height of its top surface above the table.
-    """
-
-    target: VisibleObject
-    pixel: tuple[int, int]
-    point: np.ndarray
-    grasp_point: np.ndarray
-    top_height: float
-
-
-def grasp_point_from_points(points: np.ndarray) -> tuple[np.ndarray, float]:
-    """A top-down grasp point (m) and the top height from an object's visible surface points."""
-    top = float(np.percentile(points[:, 2], 90))
-    cap = points[points[:, 2] >= top - TOP_BAND]
-    # The middle of the top's extent: a lid, a cube's face or a tray's rim is seen whole
-    # from above, so its middle is the object's axis even where its near side shows more.
-    centre = 0.5 * (cap[:, :2].min(axis=0) + cap[:, :2].max(axis=0))
-    height = max(top - min(MAX_GRASP_DEPTH, 0.5 * top), MIN_GRASP_HEIGHT)
-    return np.array([*centre, height]), top
+#: A pointed pixel within this distance of an object's mask counts as on it, px.
+POINT_SLACK = 6
 
 
 class ObjectLocator:
-    """Locates objects named by phrases in the current camera images, with either pointer:
-    the OfflinePointer (a perfect segmenter: the object's whole mask) or a VlmPointer (one
-    pixel; the object's surface is then taken around it)."""
+    """Finds objects named by phrases in the current camera images.
 
-    def __init__(self, camera: CameraGeometry, pointer: OfflinePointer | VlmPointer):
-        self.camera = camera
-        self.pointer = pointer
+    perception: the module that reports the objects in view (with `look(images)`, `known()`,
+    `input_ports` and `camera`). vlm: when given, a model points at the object instead of
+    the phrase resolving against the perception's names. read_inputs: reads the station
+    outputs the perception needs besides the images (e.g. the arm's joints), by port name.
+    """
+
+    def __init__(self, perception, vlm: VlmPointer | None = None,
+                 read_inputs: Callable[[str], np.ndarray] | None = None):
+        self.perception = perception
+        self.vlm = vlm
+        self._read_inputs = read_inputs
+
+    @property
+    def camera(self) -> CameraGeometry:
+        return self.perception.camera
+
+    @property
+    def pointer(self):
+        """The VLM pointer, or the perception's own (the simulated segmenter's)."""
+        return self.vlm if self.vlm is not None else getattr(self.perception, "pointer", None)
+
+    def images(self, rgb: np.ndarray, depth: np.ndarray, label: np.ndarray | None
+               ) -> dict[str, np.ndarray]:
+        """The perception's inputs: the given images and whatever else it reads."""
+        images = {ports.CAMERA_RGB: rgb, ports.CAMERA_DEPTH: depth}
+        if label is not None:
+            images[ports.CAMERA_LABEL] = label
+        for name in self.perception.input_ports:
+            if name not in images:
+                if self._read_inputs is None:
+                    raise RuntimeError(f"the perception reads {name}, and this locator has "
+                                       "no way to read it")
+                images[name] = self._read_inputs(name)
+        return images
 
     def grasp_point(self, phrase: str, rgb: np.ndarray, depth: np.ndarray,
-                    label: np.ndarray) -> np.ndarray:
+                    label: np.ndarray | None = None) -> np.ndarray:
         """The top-down grasp point (world frame, m) of the object `phrase` names. Raises
         PointingError (a ValueError) when the phrase fits no single object."""
-        if isinstance(self.pointer, VlmPointer):
-            return self.locate_pixel(self.pointer.point(rgb, phrase), depth)
-        return self.locate(phrase, depth, label).grasp_point
+        return self.locate(phrase, self.images(rgb, depth, label)).grasp_point
 
-    def locate(self, phrase: str, depth: np.ndarray, label: np.ndarray) -> ObjectLocation:
-        """With the OfflinePointer: the object's location from its mask. Raises PointingError
-        (listing the candidates) if the phrase fits no single object."""
-        pointed: PointResult = self.pointer.point(label, phrase)
-        depth = depth.reshape(depth.shape[0], depth.shape[1])
-        u, v = pointed.pixel
-        point = self.camera.back_project(u, v, depth[v, u])[0]
-        rows, cols = np.nonzero(pointed.mask & np.isfinite(depth))
-        points = self.camera.back_project(cols, rows, depth[rows, cols])
-        grasp, top = grasp_point_from_points(points)
-        return ObjectLocation(pointed.target, pointed.pixel, point, grasp, top)
+    def locate(self, phrase: str, images: Mapping[str, np.ndarray]) -> SeenObject:
+        """The object in view that `phrase` names (resolved by name and attributes, or
+        pointed at by the VLM). Raises PointingError listing the objects in view."""
+        in_view = self.perception.look(images)
+        if self.vlm is None:
+            return resolve(phrase, in_view, self.perception.known())
+        pixel = self.vlm.point(np.asarray(images[ports.CAMERA_RGB]), phrase)
+        return self.object_at(pixel, in_view)
 
-    def locate_pixel(self, pixel: tuple[int, int], depth: np.ndarray) -> np.ndarray:
-        """A grasp point (m) from a pointed pixel alone (a VLM pointer's answer): the object's
-        surface is taken as the points near the pointed one, above the table."""
-        depth = depth.reshape(depth.shape[0], depth.shape[1])
+    @staticmethod
+    def object_at(pixel: tuple[int, int], in_view: list[SeenObject]) -> SeenObject:
+        """The object whose mask holds `pixel` (u, v), or the nearest within POINT_SLACK px.
+        Raises PointingError if the pixel is on none."""
         u, v = pixel
-        if not np.isfinite(depth[v, u]):
-            raise ValueError(f"no depth at the pointed pixel ({u}, {v})")
-        point = self.camera.back_project(u, v, depth[v, u])[0]
-        rows, cols = np.nonzero(np.isfinite(depth))
-        points = self.camera.back_project(cols, rows, depth[rows, cols])
-        near = (np.linalg.norm(points[:, :2] - point[:2], axis=1) < NEIGHBOURHOOD) & (
-            points[:, 2] > TABLE_CLEARANCE)
-        if near.sum() < 10:
-            raise ValueError(f"the pointed pixel ({u}, {v}) is not on an object above the table")
-        return grasp_point_from_points(points[near])[0]
+        best, distance = None, POINT_SLACK + 1.0
+        for seen in in_view:
+            if seen.mask[v, u]:
+                return seen
+            rows, cols = np.nonzero(seen.mask)
+            d = float(np.min(np.hypot(rows - v, cols - u))) if len(rows) else np.inf
+            if d < distance:
+                best, distance = seen, d
+        if best is None:
+            listing = "; ".join(f"'{s.name}'" for s in in_view)
+            raise PointingError(f"the pointed pixel ({u}, {v}) is on no object in view "
+                                f"(objects, left to right: {listing})")
+        return best

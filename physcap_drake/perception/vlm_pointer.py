@@ -17,7 +17,7 @@ from collections.abc import Callable
 import numpy as np
 
 from physcap_drake.perception.jpeg import encode_jpeg
-from physcap_drake.perception.offline_pointer import PointingError
+from physcap_drake.perception.phrases import PointingError
 
 #: What the pointer asks the model, in our own words.
 PROMPT = ("Point at the {phrase} in this image. Answer with JSON only: a list with one "

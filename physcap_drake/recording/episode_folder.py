@@ -1,16 +1,20 @@
 """A folder per episode: everything a user needs to judge and debug one run.
 
-    <folder>/episode.mcap     the recording (open it in Foxglove)
-    <folder>/transcript.md    thoughts, code blocks ("# Code block N"), outputs, measurements
+    <folder>/episode.mcap     the recording (open it in Foxglove or any MCAP reader)
+    <folder>/transcript.md    instruction, thoughts, code blocks ("# Code block N"), outputs,
+                              measurements, the planner's answers, and the outcome
     <folder>/summary.json     task, variant, seed, success, OI, robot and wall time, model
                               calls with tokens and latency, git commit and dirty flag
     <folder>/calls.jsonl      the model calls, for `physcap run --llm replay:<file>`
     <folder>/meshcat.html     with meshcat_html=True: a replay of the run in any browser
 
-`summary.json` is written last and only for an episode that ran to its end (success or not),
-so its presence marks a finished episode (`physcap eval` resumes on it). When a run stops on an
-exception or Ctrl-C, the recording is closed properly, the transcript so far is written and
-`error.json` says what stopped it; then the exception goes on.
+Nothing waits for the end: the recording is readable after every flush (see mcap_sink), and
+transcript.md and calls.jsonl grow entry by entry and call by call, so a run killed outright
+leaves all three up to the moment it died. When the episode ends, transcript.md is written
+once more whole, with the outcome. `summary.json` is written last and only for an episode that
+ran to its end (success or not), so its presence marks a finished episode (`physcap eval`
+resumes on it). When a run stops on an exception or Ctrl-C, the recording is closed properly
+and `error.json` says what stopped it; then the exception goes on.
 """
 
 from __future__ import annotations
@@ -19,16 +23,18 @@ import json
 import os
 import traceback
 from pathlib import Path
-from typing import Any
+from typing import IO, Any
 
 from pydrake.geometry import Meshcat
 
 from physcap_drake.agent.episode_runner import AgentRun, run_agent_episode
-from physcap_drake.agent.llm import save_jsonl
-from physcap_drake.agent.transcript import Transcript
+from physcap_drake.agent.llm import CallRecord, make_llm, save_jsonl
+from physcap_drake.agent.transcript import TranscriptEntry, entry_markdown, markdown_header
 from physcap_drake.recording.git_state import git_state
 from physcap_drake.recording.mcap_sink import McapSink
 from physcap_drake.sim_runner import save_meshcat_html
+from physcap_drake.station.view import frame_on_table
+from physcap_drake.tasks.registry import get_task
 
 MCAP_FILE = "episode.mcap"
 TRANSCRIPT_FILE = "transcript.md"
@@ -49,21 +55,46 @@ def read_summary(folder: Path) -> dict[str, Any]:
 
 def write_json(path: Path, data: Any) -> None:
     """Writes JSON atomically: a reader never sees half a file."""
+    write_text(path, json.dumps(data, indent=2) + "\n")
+
+
+def write_text(path: Path, text: str) -> None:
+    """Writes a text file atomically (a new file moved into place)."""
     partial = path.with_name(path.name + ".partial")
-    partial.write_text(json.dumps(data, indent=2) + "\n")
+    partial.write_text(text)
     os.replace(partial, path)
 
 
+class _Appender:
+    """A text file that grows line by line, each addition on disk before the next."""
+
+    def __init__(self, path: Path, first: str = ""):
+        self.path = path
+        self._file: IO[str] = path.open("w", encoding="utf-8")
+        self.add(first)
+
+    def add(self, text: str) -> None:
+        if text and not self._file.closed:
+            self._file.write(text)
+            self._file.flush()
+
+    def close(self) -> None:
+        self._file.close()
+
+
 def record_episode(folder: str | Path, task: str, seed: int, *, meshcat_html: bool = False,
-                   overwrite: bool = False, **options) -> AgentRun:
+                   overwrite: bool = False, contact_forces: bool = False,
+                   **options) -> AgentRun:
     """Runs one episode (see `run_agent_episode`; `options` go to it) and writes its folder.
+    A Meshcat view (`meshcat`, or the one made for `meshcat_html`) is framed on the table,
+    with the contact forces shown only if `contact_forces`.
 
     Raises FileExistsError if the folder already holds a recording and not `overwrite`.
     """
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
     if (folder / MCAP_FILE).exists() and not overwrite:
-        raise FileExistsError(f"{folder / MCAP_FILE} exists; pass overwrite to replace it")
+        raise FileExistsError(f"{folder} already holds a recording ({MCAP_FILE})")
     for stale in (SUMMARY_FILE, ERROR_FILE, MESHCAT_FILE):
         (folder / stale).unlink(missing_ok=True)
     meshcat = options.pop("meshcat", None)
@@ -71,30 +102,60 @@ def record_episode(folder: str | Path, task: str, seed: int, *, meshcat_html: bo
         meshcat = Meshcat()
     if meshcat is not None:
         meshcat.StartRecording(frames_per_second=32.0, set_visualizations_while_recording=True)
-    transcript = Transcript()
+    title = f"{task}, seed {seed}, agent {options.get('agent', 'physcap')}"
+    instruction = get_task(task).prompt
+    client = options.pop("client", None) or make_llm(  # before calls.jsonl is emptied
+        options.pop("llm", "reference"), options.pop("model", None), seed=seed)
+    transcript_file = _Appender(folder / TRANSCRIPT_FILE, markdown_header(title, instruction))
+    calls_file = _Appender(folder / CALLS_FILE)
+    _also_on_record(client, lambda record: calls_file.add(
+        json.dumps(record.to_json(), ensure_ascii=False) + "\n"))
     listener = options.pop("on_entry", None)
+    then = options.pop("on_start", None)
 
-    def on_entry(entry) -> None:
-        transcript.entries.append(entry)
+    def on_start(episode) -> None:
+        if meshcat is not None:
+            frame_on_table(meshcat, contact_forces=contact_forces)
+        if then is not None:
+            then(episode)
+
+    def on_entry(entry: TranscriptEntry) -> None:
+        transcript_file.add(entry_markdown(entry))
         if listener is not None:
             listener(entry)
 
     sink = McapSink(folder / MCAP_FILE, overwrite=True)
-    title = f"{task}, seed {seed}, agent {options.get('agent', 'physcap')}"
     try:
         run = run_agent_episode(task, seed, meshcat=meshcat, sink=sink, on_entry=on_entry,
-                                **options)
+                                on_start=on_start, client=client, **options)
     except BaseException as error:
-        (folder / TRANSCRIPT_FILE).write_text(transcript.as_markdown(title + " (stopped)"))
+        transcript_file.add(f"**Stopped:** {type(error).__name__}: {error}\n")
         write_json(folder / ERROR_FILE, {
             "error": f"{type(error).__name__}: {error}",
             "traceback": traceback.format_exc(), **git_state()})
         raise
     finally:
         sink.close()
-    (folder / TRANSCRIPT_FILE).write_text(run.transcript.as_markdown(title))
+        transcript_file.close()
+        calls_file.close()
+    write_text(folder / TRANSCRIPT_FILE, run.transcript.as_markdown(title, instruction,
+                                                                    run.summary()))
     save_jsonl(run.calls, folder / CALLS_FILE)
     if meshcat_html and meshcat is not None:
         save_meshcat_html(meshcat, folder / MESHCAT_FILE)
     write_json(folder / SUMMARY_FILE, {**run.summary(), **git_state()})
     return run
+
+
+def _also_on_record(client, write) -> None:
+    """Has `client` (a RecordingClient) hand each new call record to `write` as well."""
+    if not hasattr(client, "on_record"):
+        return  # a bare client keeps no records; calls.jsonl is written from the run's end
+    earlier = client.on_record
+
+    def both(record: CallRecord) -> None:
+        write(record)
+        if earlier is not None:
+            earlier(record)
+
+    client.on_record = both

@@ -13,7 +13,13 @@ from physcap_drake.recording import topics
 
 
 def _entry_schema(data_schema: dict[str, Any]) -> dict[str, Any]:
-    return {
+    """A transcript entry whose `data` follows `data_schema`. Definitions the data schema
+    refers to (pydantic's "#/$defs/...") move to the entry's root, where those references
+    point once the data schema sits under `properties.data`."""
+    data_schema = dict(data_schema)
+    definitions = data_schema.pop("$defs", None)
+    schema = {
+        "$schema": JSON_SCHEMA_DIALECT,
         "type": "object",
         "properties": {
             "kind": {"type": "string"},
@@ -24,7 +30,13 @@ def _entry_schema(data_schema: dict[str, Any]) -> dict[str, Any]:
         },
         "required": ["kind", "step", "robot_time_s", "text"],
     }
+    if definitions:
+        schema["$defs"] = definitions
+    return schema
 
+
+#: The JSON Schema version of every schema here (pydantic writes 2020-12 schemas).
+JSON_SCHEMA_DIALECT = "https://json-schema.org/draft/2020-12/schema"
 
 _ANY_OBJECT = {"type": "object"}
 _STRING = {"type": "string"}
@@ -45,6 +57,12 @@ _LLM_CALL = {"type": "object", "properties": {
 _PROGRESS = {"type": "object", "properties": {
     "phase": _STRING, "steps": {"type": "integer"}, "oi": {"type": "integer"},
     "note": _STRING}}
+_GRIPPER = {"type": "object", "properties": {
+    "opening_m": {"type": "number", "description": "gap between the fingers, m"},
+    "effort": {"type": "number", "description": "measured effort as a fraction of the "
+                                                "gripper's maximum, 0..1 (no unit; the "
+                                                "paper's f-hat)"}},
+    "required": ["opening_m", "effort"]}
 _SUMMARY = {"type": "object", "properties": {
     "task": _STRING, "agent": _STRING, "seed": {"type": "integer"},
     "success": {"type": ["boolean", "null"]}, "oi": {"type": "integer"},
@@ -63,6 +81,7 @@ def agent_schemas() -> dict[str, tuple[str, dict[str, Any]]]:
         topics.AGENT_OUTPUT: ("physcap.CodeOutput", _entry_schema(_CODE_OUTPUT)),
         topics.AGENT_ERROR: ("physcap.AgentError", _entry_schema(_AGENT_ERROR)),
         topics.AGENT_MEASUREMENT: ("physcap.Measurement", _entry_schema(_MEASUREMENT)),
+        topics.GRIPPER_STATE: ("physcap.GripperState", _GRIPPER),
         topics.LLM_CALLS: ("physcap.LLMCall", _LLM_CALL),
         topics.AGENT_PROGRESS: ("physcap.AgentProgress", _PROGRESS),
         topics.EPISODE_SUMMARY: ("physcap.EpisodeSummary", _SUMMARY),

@@ -7,8 +7,9 @@ without a simulated world (the real arm) gets its frames from the robot's own mo
 forward kinematics of the measured joints, for the arm, the gripper and the fixed scenery.
 From these it writes, by periodic publish events (so the simulation's state is untouched):
 
-- every `state_period` s: joint states (J1..J6 and the gripper) and the frame transforms
-  (every body in the world frame, plus the fingertip frame);
+- every `state_period` s: joint states (J1..J6 and the gripper's opening), the gripper's
+  opening and normalized effort, and the frame transforms (every body in the world frame,
+  plus the fingertip frame);
 - every `image_period` s: the camera image as JPEG (images are rendered only then);
 - every `flush_period` s: a flush, so a killed process leaves a readable file.
 
@@ -121,9 +122,10 @@ class McapRecorder(LeafSystem):
         position = np.append(value[ports.ARM_POSITION_MEASURED],
                              value[ports.GRIPPER_POSITION_MEASURED])
         velocity = np.append(value[ports.ARM_VELOCITY_ESTIMATED], np.nan)
-        effort = np.append(value[ports.ARM_TORQUE_MEASURED],
-                           value[ports.GRIPPER_EFFORT_MEASURED])
+        effort = np.append(value[ports.ARM_TORQUE_MEASURED], np.nan)  # gripper: a fraction
         self._sink.joint_states(time_s, self._joint_names, position, velocity, effort)
+        self._sink.gripper_state(time_s, value[ports.GRIPPER_POSITION_MEASURED][0],
+                                 value[ports.GRIPPER_EFFORT_MEASURED][0])
         poses = self._poses(context, value)
         if poses is not None:
             transforms = [frame_transform(time_s, name, poses[index])

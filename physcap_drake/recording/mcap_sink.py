@@ -1,10 +1,11 @@
 """McapSink: one episode's MCAP file and its channels, written with foxglove-sdk.
 
 The sink owns the file; diagram systems and the agent loop hand it messages with their time.
-It keeps the file readable whatever happens to the process: `flush()` closes the current chunk
-(the recorder flushes every second of simulated time and after every agent message), and
-`close()` writes the summary section. A process killed between flushes loses at most what came
-after the last flush; what was flushed stays readable (see `reading.read_recording`).
+It keeps the file readable whatever happens to the process: `flush()` ends the current chunk
+and puts it on disk followed by a provisional end (see `crash_safe_file`; the recorder flushes
+every second of simulated time and after every agent message), and `close()` writes the
+summary section. A process killed between flushes loses at most what came after the last
+flush; what was flushed opens in any MCAP reader as it is.
 """
 
 from __future__ import annotations
@@ -38,6 +39,7 @@ from foxglove.messages import (
 from pydrake.math import RigidTransform
 
 from physcap_drake.recording import topics
+from physcap_drake.recording.crash_safe_file import CrashSafeFile
 from physcap_drake.recording.json_schemas import agent_schemas
 
 #: Target uncompressed size of an MCAP chunk, bytes (a flush also ends a chunk).
@@ -73,9 +75,11 @@ class McapSink:
         self.path = Path(path)
         self.path.parent.mkdir(parents=True, exist_ok=True)
         self._context = foxglove.Context()
+        self._file = CrashSafeFile(self.path, overwrite=overwrite)
         self._writer = foxglove.open_mcap(
-            self.path, allow_overwrite=overwrite, context=self._context,
-            writer_options=foxglove.mcap.MCAPWriteOptions(chunk_size=CHUNK_SIZE))
+            self._file, context=self._context,
+            writer_options=foxglove.mcap.MCAPWriteOptions(chunk_size=CHUNK_SIZE,
+                                                          disable_seeking=True))
         context = self._context
         self._joint_states = JointStatesChannel(topics.JOINT_STATES, context=context)
         self._transforms = FrameTransformsChannel(topics.TRANSFORMS, context=context)
@@ -101,6 +105,11 @@ class McapSink:
                   for n, p, v, e in zip(names, position, velocity, effort, strict=True)]
         self._joint_states.log(JointStates(timestamp=timestamp(time_s), joints=joints),
                                log_time=nanoseconds_of(time_s))
+
+    def gripper_state(self, time_s: float, opening_m: float, effort: float) -> None:
+        """The gripper's opening (m) and measured effort (fraction 0..1 of its maximum)."""
+        self.json(topics.GRIPPER_STATE, time_s, {"opening_m": float(opening_m),
+                                                 "effort": float(effort)})
 
     def transforms(self, time_s: float, transforms: list[FrameTransform]) -> None:
         self._transforms.log(FrameTransforms(transforms=transforms),
@@ -152,4 +161,6 @@ class McapSink:
         """Writes the summary section; the file is complete. Safe to call twice."""
         if not self.closed:
             self.closed = True
+            self._file.finishing()
             self._writer.close()
+            self._file.close()

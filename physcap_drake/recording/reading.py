@@ -19,7 +19,24 @@ from mcap.exceptions import EndOfFile, McapError, RecordLengthLimitExceeded
 from mcap.reader import NonSeekingReader, make_reader
 from mcap.records import Metadata, Schema
 from mcap.stream_reader import StreamReader
+from mcap.writer import MCAP0_MAGIC
 from mcap_protobuf.decoder import DecoderFactory as ProtobufDecoderFactory
+
+
+class RecordingError(ValueError):
+    """The file is not an MCAP recording."""
+
+
+def check_is_mcap(path: Path) -> None:
+    """Raises FileNotFoundError for a missing file, RecordingError for a file that does not
+    start like an MCAP file."""
+    if not path.is_file():
+        raise FileNotFoundError(f"no recording at {path}" + (
+            " (it is a folder)" if path.is_dir() else ""))
+    with path.open("rb") as stream:
+        if stream.read(len(MCAP0_MAGIC)) != MCAP0_MAGIC:
+            raise RecordingError(f"{path} is not an MCAP recording (it does not start with "
+                                 "the MCAP magic bytes)")
 
 
 class JsonDecoderFactory(McapDecoderFactory):
@@ -83,10 +100,9 @@ def iter_messages(path: str | Path) -> Iterator[RecordedMessage]:
 
 def read_recording(path: str | Path) -> Recording:
     """Reads a whole recording (see the module docstring). Raises FileNotFoundError for a
-    missing file and McapError for a file that is not MCAP at all."""
+    missing file and RecordingError for a file that is not MCAP at all."""
     path = Path(path)
-    if not path.is_file():
-        raise FileNotFoundError(f"no recording at {path}")
+    check_is_mcap(path)
     messages = list(iter_messages(path))
     metadata, complete = _summary_metadata(path)
     return Recording(path, messages, metadata, complete)

@@ -22,6 +22,7 @@ from physcap_drake.recording.reading import Recording, read_recording
 from physcap_drake.recording.scene_geometry import body_frame_name
 from physcap_drake.station.robot_model import moving_joints
 from physcap_drake.tasks.episode import make_episode
+from physcap_drake.tasks.registry import TASKS
 
 
 class ReplayError(ValueError):
@@ -102,8 +103,15 @@ def _rigid_transform(transform):
 
 
 def transcript_markdown(recording: Recording) -> str:
-    """The recorded transcript, rendered as in transcript.md."""
+    """The recorded transcript, rendered as in transcript.md (with the task's instruction
+    and, for a finished episode, its outcome)."""
     transcript = Transcript()
     transcript.entries = [TranscriptEntry(**m.value) for m in
                           recording.on(topics.AGENT_TRANSCRIPT)]
-    return transcript.as_markdown(f"Transcript of {recording.path.name}")
+    meta = recording.metadata.get(topics.EPISODE_METADATA, {})
+    task = meta.get("task", "")
+    title = (f"{task}, seed {meta.get('seed')}, agent {meta.get('agent')}" if task else
+             f"Transcript of {recording.path.name}")
+    summaries = recording.on(topics.EPISODE_SUMMARY)
+    return transcript.as_markdown(title, TASKS[task].prompt if task in TASKS else "",
+                                  summaries[-1].value if summaries else None)

@@ -9,8 +9,11 @@ execution time counts only the former, so it is a little shorter than the last l
 """
 
 #: foxglove.JointStates: J1..J6 (position rad, velocity rad/s, effort N·m, measured) and the
-#: gripper (position = opening in m, effort = normalized effort 0..1).
+#: gripper (position = opening in m; its effort, a fraction, is on GRIPPER_STATE).
 JOINT_STATES = "/piper/joint_states"
+#: physcap.GripperState (JSON): the gripper's opening (m) and measured effort as a fraction of
+#: its maximum (0..1), which has no place in JointStates (whose efforts are N or N·m).
+GRIPPER_STATE = "/piper/gripper"
 #: foxglove.FrameTransforms: every body's pose in the world frame, and the fingertip frame.
 TRANSFORMS = "/tf"
 #: foxglove.SceneUpdate: the scene's geometry, each entity locked to its body's frame.

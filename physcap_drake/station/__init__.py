@@ -35,10 +35,13 @@ def MakeStation(scenario, meshcat: Meshcat | None = None) -> Diagram:
 
 
 def close_station(station: Diagram) -> None:
-    """Releases what a station holds outside Drake (a CAN link, an emulator thread); the real
-    arm is left enabled and holding. Nothing to do for the sim station. Safe to call twice."""
+    """Releases what a station holds outside Drake (camera devices and their recordings, a
+    CAN link, an emulator thread); the real arm is left enabled and holding. Safe to call
+    twice."""
+    from physcap_drake.station.cameras import close_cameras
     from physcap_drake.station.can_station import INTERFACE, close_can_station
 
+    close_cameras(station)
     if station.HasSubsystemNamed(INTERFACE):
         close_can_station(station)
 

@@ -1,9 +1,16 @@
-"""Simulated RGB-D cameras from Drake `CameraConfig`s, rendered only when an image is asked for.
+"""The simulated station's cameras: rendered ones (Drake `CameraConfig`), and emulated
+RealSense cameras (`!RealSense {emulate: true}`) whose rendered frames go through librealsense.
 
 Drake's `ApplyCameraConfig` also adds an LCM image publisher that renders at the camera's
 fps throughout a simulation; the station has no LCM consumers and must not pay for rendering
 nobody reads, so it builds the `RgbdSensor` from the same config itself. Images are computed
 when their output port is evaluated (a test, the perception code, a recorder), never per step.
+
+An emulated RealSense renders its view with an `RgbdSensor` too (`RealSense.rendering_config`)
+and feeds it to an `EmulatedRealSenseCamera`, which exports `<name>.rgb` and `<name>.depth`
+(stereo depth faults, z16, through the software device); `<name>.label` still comes from the
+renderer (simulation only). A live or recorded RealSense cannot see a simulated world and is
+refused here.
 """
 
 from __future__ import annotations
@@ -16,10 +23,17 @@ from pydrake.geometry import (
     SceneGraph,
 )
 from pydrake.multibody.plant import MultibodyPlant
-from pydrake.systems.framework import DiagramBuilder
+from pydrake.systems.framework import Diagram, DiagramBuilder
 from pydrake.systems.sensors import CameraConfig, RgbdSensor
 
 from physcap_drake.station.ports import camera_port
+from physcap_drake.station.realsense.camera_system import (
+    RENDERED_DEPTH,
+    RENDERED_RGB,
+    EmulatedRealSenseCamera,
+    RgbdCameraSystem,
+)
+from physcap_drake.station.realsense.config import RealSense
 
 
 def _ensure_renderer(scene_graph: SceneGraph, config: CameraConfig) -> None:
@@ -39,11 +53,59 @@ def _ensure_renderer(scene_graph: SceneGraph, config: CameraConfig) -> None:
     scene_graph.AddRenderer(config.renderer_name, engine)
 
 
+def add_cameras(builder: DiagramBuilder, plant: MultibodyPlant, scene_graph: SceneGraph,
+                scenario) -> None:
+    """Adds every camera of `scenario.cameras` (see the module docstring); the emulated
+    RealSense cameras' depth faults are seeded by `scenario.random_seed`."""
+    for entry in scenario.cameras:
+        if isinstance(entry, RealSense):
+            add_emulated_realsense(builder, plant, scene_graph, entry, scenario.random_seed)
+        else:
+            add_camera(builder, plant, scene_graph, entry)
+
+
 def add_camera(builder: DiagramBuilder, plant: MultibodyPlant, scene_graph: SceneGraph,
                config: CameraConfig) -> RgbdSensor:
     """Adds one RgbdSensor posed by `config.X_PB` (relative to `config.X_PB.base_frame`, the
     world when empty) and exports its images as `<name>.rgb`, `<name>.depth` (m, float32)
     and `<name>.label` (the body index of what each pixel sees)."""
+    sensor = _add_sensor(builder, plant, scene_graph, config)
+    builder.ExportOutput(sensor.color_image_output_port(), camera_port(config.name, "rgb"))
+    builder.ExportOutput(sensor.depth_image_32F_output_port(), camera_port(config.name, "depth"))
+    builder.ExportOutput(sensor.label_image_output_port(), camera_port(config.name, "label"))
+    return sensor
+
+
+def add_emulated_realsense(builder: DiagramBuilder, plant: MultibodyPlant,
+                           scene_graph: SceneGraph, entry: RealSense, seed: int):
+    """Adds an emulated RealSense (an RgbdSensor feeding an EmulatedRealSenseCamera) and
+    exports `<name>.rgb`, `<name>.depth` from the camera and `<name>.label` from the
+    renderer. Raises ValueError for a live or recorded RealSense (not emulated)."""
+    if not entry.emulate:
+        raise ValueError(f"camera '{entry.name}': a simulated station's RealSense must be "
+                         "emulated (emulate: true); a live or recorded camera cannot see the "
+                         "simulated scene")
+    sensor = _add_sensor(builder, plant, scene_graph, entry.rendering_config())
+    camera = builder.AddNamedSystem(f"realsense_{entry.name}",
+                                    EmulatedRealSenseCamera(entry, seed))
+    builder.Connect(sensor.color_image_output_port(), camera.GetInputPort(RENDERED_RGB))
+    builder.Connect(sensor.depth_image_32F_output_port(), camera.GetInputPort(RENDERED_DEPTH))
+    for image in ("rgb", "depth"):
+        builder.ExportOutput(camera.GetOutputPort(camera_port(entry.name, image)),
+                             camera_port(entry.name, image))
+    builder.ExportOutput(sensor.label_image_output_port(), camera_port(entry.name, "label"))
+    return camera
+
+
+def close_cameras(station: Diagram) -> None:
+    """Releases the camera devices of `station` (and finishes their recordings)."""
+    for system in station.GetSystems():
+        if isinstance(system, RgbdCameraSystem):
+            system.close()
+
+
+def _add_sensor(builder: DiagramBuilder, plant: MultibodyPlant, scene_graph: SceneGraph,
+                config: CameraConfig) -> RgbdSensor:
     _ensure_renderer(scene_graph, config)
     color_camera, depth_camera = config.MakeCameras()
     base_frame = config.X_PB.base_frame
@@ -56,7 +118,4 @@ def add_camera(builder: DiagramBuilder, plant: MultibodyPlant, scene_graph: Scen
         RgbdSensor(plant.GetBodyFrameIdOrThrow(parent.body().index()), X_BodyB,
                    color_camera, depth_camera))
     builder.Connect(scene_graph.get_query_output_port(), sensor.query_object_input_port())
-    builder.ExportOutput(sensor.color_image_output_port(), camera_port(config.name, "rgb"))
-    builder.ExportOutput(sensor.depth_image_32F_output_port(), camera_port(config.name, "depth"))
-    builder.ExportOutput(sensor.label_image_output_port(), camera_port(config.name, "label"))
     return sensor

@@ -17,7 +17,7 @@ from physcap_drake.station.as_built import (
     apply_joint_damping,
     scale_moduli,
 )
-from physcap_drake.station.cameras import add_camera
+from physcap_drake.station.cameras import add_cameras
 from physcap_drake.station.gripper_servo import GripperServo
 from physcap_drake.station.joint_friction import JointFriction
 from physcap_drake.station.joint_target_interpolator import JointTargetInterpolator
@@ -185,8 +185,7 @@ def MakeSimStation(scenario, meshcat: Meshcat | None = None) -> Diagram:
     builder.Connect(gripper_servo.GetOutputPort("effort"), effort.get_input_port())
     builder.ExportOutput(effort.get_output_port(), ports.GRIPPER_EFFORT_MEASURED)
 
-    for camera in scenario.cameras:
-        add_camera(builder, plant, scene_graph, camera)
+    add_cameras(builder, plant, scene_graph, scenario)
     builder.ExportOutput(plant.get_body_poses_output_port(), ports.BODY_POSES)
     if meshcat is not None:
         ApplyVisualizationConfig(scenario.visualization, builder, meshcat=meshcat)

@@ -1,8 +1,14 @@
-"""Building one episode of a task: scenario + objects + hidden properties.
+"""Building one episode of a task: scenario + objects + hidden properties + perception.
 
 The scene is simulated either by the sim station or, with `station: !PiperCan {emulate:
 true}`, by the emulator behind the CAN station; the objects, their hidden masses and the
 success check live in that simulated world (`station.scene_ground_truth`).
+
+Perception (what get_object_pose and the agent's observations use) is either "rgbd", the
+RGB-D perception that sees from the colour and depth images alone, or "label", the
+simulator's perfect segmenter (an ablation). RGB-D perception sees the scene the way a
+RealSense delivers it: a rendered main camera is replaced by an emulated RealSense of the
+same view (stereo depth faults, through librealsense's software device).
 """
 
 from __future__ import annotations
@@ -10,10 +16,17 @@ from __future__ import annotations
 import dataclasses as dc
 from pathlib import Path
 
+from pydrake.systems.sensors import CameraConfig
+
 from physcap_drake.agent.agent_system import AgentSystem
+from physcap_drake.agent.reference.task_reading import read_task
 from physcap_drake.perception.camera_geometry import CameraGeometry
+from physcap_drake.perception.judge import judge_placement, judge_uncovered
+from physcap_drake.perception.label_perception import LabelPerception
 from physcap_drake.perception.object_locator import ObjectLocator
 from physcap_drake.perception.offline_pointer import OfflinePointer
+from physcap_drake.perception.rgbd_perception import RgbdPerception
+from physcap_drake.perception.shapes import vocabulary_of
 from physcap_drake.perception.visible_objects import VisibleObject
 from physcap_drake.recording.mcap_recorder import make_mcap_recorder
 from physcap_drake.recording.mcap_sink import McapSink
@@ -27,6 +40,7 @@ from physcap_drake.station import (
     scene_plant,
     scene_snapshot,
 )
+from physcap_drake.station.realsense.config import emulated_like
 from physcap_drake.tasks.registry import get_task
 from physcap_drake.tasks.task_instance import TaskInstance
 from physcap_drake.tasks.tray_tasks import TRAY_NAME
@@ -34,6 +48,11 @@ from physcap_drake.tasks.tray_tasks import TRAY_NAME
 #: The tray every task puts things on, as the camera sees it.
 TRAY = VisibleObject(TRAY_NAME, "tray", "brown")
 BASKET = VisibleObject("basket", "basket", "brown")
+#: Who decides an episode's success: the simulator's ground truth, or the final camera view.
+JUDGES = ("simulator", "perception")
+#: The perception modules an episode can use: RGB-D (the default path on a real rig) and the
+#: simulator's label segmenter (an ablation).
+PERCEPTIONS = ("rgbd", "label")
 
 
 @dc.dataclass
@@ -45,6 +64,7 @@ class Episode:
     scenario: Scenario
     robot: RobotDiagram
     api: RobotAPI
+    judge: str = "simulator"
 
     @property
     def plant(self):
@@ -57,8 +77,28 @@ class Episode:
         return scene_snapshot(self.robot.station, self.api.simulator.get_context())[1]
 
     def check(self):
-        """The task's success check on the simulated world's ground truth."""
+        """The task's success check: on the simulated world's ground truth, or (judge
+        "perception") from the final camera view (`perception.judge`)."""
+        if self.judge == "perception":
+            return self.judge_from_camera()
         return get_task(self.instance.task).check(self)
+
+    def judge_from_camera(self):
+        """The outcome as the camera sees it now: the task's object alone in its container,
+        or enough of the sought objects in view (the task's goal as the reference reasoner
+        reads it; the object the task is about is its pinned or drawn answer)."""
+        goal = read_task(self.instance.prompt)
+        locator = self.api.locator
+        station = self.robot.station
+        context = station.GetMyContextFromRoot(self.api.simulator.get_context())
+        images = {name: station.GetOutputPort(name).Eval(context) for name in
+                  locator.perception.input_ports}
+        images = {name: getattr(value, "data", value) for name, value in images.items()}
+        seen = locator.perception.look(images)
+        if goal.kind == "hidden":
+            return judge_uncovered(seen, goal.sought, goal.count)
+        return judge_placement(seen, locator.perception.known(), self.instance.answer,
+                               goal.destination, goal.subject)
 
     def close(self) -> None:
         """Releases the station (a CAN station stops streaming; the arm holds)."""
@@ -67,24 +107,42 @@ class Episode:
 
 def make_episode(task_name: str, seed: int, answer: str = "", meshcat=None, *,
                  with_agent: bool = False, sink: McapSink | None = None,
-                 scenario_file: str | Path | None = None) -> Episode:
+                 scenario_file: str | Path | None = None,
+                 perception: str = "label", judge: str = "simulator") -> Episode:
     """Loads stations/<task>.yaml (or `scenario_file`), lays out the objects for `seed`,
     builds and initializes the simulation with the objects' hidden masses, and wires camera
-    perception to the API (and, `with_agent`, to an AgentSystem in the diagram). With a
-    `sink`, an McapRecorder in the diagram records the station's signals to it. Call
-    `close()` on the episode when done."""
+    perception (`perception`: "rgbd" or "label", see the module docstring) to the API (and,
+    `with_agent`, to an AgentSystem in the diagram). With a `sink`, an McapRecorder in the
+    diagram records the station's signals to it. `judge`: who decides success ("simulator"
+    or "perception", see Episode.check). Call `close()` on the episode when done."""
+    if perception not in PERCEPTIONS:
+        raise ValueError(f"perception must be one of {', '.join(PERCEPTIONS)}; "
+                         f"got {perception!r}")
+    if judge not in JUDGES:
+        raise ValueError(f"judge must be one of {', '.join(JUDGES)}; got {judge!r}")
     task = get_task(task_name)
     scenario = load_scenario(scenario_file or stations_dir() / task.scenario_file)
     instance = task.instance(seed, answer or scenario.task.answer)
     instance.add_to(scenario)
-    pointers: list[OfflinePointer] = []
+    if perception == "rgbd":
+        scenario.cameras = [emulated_like(c) if c.name == MAIN_CAMERA and isinstance(
+            c, CameraConfig) else c for c in scenario.cameras]
+    camera = CameraGeometry.from_entry(
+        next(c for c in scenario.cameras if c.name == MAIN_CAMERA))
+    perceptions: list = []
 
-    def make_agent(station):
-        pointers.append(OfflinePointer(_catalog(instance, scene_plant(station))))
-        return AgentSystem(pointers[-1])
+    def make_perception(station):
+        if not perceptions:
+            perceptions.append(
+                RgbdPerception(camera, vocabulary_of(instance.prompt)) if perception == "rgbd"
+                else LabelPerception(camera, OfflinePointer(_catalog(instance,
+                                                                     scene_plant(station)))))
+        return perceptions[0]
 
     robot = build_robot_diagram(
-        scenario, meshcat, make_agent=make_agent if with_agent else None,
+        scenario, meshcat,
+        make_agent=(lambda station: AgentSystem(make_perception(station))) if with_agent
+        else None,
         make_recorder=None if sink is None else (
             lambda station: make_mcap_recorder(sink, station, scenario)))
     try:
@@ -94,10 +152,14 @@ def make_episode(task_name: str, seed: int, answer: str = "", meshcat=None, *,
         raise
     with scene_ground_truth(robot.station, simulator.get_mutable_context()) as (plant, context):
         instance.apply_hidden_masses(plant, context)
-    pointer = pointers[0] if pointers else OfflinePointer(_catalog(instance, plant))
-    camera = next(c for c in scenario.cameras if c.name == MAIN_CAMERA)
-    api = RobotAPI(robot, simulator, locator=ObjectLocator(CameraGeometry(camera), pointer))
-    return Episode(instance, scenario, robot, api)
+    station_context = robot.station.GetMyContextFromRoot(simulator.get_context())
+
+    def read_station(name: str):
+        return robot.station.GetOutputPort(name).Eval(station_context)
+
+    locator = ObjectLocator(make_perception(robot.station), read_inputs=read_station)
+    api = RobotAPI(robot, simulator, locator=locator)
+    return Episode(instance, scenario, robot, api, judge)
 
 
 def _catalog(instance: TaskInstance, plant) -> dict:

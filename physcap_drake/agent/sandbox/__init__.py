@@ -1,11 +1,33 @@
 """The sandbox that runs LLM-generated code: a static check, then a locked-down child process.
 
-`run_sandboxed(code, api, limits)` is the one entry point: see `runner` for the parent's
-side, `child` for the child's, `ast_check` and `policy` for the filters, `lockdown` and
-`seccomp` for the process wall, and `protocol` for the messages between the two.
+`run_sandboxed(code, api, limits)` is the blocking entry point (`runner`); `SandboxSession`
+(`session`) is the same run in explicit steps, for an owner that drives it event by event.
+The parent trusts nothing the child sends: `messages` checks every message, `signatures`
+every call's arguments, `budget` the block's budgets per call. `child` is the child's side,
+`ast_check` and `policy` the filters, `lockdown` and `seccomp` the process wall, `protocol`
+the frames between the two.
 """
 
 from .ast_check import CodeRejected, check_code
-from .runner import CodeOutcome, SandboxLimits, run_sandboxed
+from .budget import BlockBudget, Meters, Stop
+from .limits import SandboxLimits
+from .outcome import CodeOutcome, OutcomeKind
+from .runner import run_sandboxed
+from .session import SandboxSession
+from .signatures import (
+    ApiFunction,
+    Call,
+    FunctionSpec,
+    Number,
+    OrNone,
+    ParameterKind,
+    PlainValue,
+    Refused,
+    Text,
+    Vector,
+)
 
-__all__ = ["CodeOutcome", "CodeRejected", "SandboxLimits", "check_code", "run_sandboxed"]
+__all__ = ["ApiFunction", "BlockBudget", "Call", "CodeOutcome", "CodeRejected", "FunctionSpec",
+           "Meters", "Number", "OrNone", "OutcomeKind", "ParameterKind", "PlainValue", "Refused",
+           "SandboxLimits", "SandboxSession", "Stop", "Text", "Vector", "check_code",
+           "run_sandboxed"]

@@ -2,7 +2,7 @@
 
 Started by `runner` through a tiny bootstrap that loads this folder as a standalone package,
 so neither drake nor the rest of physcap_drake is ever imported here: only the standard
-library, numpy and the sandbox's own small modules. The steps:
+library, numpy, pyseccomp (for the syscall filter) and the sandbox's own small modules. The steps:
 
 1. Move the protocol pipes off fds 0 and 1 and put /dev/null there, so nothing that writes to
    stdout (numpy's own print calls, C code) can corrupt the protocol.
@@ -36,10 +36,8 @@ import numpy as np
 from . import lockdown, policy, protocol, restricted, seccomp
 
 FILENAME = "<generated code>"
-_OUT_CHUNK_CHARS = 50_000
 _FLUSH_AT_CHARS = 4096
 _FLUSH_EVERY_S = 0.02
-_MAX_ERROR_CHARS = 2000
 # Modules numpy functions import on first use (np.median, np.unique, ... use numpy.ma).
 # After the lockdown nothing can be loaded from disk, so they are loaded before it.
 _SUPPORT_MODULES = ("copy", "numpy.ma", "numpy.ma.extras")
@@ -52,7 +50,8 @@ def main() -> None:
     """Run one piece of generated code as the parent asks; never returns."""
     proto_in, proto_out = _claim_pipes()
     try:
-        session = _Session(proto_in, proto_out, protocol.read_message(proto_in))
+        session = _Session(proto_in, proto_out,
+                           protocol.read_message(proto_in, protocol.MAX_START_BYTES))
         session.lock_down()
     except BaseException:  # noqa: BLE001 - any setup failure ends the child; stderr says why
         traceback.print_exc()
@@ -185,8 +184,8 @@ class _Session:
         if not force and pending < _FLUSH_AT_CHARS and now - self._last_flush < _FLUSH_EVERY_S:
             return
         text = self._output.take_new()
-        for begin in range(0, len(text), _OUT_CHUNK_CHARS):
-            self._send({"t": "out", "text": text[begin:begin + _OUT_CHUNK_CHARS]})
+        for begin in range(0, len(text), protocol.MAX_OUT_CHARS):
+            self._send({"t": "out", "text": text[begin:begin + protocol.MAX_OUT_CHARS]})
         self._last_flush = now
 
     def _send(self, message: dict[str, Any]) -> None:
@@ -251,7 +250,8 @@ def _describe(exc: BaseException) -> dict[str, Any]:
         message = str(exc)
     except BaseException:  # noqa: BLE001 - a message that cannot be shown must not hide the error
         message = "(the error message could not be shown)"
-    name = next((cls.__name__ for cls in type(exc).__mro__ if not cls.__name__.startswith("_")),
-                "Exception")
-    return {"type": name, "message": message[:_MAX_ERROR_CHARS], "line": line,
+    name = next((cls.__name__ for cls in type(exc).__mro__ if cls.__name__.isidentifier()
+                 and not cls.__name__.startswith("_")
+                 and len(cls.__name__) <= protocol.MAX_ERROR_TYPE_CHARS), "Exception")
+    return {"type": name, "message": message[:protocol.MAX_ERROR_MESSAGE_CHARS], "line": line,
             "memory": isinstance(exc, MemoryError)}

@@ -31,9 +31,10 @@ _PACKAGE_NAME = "_physcap_sandbox"
 # Loads this folder as a standalone package (its __init__ is not run), then the child.
 _BOOTSTRAP = (
     "import importlib, sys, types\n"
-    "here, extra = sys.argv[1], sys.argv[2]\n"
-    "if extra and extra not in sys.path:\n"
-    "    sys.path.append(extra)\n"
+    "here = sys.argv[1]\n"
+    "for extra in sys.argv[2:]:\n"
+    "    if extra not in sys.path:\n"
+    "        sys.path.append(extra)\n"
     f"package = types.ModuleType({_PACKAGE_NAME!r})\n"
     "package.__path__ = [here]\n"
     f"sys.modules[{_PACKAGE_NAME!r}] = package\n"
@@ -64,12 +65,23 @@ def scrubbed_environment(home: str) -> dict[str, str]:
     }
 
 
-def _numpy_search_path() -> str:
-    """The folder numpy is imported from, for a child that cannot see PYTHONPATH."""
-    spec = importlib.util.find_spec("numpy")
-    if spec is None or not spec.submodule_search_locations:
-        return ""
-    return str(Path(next(iter(spec.submodule_search_locations))).parent)
+#: Third-party modules the child imports: numpy, and pyseccomp for the syscall filter.
+_CHILD_IMPORTS = ("numpy", "pyseccomp")
+
+
+def _search_paths() -> list[str]:
+    """The folders the child's third-party modules are imported from, for a child that
+    cannot see PYTHONPATH (a module that is not installed is left out)."""
+    folders: list[str] = []
+    for name in _CHILD_IMPORTS:
+        spec = importlib.util.find_spec(name)
+        if spec is None or spec.origin is None:
+            continue
+        top = Path(spec.origin).parent
+        folder = str(top.parent if spec.submodule_search_locations else top)
+        if folder not in folders:
+            folders.append(folder)
+    return folders
 
 
 class ChildProcess:
@@ -94,7 +106,7 @@ class ChildProcess:
     def start(cls, home: str) -> ChildProcess:
         sandbox_dir = str(Path(__file__).resolve().parent)
         popen = subprocess.Popen(
-            [sys.executable, "-I", "-B", "-c", _BOOTSTRAP, sandbox_dir, _numpy_search_path()],
+            [sys.executable, "-I", "-B", "-c", _BOOTSTRAP, sandbox_dir, *_search_paths()],
             stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
             cwd=home, env=scrubbed_environment(home), start_new_session=True, close_fds=True)
         return cls(popen)
@@ -103,9 +115,10 @@ class ChildProcess:
     def pid(self) -> int:
         return self._popen.pid
 
-    def send(self, message: dict[str, Any], deadline: float) -> None:
-        """Write one message. ProtocolError if it is too large; Deadline; ChildGone."""
-        data = memoryview(protocol.pack(message))
+    def send(self, frame: bytes, deadline: float) -> None:
+        """Write one frame (packed by the caller, who answers for its size). Deadline;
+        ChildGone."""
+        data = memoryview(frame)
         with selectors.DefaultSelector() as selector:
             selector.register(self._to_child, selectors.EVENT_WRITE)
             while data:

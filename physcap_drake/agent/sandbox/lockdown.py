@@ -14,12 +14,14 @@ skipped, and what was achieved is reported to the parent. The steps, in order:
    ptrace the parent, write its files, or raise its own limits.
 4. (in the process that runs the code, after the PID-namespace fork) `set_rlimits`: CPU
    seconds, address space, no new processes or threads, no file data written, few open
-   files, no core dumps; then `seccomp.install` denies the system calls that make processes,
-   send signals, open files, make sockets or change namespaces, mounts, ids or limits.
+   files, no core dumps; then `seccomp.install` loads an allow-list of system calls: only
+   those the code's process needs (memory, the open pipes, clocks, its own signal handlers,
+   exiting) pass; making processes, signalling, opening files, sockets, pipes, SysV IPC and
+   changing namespaces, mounts, ids or limits fail with EPERM.
    That process also asks to be killed if its parent dies (`die_with_parent`).
 
 Where the wall is thin: with neither a PID namespace nor seccomp (an unprivileged user on a
-kernel without user namespaces, on a machine other than x86_64 or aarch64), code that got
+kernel without user namespaces, on a machine without libseccomp), code that got
 past the filters runs under the parent's own user id and could signal that user's other
 processes (fork is still stopped by RLIMIT_NPROC). `CodeOutcome.isolation` says which case
 a machine is in.

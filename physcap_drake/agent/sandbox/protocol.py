@@ -6,7 +6,9 @@ anything the child chose, and `json.loads` only builds plain values. NaN and inf
 written as JSON's common extension tokens (NaN, Infinity, -Infinity), which `json` reads back.
 
 A frame may hold at most `MAX_MESSAGE_BYTES`; a bigger one from the child is a protocol
-violation and the parent kills it.
+violation and the parent kills it. The parent's "start" frame alone may hold up to
+`MAX_START_BYTES`, enough for any code the static check accepts (100 000 characters, each
+at most 12 bytes escaped).
 
 Messages are dicts with a "t" (type) key:
 
@@ -35,6 +37,12 @@ from typing import Any
 import numpy as np
 
 MAX_MESSAGE_BYTES = 1 << 20
+MAX_START_BYTES = 2 << 20
+#: Bounds of what the child reports, kept by the child and checked by the parent: the class
+#: name and message of an exception, and the text of one "out" message (characters).
+MAX_ERROR_TYPE_CHARS = 100
+MAX_ERROR_MESSAGE_CHARS = 2000
+MAX_OUT_CHARS = 50_000
 # Exit codes of the child for its own failures (not the code's): setup before the code ran
 # failed, or the parent went away mid-conversation.
 EXIT_SETUP_FAILED = 87
@@ -48,14 +56,13 @@ class ProtocolError(Exception):
     """A frame that is too big, truncated, not JSON, or not a message of the protocol."""
 
 
-def pack(message: dict[str, Any]) -> bytes:
+def pack(message: dict[str, Any], limit: int = MAX_MESSAGE_BYTES) -> bytes:
     """One frame holding `message`. TypeError if it holds a value JSON cannot carry;
-    ProtocolError if it is larger than MAX_MESSAGE_BYTES."""
+    ProtocolError if it is larger than `limit` bytes."""
     body = json.dumps(message, ensure_ascii=True, allow_nan=True,
                       separators=(",", ":")).encode("ascii")
-    if len(body) > MAX_MESSAGE_BYTES:
-        raise ProtocolError(f"message of {len(body)} bytes exceeds the "
-                            f"{MAX_MESSAGE_BYTES}-byte limit")
+    if len(body) > limit:
+        raise ProtocolError(f"message of {len(body)} bytes exceeds the {limit}-byte limit")
     return len(body).to_bytes(_HEADER_BYTES, "big") + body
 
 
@@ -96,14 +103,13 @@ def write_message(fd: int, message: dict[str, Any]) -> None:
         data = data[written:]
 
 
-def read_message(fd: int) -> dict[str, Any]:
-    """Read one frame from a blocking file descriptor (the child's side). EOFError if the
-    other end closed; ProtocolError on a bad frame."""
+def read_message(fd: int, limit: int = MAX_MESSAGE_BYTES) -> dict[str, Any]:
+    """Read one frame of at most `limit` bytes from a blocking file descriptor (the child's
+    side). EOFError if the other end closed; ProtocolError on a bad frame."""
     header = _read_exactly(fd, _HEADER_BYTES)
     size = int.from_bytes(header, "big")
-    if size > MAX_MESSAGE_BYTES:
-        raise ProtocolError(f"frame of {size} bytes announced; the limit is "
-                            f"{MAX_MESSAGE_BYTES}")
+    if size > limit:
+        raise ProtocolError(f"frame of {size} bytes announced; the limit is {limit}")
     return decode_body(_read_exactly(fd, size))
 
 

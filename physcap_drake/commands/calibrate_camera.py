@@ -1,0 +1,102 @@
+"""`physcap calibrate camera`: the camera's pose in the robot's frame from a ChArUco board."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import typer
+from rich.markup import escape
+
+from physcap_drake.commands.common import (
+    console,
+    error_console,
+    load_scenario_or_exit,
+    save_json,
+    trial_progress,
+)
+from physcap_drake.perception.camera_calibration import (
+    PLACEMENTS,
+    calibrate_in_simulation,
+    calibrate_live,
+)
+from physcap_drake.perception.charuco import BoardNotSeen
+from physcap_drake.resources import stations_dir
+from physcap_drake.station.realsense.calibration_file import CalibrationMismatch, save_calibration
+from physcap_drake.station.realsense.config import RealSense
+from physcap_drake.station.realsense.pipeline_camera import CameraUnavailable
+
+#: The station calibrated by default: the PiPER and its table, nothing else on it.
+DEFAULT_SCENARIO = stations_dir() / "calibration.yaml"
+
+
+def _placement(text: str) -> tuple[float, float, float]:
+    try:
+        x, y, yaw = (float(v) for v in text.split(","))
+    except ValueError:
+        raise typer.BadParameter(f"expected X,Y,YAW (m, m, degrees), got {text!r}") from None
+    return x, y, yaw
+
+
+def calibrate_camera(
+    scenario: Annotated[Path, typer.Option(
+        "--scenario", help="The station and its camera: a rendered or emulated camera is "
+                           "calibrated in simulation, a live !RealSense with the printed "
+                           "board at the --board-at places.")] = DEFAULT_SCENARIO,
+    camera: Annotated[str, typer.Option("--camera", help="Which camera.")] = "camera",
+    board_at: Annotated[list[str] | None, typer.Option(
+        "--board-at", help="Where the board lies for one view: X,Y,YAW of its centre (m, m, "
+                           "degrees, robot base frame); repeat per view. Default: "
+                           f"{len(PLACEMENTS)} places across the workspace.")] = None,
+    output: Annotated[Path, typer.Option(
+        "--output", help="Write the calibration here (a !RealSense entry includes it with "
+                         "calibration: FILE).")] = Path("camera_calibration.yaml"),
+    json_path: Annotated[Path | None, typer.Option("--json", help="Write the figures "
+                                                   "here.")] = None,
+) -> None:
+    """Find the camera's pose from a ChArUco board laid at known places on the table; print
+    the reprojection error (and, in simulation, the error against the true pose) and write
+    the calibration file."""
+    loaded = load_scenario_or_exit(scenario)
+    entry = next((c for c in loaded.cameras if c.name == camera), None)
+    if entry is None:
+        error_console.print(f"[bold red]error:[/] {scenario}: no camera named {camera!r}")
+        raise typer.Exit(code=2)
+    placements = [_placement(p) for p in board_at] if board_at else list(PLACEMENTS)
+    live = isinstance(entry, RealSense) and not entry.emulate
+    try:
+        if live:
+            def ready(index: int, place: tuple[float, float, float]) -> None:
+                typer.prompt(f"view {index + 1}/{len(placements)}: put the board's centre at "
+                             f"x {place[0]:.3f} m, y {place[1]:.3f} m, turned {place[2]:g}°, "
+                             "then press Enter", default="", show_default=False)
+
+            run = calibrate_live(entry, placements, ready)
+        else:
+            with trial_progress("board views", len(placements)) as advance:
+                run = calibrate_in_simulation(loaded, camera, placements,
+                                              on_view=lambda _: advance(True))
+    except (CameraUnavailable, CalibrationMismatch, BoardNotSeen, ImportError) as error:
+        error_console.print(f"[bold red]error:[/] {escape(str(error))}", soft_wrap=True)
+        raise typer.Exit(code=2) from None
+    save_calibration(run.calibration, output)
+    X_WC = run.fit.X_WC
+    figures = {"camera": camera, "views": len(run.views), "corners": run.fit.corners,
+               "reprojection_error_px": round(run.fit.reprojection_error_px, 4),
+               "translation_m": [round(float(v), 5) for v in X_WC.translation()],
+               "rpy_deg": [round(float(v), 4) for v in X_WC.rotation().ToRollPitchYaw()
+                           .vector() * 57.29577951308232],
+               "output": str(output)}
+    console.print(f"camera '{camera}': {run.fit.corners} board corners in {len(run.views)} "
+                  f"views, reprojection error {run.fit.reprojection_error_px:.3f} px; "
+                  f"position {figures['translation_m']} m, roll-pitch-yaw "
+                  f"{figures['rpy_deg']} deg")
+    if run.true_X_WC is not None:
+        figures["position_error_mm"] = round(run.position_error_mm, 3)
+        figures["rotation_error_deg"] = round(run.rotation_error_deg, 4)
+        console.print(f"against the simulated camera: position error "
+                      f"{run.position_error_mm:.2f} mm, rotation error "
+                      f"{run.rotation_error_deg:.3f} deg")
+    console.print(f"calibration written to {output}")
+    if json_path is not None:
+        save_json(json_path, figures)

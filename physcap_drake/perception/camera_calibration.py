@@ -1,0 +1,163 @@
+"""Camera-to-robot calibration with a ChArUco board laid on the table at known places.
+
+The board (`charuco`) is put at a series of known poses on the table, in the robot's base
+frame (the world): on a real rig at marked spots, in simulation by moving the board model
+`models/calibration/charuco_board/`. In each view the camera's colour image shows some of
+its corners; with the known board pose every corner seen is a world point at a pixel, and
+the camera pose X_WC that best explains all of them together (PnP over all views) is the
+calibration. Its result is a `CameraCalibration` file a `!RealSense` entry includes.
+
+In simulation the scenario's own camera pose is known, so the calibration's error can be
+measured (`position_error_mm`, `rotation_error_deg`).
+"""
+
+from __future__ import annotations
+
+import dataclasses as dc
+from collections.abc import Callable, Sequence
+from datetime import UTC, datetime
+
+import numpy as np
+from pydrake.common.schema import Transform
+from pydrake.math import RigidTransform, RollPitchYaw
+from pydrake.multibody.parsing import AddModel, ModelDirective
+
+from physcap_drake.perception import charuco
+from physcap_drake.perception.camera_geometry import CameraGeometry
+from physcap_drake.station import MakeStation, close_station, scene_ground_truth
+from physcap_drake.station.realsense.calibration_file import CameraCalibration, Intrinsics
+
+BOARD_MODEL = "package://physcap_models/calibration/charuco_board/charuco_board.sdf"
+BOARD_BODY = "charuco_board"
+#: Where the board lies for the calibration views: (x, y, yaw) of its centre on the table
+#: (m, m, degrees; yaw 90: its long side across the table), spread over the workspace so
+#: the corners seen cover the camera's view of it.
+PLACEMENTS: tuple[tuple[float, float, float], ...] = (
+    *((x, y, 90.0) for x in (0.32, 0.46) for y in (-0.24, -0.08, 0.08, 0.24)),
+    (0.40, -0.16, 75.0), (0.40, 0.16, 105.0), (0.38, 0.0, 90.0), (0.52, 0.0, 90.0))
+#: The board's printed face lies this high above the table (its thickness), m.
+BOARD_THICKNESS = 0.003
+
+
+@dc.dataclass(frozen=True)
+class BoardView:
+    """One view: the board's pose in the world and the corners seen (ids, pixels)."""
+
+    X_WB: RigidTransform
+    ids: np.ndarray
+    pixels: np.ndarray
+
+
+@dc.dataclass(frozen=True)
+class CalibrationRun:
+    """A calibration: the views, the fitted pose and the file content; in simulation also
+    the true camera pose and the errors against it."""
+
+    views: list[BoardView]
+    fit: charuco.PoseFit
+    calibration: CameraCalibration
+    true_X_WC: RigidTransform | None = None
+
+    @property
+    def position_error_mm(self) -> float | None:
+        if self.true_X_WC is None:
+            return None
+        return 1000.0 * float(np.linalg.norm(self.fit.X_WC.translation()
+                                             - self.true_X_WC.translation()))
+
+    @property
+    def rotation_error_deg(self) -> float | None:
+        if self.true_X_WC is None:
+            return None
+        relative = self.true_X_WC.rotation().inverse() @ self.fit.X_WC.rotation()
+        return float(np.degrees(relative.ToAngleAxis().angle()))
+
+
+def board_pose(x: float, y: float, yaw_deg: float) -> RigidTransform:
+    """The board lying on the table with its centre at (x, y), turned by yaw (degrees)."""
+    return RigidTransform(RollPitchYaw(0.0, 0.0, np.radians(yaw_deg)),
+                          [x, y, BOARD_THICKNESS])
+
+
+def view_of(rgb: np.ndarray, X_WB: RigidTransform) -> BoardView:
+    """The corners the colour image `rgb` shows of the board at X_WB."""
+    ids, pixels = charuco.detect_corners(rgb)
+    return BoardView(X_WB, ids, pixels)
+
+
+def solve(views: Sequence[BoardView], camera: CameraGeometry) -> charuco.PoseFit:
+    """The camera pose from all views (see the module docstring). Raises BoardNotSeen."""
+    corners = charuco.corner_points()
+    world = [view.X_WB.multiply(corners[view.ids].T).T for view in views if len(view.ids)]
+    pixels = [view.pixels for view in views if len(view.ids)]
+    if not world:
+        raise charuco.BoardNotSeen("the board was not seen in any view")
+    return charuco.fit_camera_pose(np.vstack(world), np.vstack(pixels),
+                                   (camera.fx, camera.fy, camera.cx, camera.cy))
+
+
+def calibration_of(fit: charuco.PoseFit, camera: CameraGeometry, views: int, *,
+                   name: str, serial: str) -> CameraCalibration:
+    """The calibration file's content for the fitted pose."""
+    return CameraCalibration(
+        camera=name, serial=serial, width=camera.width, height=camera.height,
+        intrinsics=Intrinsics(camera.fx, camera.fy, camera.cx, camera.cy),
+        X_WC=Transform(fit.X_WC),
+        method=f"ChArUco board on the table ({charuco.SQUARES[0]} x {charuco.SQUARES[1]} "
+               f"squares of {1000 * charuco.SQUARE:g} mm), PnP over all views",
+        views=views, reprojection_error_px=round(fit.reprojection_error_px, 4),
+        date=datetime.now(UTC).isoformat(timespec="seconds"))
+
+
+def calibrate_in_simulation(scenario, camera_name: str = "camera",
+                            placements: Sequence[tuple[float, float, float]] = PLACEMENTS,
+                            on_view: Callable[[int], None] | None = None) -> CalibrationRun:
+    """Calibrates the scenario's camera `camera_name` (rendered or an emulated RealSense)
+    with the board model at `placements` in its simulated scene; `on_view(i)` hears each
+    view taken. The scenario is changed (the board is added)."""
+    entry = next(c for c in scenario.cameras if c.name == camera_name)
+    camera = CameraGeometry.from_entry(entry)
+    scenario.directives.append(ModelDirective(add_model=AddModel(name=BOARD_BODY,
+                                                                 file=BOARD_MODEL)))
+    station = MakeStation(scenario)
+    try:
+        context = station.CreateDefaultContext()
+        views = []
+        for index, placement in enumerate(placements):
+            X_WB = board_pose(*placement)
+            with scene_ground_truth(station, context) as (plant, plant_context):
+                plant.SetFreeBodyPose(plant_context, plant.GetBodyByName(BOARD_BODY), X_WB)
+            rgb = station.GetOutputPort(f"{camera_name}.rgb").Eval(context).data
+            views.append(view_of(rgb, X_WB))
+            if on_view is not None:
+                on_view(index)
+    finally:
+        close_station(station)
+    fit = solve(views, camera)
+    serial = "emulated" if getattr(entry, "emulate", False) else ""
+    return CalibrationRun(views, fit, calibration_of(fit, camera, len(views), name=camera_name,
+                                                     serial=serial), camera.X_WC)
+
+
+def calibrate_live(entry, placements: Sequence[tuple[float, float, float]],
+                   ready: Callable[[int, tuple[float, float, float]], None]) -> CalibrationRun:
+    """Calibrates a live RealSense (`entry`, a `!RealSense` scenario entry): for each
+    placement `ready(i, placement)` returns once the board lies there, and a frame is taken.
+    Raises CameraUnavailable if the camera cannot be opened."""
+    from physcap_drake.station.realsense.pipeline_camera import PipelineRealSense
+
+    source = PipelineRealSense(dc.replace(entry, calibration=""))
+    try:
+        views = []
+        for index, placement in enumerate(placements):
+            ready(index, placement)
+            views.append(view_of(source.next_frame().rgb, board_pose(*placement)))
+        fx, fy, cx, cy = source.intrinsics
+        serial = source.serial
+    finally:
+        source.close()
+    camera = CameraGeometry(entry.width, entry.height, fx, fy, cx, cy, RigidTransform())
+    fit = solve(views, camera)
+    return CalibrationRun(views, fit, calibration_of(fit, camera, len(views), name=entry.name,
+                                                     serial=serial))
+

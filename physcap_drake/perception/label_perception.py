@@ -1,0 +1,50 @@
+"""The simulator's "perfect perception": objects from the label image (an ablation).
+
+`LabelPerception` reports the objects the simulated camera's label image shows, with the
+names and visible attributes of the task's catalogue (`OfflinePointer`), and grasp points
+from the depth at their exact masks. It exists only in simulation (`camera.label`); the
+default is `RgbdPerception`, which sees from the colour and depth images alone.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+
+import numpy as np
+
+from physcap_drake.perception.camera_geometry import CameraGeometry
+from physcap_drake.perception.grasp import grasp_point_from_points
+from physcap_drake.perception.offline_pointer import OfflinePointer
+from physcap_drake.perception.regions import footprint_rectangle
+from physcap_drake.perception.seen_object import SeenObject
+from physcap_drake.perception.shapes import CONTAINERS
+from physcap_drake.perception.visible_objects import VisibleObject
+from physcap_drake.station import ports
+
+
+class LabelPerception:
+    """Objects in view from the label image (see the module docstring)."""
+
+    #: The station outputs a look reads.
+    input_ports = (ports.CAMERA_RGB, ports.CAMERA_DEPTH, ports.CAMERA_LABEL)
+
+    def __init__(self, camera: CameraGeometry, pointer: OfflinePointer):
+        self.camera = camera
+        self.pointer = pointer
+
+    def look(self, images: Mapping[str, np.ndarray]) -> list[SeenObject]:
+        """The catalogued objects in view, left to right, with their grasp points."""
+        label = np.asarray(images[ports.CAMERA_LABEL])
+        depth = np.asarray(images[ports.CAMERA_DEPTH]).reshape(label.shape[:2])
+        seen = []
+        for visible, mask, column in self.pointer.visible(label):
+            rows, cols = np.nonzero(mask & np.isfinite(depth) & (depth > 0))
+            points = self.camera.back_project(cols, rows, depth[rows, cols])
+            grasp, top = grasp_point_from_points(points)
+            area = footprint_rectangle(points) if visible.category in CONTAINERS else None
+            seen.append(SeenObject(visible, mask, column, float(np.nonzero(mask)[0].mean()),
+                                   grasp, top, area))
+        return seen
+
+    def known(self) -> list[VisibleObject]:
+        return list(self.pointer.catalog.values())

@@ -1,0 +1,134 @@
+"""Names for the objects perception sees, kept from one look to the next.
+
+The agent refers to objects by name across a whole episode ("weigh the red can", later "put
+the red can on the tray"), while the camera gives only regions. `ObjectMemory` names each
+object when it first appears and recognizes it in later looks:
+
+- **Names** say what the object looks like: "<size> <colour> <category>" (size only where
+  objects of one category clearly differ in size: "large" and "small" by the largest gap
+  in their volume, when the largest is at least `SIZE_RATIO` times the smallest). Objects
+  that look alike are numbered left to right as first seen ("dark avocado 1", "dark
+  avocado 2"); one that appears later takes the next number ("blue cube 3").
+- **Recognition** pairs the objects in view with the remembered ones that look the same
+  (category and colour), nearest first on the table: an object that stayed put keeps its
+  name, one that was moved (to the tray) is recognized where it went.
+
+A name never changes and never passes to another object. What is not in view now stays
+remembered (a phrase naming it is "not in view"). Nothing here reads the simulator.
+"""
+
+from __future__ import annotations
+
+import dataclasses as dc
+
+import numpy as np
+
+from physcap_drake.perception.describe import ObjectView
+from physcap_drake.perception.visible_objects import VisibleObject
+
+#: Objects of one category differ in size when the largest volume (top height × footprint)
+#: is at least this many times the smallest.
+SIZE_RATIO = 1.8
+#: Pairing costs: distance on the table (m), plus this for a straw seen on one and not the
+#: other (a straw can hide behind the object or fall out of view).
+STRAW_MISMATCH = 0.3
+#: A remembered object and one in view pair only if their top heights differ by less than
+#: this fraction (a cup on its side is not the cup that stood there).
+HEIGHT_TOLERANCE = 0.4
+
+
+@dc.dataclass
+class Remembered:
+    """An object perception has named: how it looks, and where it was last seen (x, y, m)."""
+
+    visible: VisibleObject
+    top_height: float
+    centre: np.ndarray
+
+
+class ObjectMemory:
+    """The named objects of one episode (see the module docstring)."""
+
+    def __init__(self):
+        self.objects: list[Remembered] = []
+
+    def recognize(self, views: list[ObjectView]) -> list[VisibleObject]:
+        """The VisibleObject (with its name) of each view, in the same order; remembers
+        new objects and where known ones are now."""
+        pairs = self._pair(views)
+        new = [i for i in range(len(views)) if i not in pairs]
+        sizes = _size_classes(views, new)
+        bases = {i: " ".join(w for w in (sizes.get(i, ""), views[i].color, views[i].category)
+                             if w) for i in new}
+        for index in sorted(new, key=lambda i: views[i].column):
+            view = views[index]
+            alike = sum(1 for base in bases.values() if base == bases[index])
+            remembered = Remembered(
+                VisibleObject(self._new_name(bases[index], alike), view.category, view.color,
+                              view.straw, sizes.get(index, "")),
+                view.top_height, view.centre.copy())
+            self.objects.append(remembered)
+            pairs[index] = remembered
+        for index, remembered in pairs.items():
+            remembered.centre = views[index].centre.copy()
+        return [pairs[i].visible for i in range(len(views))]
+
+    def known(self) -> list[VisibleObject]:
+        return [r.visible for r in self.objects]
+
+    def _pair(self, views: list[ObjectView]) -> dict[int, Remembered]:
+        costs = []
+        for i, view in enumerate(views):
+            for remembered in self.objects:
+                seen = remembered.visible
+                if (seen.category, seen.color) != (view.category, view.color):
+                    continue
+                if abs(view.top_height - remembered.top_height) > HEIGHT_TOLERANCE * max(
+                        remembered.top_height, 1e-3):
+                    continue
+                cost = float(np.linalg.norm(view.centre - remembered.centre)) + (
+                    STRAW_MISMATCH if seen.straw != view.straw else 0.0)
+                costs.append((cost, i, id(remembered), remembered))
+        pairs: dict[int, Remembered] = {}
+        taken: set[int] = set()
+        for _, i, key, remembered in sorted(costs, key=lambda c: c[:3]):
+            if i not in pairs and key not in taken:
+                pairs[i] = remembered
+                taken.add(key)
+        return pairs
+
+    def _new_name(self, base: str, alike: int) -> str:
+        """A name for a new object described as `base`, of which `alike` appear now."""
+        same = [r.visible.name for r in self.objects if _base(r.visible.name) == base]
+        if not same:
+            return base if alike <= 1 else f"{base} 1"
+        numbers = [int(n.rsplit(" ", 1)[1]) for n in same if n != base]
+        return f"{base} {max(numbers, default=1) + 1}"
+
+
+def _base(name: str) -> str:
+    head, _, tail = name.rpartition(" ")
+    return head if tail.isdigit() else name
+
+
+def _size_classes(views: list[ObjectView], indices: list[int]) -> dict[int, str]:
+    """"large" / "small" for the objects `indices` of categories whose members in view
+    clearly differ in size (see SIZE_RATIO); nothing for the others."""
+    classes: dict[int, str] = {}
+    by_category: dict[str, list[int]] = {}
+    for i, view in enumerate(views):
+        if not view.container:
+            by_category.setdefault(view.category, []).append(i)
+    for members in by_category.values():
+        volume = {i: views[i].top_height * views[i].footprint[0] * views[i].footprint[1]
+                  for i in members}
+        ordered = sorted(members, key=volume.get)
+        if len(ordered) < 2 or volume[ordered[-1]] < SIZE_RATIO * volume[ordered[0]]:
+            continue
+        ratios = [volume[b] / max(volume[a], 1e-12) for a, b in zip(ordered, ordered[1:],
+                                                                    strict=False)]
+        split = int(np.argmax(ratios)) + 1
+        for rank, i in enumerate(ordered):
+            if i in indices:
+                classes[i] = "large" if rank >= split else "small"
+    return classes

@@ -1,0 +1,266 @@
+"""Regions of an RGB-D image that stand above the table: objects, and the containers
+(trays, baskets) that objects are put in.
+
+From the depth image alone: every pixel with depth is back-projected with the camera's
+intrinsics and extrinsics, the table plane is fitted (`table_plane`), and each pixel gets
+its height above the table.
+
+- **Objects** are connected groups of pixels higher than `OBJECT_HEIGHT` above the table
+  (opened to drop single noisy pixels, closed to bridge holes in the depth), split where
+  their points fall apart on the table (two objects side by side in the image).
+- **Containers** are large and low: groups of pixels whose height, averaged over a
+  `LOW_WINDOW` window (the depth noise of one pixel is about a centimetre), is more than
+  `LOW_HEIGHT` above the table, whose footprint is at least `CONTAINER_SIZE` wide both
+  ways. A container keeps the objects inside it separate: they are objects of their own;
+  thin pieces along its edges are its walls (`is_wall_of`, once its outline is sharp).
+
+Pixels the caller excludes (the robot itself) take part in nothing. Nothing here knows
+what any region is; `describe` says what it looks like.
+"""
+
+from __future__ import annotations
+
+import dataclasses as dc
+
+import cv2
+import numpy as np
+
+from physcap_drake.perception.camera_geometry import CameraGeometry
+from physcap_drake.perception.table_plane import Plane, fit_table_plane
+
+#: Pixels this far above the table belong to objects, m (the shortest object, a 5 cm cube,
+#: is well above it; the depth noise at the table, ~1 cm RMS, rarely reaches it).
+OBJECT_HEIGHT = 0.030
+#: Ignore everything higher than this above the table (nothing on it is that tall), m.
+MAX_HEIGHT = 0.35
+#: Smoothing window for low structures, px, and the averaged height they rise above, m.
+LOW_WINDOW = 15
+LOW_HEIGHT = 0.004
+#: A container's footprint is at least this wide in both directions, m.
+CONTAINER_SIZE = 0.14
+#: A piece of a container's wall is at most this thick and lies within WALL_BAND of the
+#: edge of the container's area, m.
+WALL_THICKNESS = 0.03
+WALL_BAND = 0.03
+#: Side of the median filter that takes the noise out of a region's depth, px.
+SMOOTHING_WINDOW = 5
+#: Fewest pixels with depth for an object.
+MIN_PIXELS = 25
+#: Points of one object lie within this distance of each other's neighbours on the table;
+#: a wider gap splits a region into two objects, m. A cell of this size counts as occupied
+#: with at least CELL_POINTS points in it.
+SPLIT_GAP = 0.02
+CELL_POINTS = 3
+
+
+@dc.dataclass(frozen=True)
+class Region:
+    """One region of the image. mask: its pixels (H × W bool, holes in its depth closed).
+    rows, cols: its pixels with depth; points: their world points (N × 3, m); heights: their
+    heights above the table (N, m). column, row: the mean pixel of its mask (px; columns
+    grow to the image's right). container: a large low region (see module docstring)."""
+
+    mask: np.ndarray
+    rows: np.ndarray
+    cols: np.ndarray
+    points: np.ndarray
+    heights: np.ndarray
+    column: float
+    row: float
+    container: bool = False
+
+
+@dc.dataclass(frozen=True)
+class SceneGeometry:
+    """The back-projected image: the table plane, every pixel's world point (H × W × 3, NaN
+    without depth) and height above the table (H × W, NaN without depth), the pixels with
+    usable depth (not excluded), the depth image (H × W, m) and the camera."""
+
+    plane: Plane
+    points: np.ndarray
+    heights: np.ndarray
+    usable: np.ndarray
+    depth: np.ndarray
+    camera: CameraGeometry
+
+    def smoothed_points(self, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
+        """World points (N × 3, m) of the pixels (rows, cols), each from the median depth of
+        those of the pixels in the SMOOTHING_WINDOW-square around it (the depth noise of
+        one pixel is about a centimetre; the filter does not mix a region with what lies
+        around it)."""
+        half = SMOOTHING_WINDOW // 2
+        top, left = rows.min(), cols.min()
+        height, width = rows.max() - top + 1, cols.max() - left + 1
+        crop = np.full((height + 2 * half, width + 2 * half), np.nan)
+        crop[rows - top + half, cols - left + half] = self.depth[rows, cols]
+        windows = np.stack([crop[i:i + height, j:j + width]
+                            for i in range(SMOOTHING_WINDOW) for j in range(SMOOTHING_WINDOW)])
+        median = np.nanmedian(windows[:, rows - top, cols - left], axis=0)
+        return self.camera.back_project(cols, rows, median)
+
+
+def scene_geometry(depth: np.ndarray, camera: CameraGeometry,
+                   exclude=None) -> SceneGeometry:
+    """Back-projects `depth` (H × W, m, 0 or non-finite: no depth) and fits the table.
+    `exclude(points) -> bool array` marks world points to leave out (the robot)."""
+    depth = np.asarray(depth, dtype=np.float64).reshape(camera.height, camera.width)
+    valid = np.isfinite(depth) & (depth > 0)
+    rows, cols = np.nonzero(valid)
+    world = camera.back_project(cols, rows, depth[rows, cols])
+    if exclude is not None:
+        keep = ~exclude(world)
+        rows, cols, world = rows[keep], cols[keep], world[keep]
+    plane = fit_table_plane(world)
+    points = np.full((camera.height, camera.width, 3), np.nan)
+    points[rows, cols] = world
+    heights = np.full((camera.height, camera.width), np.nan)
+    heights[rows, cols] = plane.heights(world)
+    usable = np.zeros(valid.shape, dtype=bool)
+    usable[rows, cols] = True
+    return SceneGeometry(plane, points, heights, usable, np.where(valid, depth, np.nan), camera)
+
+
+def find_regions(geometry: SceneGeometry) -> list[Region]:
+    """The object and container regions of the scene (see the module docstring), objects
+    first, each group left to right."""
+    heights = np.nan_to_num(geometry.heights)
+    tall = geometry.usable & (heights > OBJECT_HEIGHT) & (heights < MAX_HEIGHT)
+    body = cv2.morphologyEx(tall.astype(np.uint8), cv2.MORPH_OPEN, np.ones((3, 3), np.uint8))
+    body = cv2.morphologyEx(body, cv2.MORPH_CLOSE, np.ones((5, 5), np.uint8))
+    objects, large = [], []
+    for box, mask in _components(body):
+        for part in _split_on_table(mask & tall[box], box, geometry):
+            region = _region(box, part, geometry)
+            if region is None:
+                continue
+            # Nothing a task handles is this long: a container's wall, or all of one.
+            (large if footprint(region.points)[1] >= CONTAINER_SIZE else objects).append(region)
+    containers = _containers(geometry, body.astype(bool), large)
+    return (sorted(objects, key=lambda r: r.column)
+            + sorted(containers, key=lambda r: r.column))
+
+
+def is_wall_of(region: Region, container: Region) -> bool:
+    """Whether `region` is a piece of the container's wall: thin, and all along the edge of
+    the rectangle the container covers (dark walls lose depth in patches, so a wall can
+    come apart from the rest of its container)."""
+    if footprint(region.points)[0] > WALL_THICKNESS:
+        return False
+    corners = footprint_rectangle(container.points)
+    centre, axes = corners.mean(axis=0), (corners[1] - corners[0], corners[3] - corners[0])
+    offsets = region.points[:, :2] - centre
+    margins = [np.linalg.norm(a) / 2 - np.abs(offsets @ (a / np.linalg.norm(a)))
+               for a in axes]
+    return bool(np.all(np.abs(np.minimum(*margins)) < WALL_BAND))
+
+
+def _components(mask: np.ndarray):
+    """(bounding box as a pair of slices, the component's mask in that box) of every
+    8-connected component of `mask`."""
+    count, labels, stats, _ = cv2.connectedComponentsWithStats(mask.astype(np.uint8),
+                                                               connectivity=8)
+    for label in range(1, count):
+        x, y, w, h = stats[label, :4]
+        box = (slice(y, y + h), slice(x, x + w))
+        yield box, labels[box] == label
+
+
+def _region(box, pixels: np.ndarray, geometry: SceneGeometry,
+            container: bool = False) -> Region | None:
+    """The region of the pixels `pixels` (a mask within `box`) that have depth; its mask is
+    their closing (holes in a dark object's depth filled)."""
+    pixels = pixels & geometry.usable[box]
+    rows, cols = np.nonzero(pixels)
+    if len(rows) < MIN_PIXELS:
+        return None
+    closed = cv2.morphologyEx(pixels.astype(np.uint8), cv2.MORPH_CLOSE,
+                              np.ones((5, 5), np.uint8)).astype(bool)
+    mask = np.zeros(geometry.usable.shape, dtype=bool)
+    mask[box] = closed
+    mask_rows, mask_cols = np.nonzero(closed)
+    rows, cols = rows + box[0].start, cols + box[1].start
+    return Region(mask, rows, cols, geometry.points[rows, cols], geometry.heights[rows, cols],
+                  float(mask_cols.mean() + box[1].start), float(mask_rows.mean() + box[0].start),
+                  container)
+
+
+def _split_on_table(pixels: np.ndarray, box, geometry: SceneGeometry) -> list[np.ndarray]:
+    """The pixels of one image region (a mask within `box`) grouped by where their points
+    stand on the table: cells of SPLIT_GAP holding at least CELL_POINTS points that touch
+    form one group (two objects one behind the other in the image stand apart on the table;
+    the few points the depth noise throws into the gap between them do not join them; the
+    points are median-filtered first)."""
+    rows, cols = np.nonzero(pixels)
+    if len(rows) == 0:
+        return []
+    xy = geometry.smoothed_points(rows + box[0].start, cols + box[1].start)[:, :2]
+    cells = np.floor(xy / SPLIT_GAP).astype(int)
+    low = cells.min(axis=0)
+    grid_shape = cells.max(axis=0) - low + 1
+    if grid_shape.prod() > 1_000_000:  # absurdly spread (noise): keep as one
+        return [pixels]
+    counts = np.zeros(grid_shape, np.int32)
+    np.add.at(counts, (cells[:, 0] - low[0], cells[:, 1] - low[1]), 1)
+    count, labels = cv2.connectedComponents((counts >= CELL_POINTS).astype(np.uint8),
+                                            connectivity=8)
+    if count <= 2:
+        return [pixels]
+    which = labels[cells[:, 0] - low[0], cells[:, 1] - low[1]]
+    parts = []
+    for label in range(1, count):
+        part = np.zeros(pixels.shape, dtype=bool)
+        part[rows[which == label], cols[which == label]] = True
+        parts.append(part)
+    return parts
+
+
+def footprint_rectangle(points: np.ndarray, percent: float = 2.0) -> np.ndarray:
+    """The rectangle (4 × 2 corners on the table, m) spanned by the points' footprint along
+    its principal axes, from the `percent` to the 100 - `percent` percentile each way."""
+    xy = points[:, :2]
+    mean = xy.mean(axis=0)
+    axes = np.linalg.svd(xy - mean, full_matrices=False)[2]
+    along = (xy - mean) @ axes.T
+    low, high = np.percentile(along, percent, axis=0), np.percentile(along, 100 - percent,
+                                                                     axis=0)
+    corners = np.array([[low[0], low[1]], [high[0], low[1]], [high[0], high[1]],
+                        [low[0], high[1]]])
+    return mean + corners @ axes
+
+
+def footprint(points: np.ndarray) -> tuple[float, float]:
+    """The sides (shorter, longer) of the points' footprint on the table (robust extent
+    along its principal axes), m."""
+    if len(points) < 3:
+        return 0.0, 0.0
+    xy = points[:, :2] - points[:, :2].mean(axis=0)
+    axes = np.linalg.svd(xy, full_matrices=False)[2]
+    along = xy @ axes.T
+    extent = np.percentile(along, 98, axis=0) - np.percentile(along, 2, axis=0)
+    return float(extent.min()), float(extent.max())
+
+
+def _containers(geometry: SceneGeometry, objects: np.ndarray,
+                large: list[Region]) -> list[Region]:
+    """Containers: large low regions (smoothed height above LOW_HEIGHT) together with the
+    long tall regions (a basket's walls) they touch, at least CONTAINER_SIZE both ways."""
+    usable = geometry.usable
+    heights = np.where(usable, np.nan_to_num(geometry.heights), 0.0)
+    window = (LOW_WINDOW, LOW_WINDOW)
+    weight = cv2.boxFilter(usable.astype(np.float64), -1, window, normalize=False)
+    total = cv2.boxFilter(heights, -1, window, normalize=False)
+    smooth = np.where(weight > 0, total / np.maximum(weight, 1e-9), 0.0)
+    walls = np.zeros(usable.shape, dtype=bool)
+    for region in large:
+        walls |= region.mask
+    # The smoothed height rises near any object: keep clear of them by the window's size.
+    near_objects = cv2.dilate((objects & ~walls).astype(np.uint8), np.ones(window, np.uint8))
+    low = ((smooth > LOW_HEIGHT) & usable & ~near_objects.astype(bool)) | walls
+    low = cv2.morphologyEx(low.astype(np.uint8), cv2.MORPH_OPEN, np.ones((3, 3), np.uint8))
+    low = cv2.morphologyEx(low, cv2.MORPH_CLOSE, np.ones((5, 5), np.uint8))
+    found = []
+    for box, mask in _components(low):
+        region = _region(box, mask, geometry, container=True)
+        if region is not None and footprint(region.points)[0] >= CONTAINER_SIZE:
+            found.append(region)
+    return found

@@ -1,0 +1,82 @@
+"""RGB-D perception: the objects on the table from a colour image and an aligned depth image.
+
+No label image, no model names, no poses: what a real camera gives, and the robot's own
+joint positions (to leave its arm out of the picture). Each look:
+
+1. back-projects the depth with the camera's intrinsics and extrinsics, leaves out the
+   points on the robot (`robot_mask`), and fits the table plane (`table_plane`);
+2. finds the regions standing above the table: objects, and containers such as a tray
+   (`regions`; pieces of a container's wall are not objects);
+3. describes each by what the camera shows: kind (by size, among the task's nouns),
+   colour, a straw, its height, and its top-down grasp point (`describe`);
+4. names them, recognizing the objects of earlier looks (`object_memory`).
+
+Phrases resolve against these objects (`phrases.resolve`), like the simulated segmenter's.
+A look at the same images twice is computed once.
+"""
+
+from __future__ import annotations
+
+import zlib
+from collections.abc import Mapping
+
+import numpy as np
+
+from physcap_drake.perception.camera_geometry import CameraGeometry
+from physcap_drake.perception.describe import describe
+from physcap_drake.perception.object_memory import ObjectMemory
+from physcap_drake.perception.regions import (
+    find_regions,
+    footprint_rectangle,
+    is_wall_of,
+    scene_geometry,
+)
+from physcap_drake.perception.robot_mask import RobotSelfFilter
+from physcap_drake.perception.seen_object import SeenObject
+from physcap_drake.perception.visible_objects import VisibleObject
+from physcap_drake.station import ports
+
+
+class RgbdPerception:
+    """See the module docstring. camera: the calibrated camera; vocabulary: the kinds of
+    object to tell apart (e.g. the task's nouns; all known kinds when empty)."""
+
+    #: The station outputs a look reads.
+    input_ports = (ports.CAMERA_RGB, ports.CAMERA_DEPTH, ports.ARM_POSITION_MEASURED)
+
+    def __init__(self, camera: CameraGeometry, vocabulary: tuple[str, ...] = ()):
+        self.camera = camera
+        self.vocabulary = tuple(vocabulary)
+        self.memory = ObjectMemory()
+        self._last: tuple[int, list[SeenObject]] | None = None
+
+    def look(self, images: Mapping[str, np.ndarray]) -> list[SeenObject]:
+        """The objects in view, left to right (containers included)."""
+        rgb = np.asarray(images[ports.CAMERA_RGB])
+        depth = np.asarray(images[ports.CAMERA_DEPTH]).reshape(rgb.shape[:2])
+        q = images.get(ports.ARM_POSITION_MEASURED)
+        key = zlib.crc32(np.ascontiguousarray(depth).tobytes())
+        if q is not None:
+            key = zlib.crc32(np.asarray(q, dtype=np.float64).tobytes(), key)
+        if self._last is not None and self._last[0] == key:
+            return self._last[1]
+        geometry = scene_geometry(depth, self.camera,
+                                  exclude=None if q is None else RobotSelfFilter(q))
+        views = [describe(region, rgb, geometry, self.vocabulary)
+                 for region in find_regions(geometry)]
+        containers = [v.region for v in views if v.container]
+        views = [v for v in views if v.container or not any(
+            is_wall_of(v.region, container) for container in containers)]
+        names = self.memory.recognize(views)
+        seen = sorted((SeenObject(visible, view.region.mask, view.column, view.row,
+                                  view.grasp_point, view.top_height,
+                                  footprint_rectangle(view.region.points) if view.container
+                                  else None)
+                       for visible, view in zip(names, views, strict=True)),
+                      key=lambda s: s.column)
+        self._last = (key, seen)
+        return seen
+
+    def known(self) -> list[VisibleObject]:
+        """Every object named so far (in view or not)."""
+        return self.memory.known()

@@ -1,0 +1,40 @@
+"""An object in view, as any perception module reports it."""
+
+from __future__ import annotations
+
+import dataclasses as dc
+
+import numpy as np
+
+from physcap_drake.perception.visible_objects import VisibleObject
+
+
+@dc.dataclass(frozen=True)
+class SeenObject:
+    """One object the camera shows now.
+
+    visible: what it looks like, with its name (the handle phrases and get_object_pose
+    use). mask: its pixels (H × W bool). column, row: its mean pixel (px; columns grow to
+    the image's right, so sorting by column orders objects left to right). grasp_point: the
+    fingertip target of a top-down grasp (world frame, m). top_height: its top above the
+    table, m. area: for a container (tray, basket), the rectangle it covers on the table
+    (4 × 2 corners, m); None for other objects.
+    """
+
+    visible: VisibleObject
+    mask: np.ndarray
+    column: float
+    row: float
+    grasp_point: np.ndarray
+    top_height: float
+    area: np.ndarray | None = None
+
+    @property
+    def name(self) -> str:
+        return self.visible.name
+
+    def pixel(self) -> tuple[int, int]:
+        """A pixel (u, v) of the object near the middle of its mask."""
+        rows, cols = np.nonzero(self.mask)
+        nearest = int(np.argmin((rows - rows.mean()) ** 2 + (cols - cols.mean()) ** 2))
+        return int(cols[nearest]), int(rows[nearest])

@@ -1,0 +1,149 @@
+"""The RealSense driver systems: LeafSystems exporting `<name>.rgb` and `<name>.depth`.
+
+Both export the station's image types (ImageRgba8U; ImageDepth32F in metres, 0 where the
+camera measured nothing) from one aligned frame per evaluation time, held in a cache entry
+so the two ports always show the same frame:
+
+- `RealSenseCamera` takes the frames of a live device or a recording (`PipelineRealSense`);
+  a new frame is taken when the ports are evaluated at a new time.
+- `EmulatedRealSenseCamera` takes a rendered colour and depth image on its input ports
+  (`rendered.rgb`, `rendered.depth`: any renderer, e.g. an RgbdSensor in the simulated
+  scene or an emulator's), adds the stereo depth faults (drawn from the scenario's seed and
+  the evaluation time, so a run is reproducible) and pushes them through librealsense's
+  software device (`SoftwareRealSense`); the frames come back through the same frame path.
+
+Neither knows which station it hangs off. `close()` releases the device (and finishes a
+recording); `close_station` calls it.
+"""
+
+from __future__ import annotations
+
+import atexit
+
+import numpy as np
+from pydrake.common.value import AbstractValue
+from pydrake.systems.framework import Context, LeafSystem, ValueProducer
+from pydrake.systems.sensors import ImageDepth32F, ImageRgba8U
+
+from physcap_drake.station.camera_intrinsics import rendered_intrinsics
+from physcap_drake.station.ports import camera_port
+from physcap_drake.station.realsense.calibration_file import (
+    CalibrationMismatch,
+    intrinsics_mismatch,
+    load_calibration,
+)
+from physcap_drake.station.realsense.config import RealSense
+from physcap_drake.station.realsense.frames import RgbdFrame
+from physcap_drake.station.realsense.pipeline_camera import PipelineRealSense
+from physcap_drake.station.realsense.software_camera import SoftwareRealSense
+
+RENDERED_RGB, RENDERED_DEPTH = "rendered.rgb", "rendered.depth"
+#: Random stream of the depth faults (apart from the station's other noise streams).
+_FAULT_STREAM = 41
+
+
+#: The frame cache entry's value before the first frame (its type fixes the entry's).
+_NO_FRAME = RgbdFrame(np.zeros((0, 0, 3), np.uint8), np.zeros((0, 0), np.float32), 0.0, 0.0,
+                      0.0, 0.0, 0.0, -1)
+
+
+class RgbdCameraSystem(LeafSystem):
+    """A camera driver: declares the two image outputs of camera `name`, both read from one
+    frame cache entry computed by `_frame(context)` whenever its `prerequisites` change;
+    `close()` releases the device."""
+
+    def __init__(self, name: str, width: int, height: int, prerequisites: set):
+        super().__init__()
+        self.camera_name = name
+        self._cache = self.DeclareCacheEntry(
+            "frame", ValueProducer(allocate=lambda: AbstractValue.Make(_NO_FRAME),
+                                   calc=self._calc_frame), prerequisites)
+        self.DeclareAbstractOutputPort(
+            camera_port(name, "rgb"), lambda: AbstractValue.Make(ImageRgba8U(width, height)),
+            self._output_rgb, {self._cache.ticket()})
+        self.DeclareAbstractOutputPort(
+            camera_port(name, "depth"),
+            lambda: AbstractValue.Make(ImageDepth32F(width, height)), self._output_depth,
+            {self._cache.ticket()})
+
+    def frame(self, context: Context) -> RgbdFrame:
+        """The frame both ports show at `context` (taken now if not yet)."""
+        return self._cache.Eval(context)
+
+    def _calc_frame(self, context: Context, value: AbstractValue) -> None:
+        value.set_value(self._frame(context))
+
+    def _frame(self, context: Context) -> RgbdFrame:
+        raise NotImplementedError
+
+    def close(self) -> None:
+        raise NotImplementedError
+
+    def _output_rgb(self, context: Context, output: AbstractValue) -> None:
+        frame = self.frame(context)
+        image = output.get_mutable_value()
+        image.resize(frame.width, frame.height)
+        image.mutable_data[:, :, :3] = frame.rgb
+        image.mutable_data[:, :, 3] = 255
+
+    def _output_depth(self, context: Context, output: AbstractValue) -> None:
+        frame = self.frame(context)
+        image = output.get_mutable_value()
+        image.resize(frame.width, frame.height)
+        image.mutable_data[:, :, 0] = frame.depth
+
+
+class RealSenseCamera(RgbdCameraSystem):
+    """A live or recorded RealSense's images (see the module docstring)."""
+
+    def __init__(self, source: PipelineRealSense):
+        entry = source.entry
+        super().__init__(entry.name, entry.width, entry.height, {self.time_ticket()})
+        self.source = source  # a device handle, not state
+        atexit.register(source.close)
+
+    def _frame(self, context: Context) -> RgbdFrame:
+        return self.source.next_frame()
+
+    def close(self) -> None:
+        self.source.close()
+
+
+class EmulatedRealSenseCamera(RgbdCameraSystem):
+    """An emulated RealSense fed by rendered images (see the module docstring).
+
+    entry: the scenario's camera entry (its intrinsics are the rendering camera's, from
+    `entry.rendering_config()`); seed: the scenario's random seed.
+    """
+
+    def __init__(self, entry: RealSense, seed: int):
+        fx, fy, cx, cy = rendered_intrinsics(entry.rendering_config())
+        if entry.calibration:
+            problem = intrinsics_mismatch(load_calibration(entry.calibration), fx, fy, cx, cy)
+            if problem:
+                raise CalibrationMismatch(f"camera '{entry.name}': calibration file "
+                                          f"{entry.calibration!r} does not match the emulated "
+                                          f"camera: {problem}")
+        super().__init__(entry.name, entry.width, entry.height,
+                         {self.time_ticket(), self.all_input_ports_ticket()})
+        self.entry, self._seed = entry, seed
+        self._focal_x = fx
+        self.device = SoftwareRealSense(  # a device handle, not state
+            entry.width, entry.height, fx, fy, cx, cy, fps=entry.fps,
+            depth_unit=entry.emulation.depth_unit, record_to=entry.record_to)
+        atexit.register(self.device.close)
+        self._rgb_in = self.DeclareAbstractInputPort(RENDERED_RGB,
+                                                     AbstractValue.Make(ImageRgba8U()))
+        self._depth_in = self.DeclareAbstractInputPort(RENDERED_DEPTH,
+                                                       AbstractValue.Make(ImageDepth32F()))
+
+    def _frame(self, context: Context) -> RgbdFrame:
+        rgb = self._rgb_in.Eval(context).data
+        depth = self._depth_in.Eval(context).data[:, :, 0]
+        time_us = int(round(context.get_time() * 1e6))
+        rng = np.random.default_rng((self._seed, _FAULT_STREAM, time_us))
+        faulty = self.entry.emulation.depth_faults.apply(depth, rgb, self._focal_x, rng)
+        return self.device.capture(rgb, faulty)
+
+    def close(self) -> None:
+        self.device.close()

@@ -1,0 +1,138 @@
+"""A RealSense camera entry of a scenario (`cameras: - !RealSense {...}`).
+
+The entry names the device (its serial number), the colour resolution and frame rate it
+streams at, and where its pose comes from: a calibration file written by `physcap
+calibrate camera`, or `X_WC` given by hand. Depth is always aligned to colour, so
+`<name>.depth` has the colour image's size and intrinsics.
+
+Three sources share the entry:
+- a live device (`serial`, or the only one connected when empty);
+- a recording (`recording: F.db3`), played back through librealsense as if live;
+- an emulated camera (`emulate: true`): the simulated scene rendered from the camera's pose
+  with `emulation`'s field of view, with stereo depth faults, through librealsense's
+  software device (the same frames and frame path as the device's).
+`record_to: F.db3` records what any of them delivers.
+"""
+
+# No `from __future__ import annotations`: yaml_load_typed reads the field types at run time.
+import dataclasses as dc
+from pathlib import Path
+
+import numpy as np
+from pydrake.common.schema import Transform
+from pydrake.geometry import RenderEngineVtkParams
+from pydrake.math import RigidTransform
+from pydrake.systems.sensors import CameraConfig
+
+from physcap_drake.config_checks import ConfigChecker
+from physcap_drake.station.realsense.depth_faults import StereoDepthFaults
+
+#: Frame rates a D400-series colour stream offers, Hz.
+FRAME_RATES = (6, 15, 30, 60)
+
+
+@dc.dataclass
+class RealSenseEmulation:
+    """How an emulated RealSense renders the simulated scene."""
+
+    # Vertical field of view of the colour camera, degrees (a D435's colour imager at
+    # 16:9 sees 69° x 42°; a live device reports its own intrinsics instead).
+    fov_y: float = 42.0
+    # Rendering clip range, m (the depth faults add the camera's own range limits).
+    z_near: float = 0.1
+    z_far: float = 10.0
+    # Depth unit of the z16 stream, m (the device's `depth_units` option).
+    depth_unit: float = 0.001
+    # The stereo depth errors added to the rendered depth.
+    depth_faults: StereoDepthFaults = dc.field(default_factory=StereoDepthFaults)
+
+
+@dc.dataclass
+class RealSense:
+    """An Intel RealSense D400-series camera (see the module docstring)."""
+
+    # The camera's name: its ports are `<name>.rgb` and `<name>.depth`.
+    name: str = "camera"
+    # The device's serial number; "" takes the only RealSense connected.
+    serial: str = ""
+    # Colour resolution (the aligned depth has the same), px, and frame rate, Hz.
+    width: int = 640
+    height: int = 480
+    fps: int = 30
+    # Play this librealsense recording (.db3) back instead of streaming from a device.
+    recording: str = ""
+    # Record everything the camera delivers to this .db3 file.
+    record_to: str = ""
+    # The camera's pose from `physcap calibrate camera` (a YAML file); "" uses X_WC.
+    calibration: str = ""
+    # The pose of the colour camera's optical frame (x right, y down, z forward) in the
+    # world, when there is no calibration file.
+    X_WC: Transform = dc.field(default_factory=Transform)
+    # Render the simulated scene instead of using a device (tests, rigs without a camera).
+    emulate: bool = False
+    emulation: RealSenseEmulation = dc.field(default_factory=RealSenseEmulation)
+
+    def check(self, at: ConfigChecker) -> None:
+        at.number("width", self.width, minimum=0, open_minimum=True)
+        at.number("height", self.height, minimum=0, open_minimum=True)
+        at.choice("fps", self.fps, FRAME_RATES)
+        if self.recording and self.emulate:
+            at.fail("recording", "no recording for an emulated camera (emulate: true)",
+                    f"got {self.recording!r}")
+        if self.recording and not Path(self.recording).is_file():
+            at.fail("recording", "an existing librealsense recording (.db3)",
+                    f"{self.recording!r}: no such file")
+        if self.X_WC.base_frame:
+            at.child("X_WC").fail("base_frame", "no base frame (the pose is in the world)",
+                                  f"got {self.X_WC.base_frame!r}")
+        emulation = at.child("emulation")
+        emulation.number("fov_y", self.emulation.fov_y, minimum=1.0, maximum=170.0)
+        emulation.number("z_near", self.emulation.z_near, minimum=0.0, open_minimum=True)
+        emulation.number("z_far", self.emulation.z_far, minimum=self.emulation.z_near,
+                         open_minimum=True)
+        emulation.number("depth_unit", self.emulation.depth_unit, minimum=1e-5,
+                         maximum=0.01)
+        self.emulation.depth_faults.check(emulation.child("depth_faults"))
+        if self.calibration:
+            from physcap_drake.station.realsense.calibration_file import check_calibration
+
+            check_calibration(self, at)
+
+    def pose(self) -> RigidTransform:
+        """X_WC: the colour camera's optical frame in the world (from the calibration file
+        if there is one)."""
+        if self.calibration:
+            from physcap_drake.station.realsense.calibration_file import load_calibration
+
+            return load_calibration(self.calibration).X_WC
+        return self.X_WC.GetDeterministicValue()
+
+    def rendering_config(self) -> CameraConfig:
+        """The Drake camera that renders this camera's view for emulation: the same pose,
+        resolution and field of view; colour and depth share the optical frame (the
+        RealSense's aligned depth)."""
+        config = CameraConfig(name=self.name, width=self.width, height=self.height,
+                              focal=CameraConfig.FovDegrees(y=self.emulation.fov_y),
+                              z_near=self.emulation.z_near, z_far=self.emulation.z_far,
+                              fps=float(self.fps), rgb=True, depth=True, label=True,
+                              renderer_name="vtk",
+                              renderer_class=RenderEngineVtkParams(backend="EGL"))
+        config.X_PB = Transform(self.pose())
+        return config
+
+
+def emulated_like(config: CameraConfig) -> RealSense:
+    """An emulated RealSense that sees what the rendered camera `config` sees (same pose,
+    resolution and vertical field of view), with the default stereo depth faults."""
+    if config.X_PB.base_frame:
+        raise ValueError(f"camera '{config.name}' is mounted on '{config.X_PB.base_frame}'; "
+                         "an emulated RealSense stands fixed in the world")
+    color, _ = config.MakeCameras()
+    intrinsics = color.core().intrinsics()
+    fov_y = float(np.degrees(intrinsics.fov_y()))
+    X_WC = config.X_PB.GetDeterministicValue() @ config.X_BC.GetDeterministicValue()
+    fps = min(FRAME_RATES, key=lambda rate: abs(rate - config.fps))
+    return RealSense(name=config.name, width=config.width, height=config.height, fps=fps,
+                     X_WC=Transform(X_WC), emulate=True,
+                     emulation=RealSenseEmulation(fov_y=fov_y, z_near=config.z_near,
+                                                  z_far=config.z_far))

@@ -1,0 +1,133 @@
+"""A live RealSense, or a `.db3` recording of one, through `rs.pipeline`.
+
+`PipelineRealSense` enables the z16 depth and rgb8 colour streams at the entry's
+resolution and frame rate on the device with the entry's serial number (or plays the
+entry's recording back, not in real time so no frame is skipped), optionally recording to
+a `.db3` file. Each `next_frame()` takes the newest frameset (a recording's next one);
+depth that is not yet in the colour camera's frame (a live device's) goes through `rs.align`
+to colour, and the frameset then takes the frame path every source shares
+(`frame_from_frameset`).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from physcap_drake.station.realsense.calibration_file import (
+    CalibrationMismatch,
+    intrinsics_mismatch,
+    load_calibration,
+    mismatch,
+)
+from physcap_drake.station.realsense.config import RealSense
+from physcap_drake.station.realsense.frames import (
+    RgbdFrame,
+    frame_from_frameset,
+    intrinsics_of,
+    needs_alignment,
+)
+from physcap_drake.station.realsense.librealsense import librealsense
+
+#: How long to wait for a frameset before the camera counts as stalled, ms.
+FRAME_TIMEOUT_MS = 5000
+
+
+class CameraUnavailable(ConnectionError):
+    """The camera named in the scenario cannot be opened (not connected, busy, or the
+    recording cannot be played)."""
+
+
+def connected_serials() -> list[str]:
+    """Serial numbers of the RealSense devices librealsense finds."""
+    rs = librealsense()
+    return [device.get_info(rs.camera_info.serial_number)
+            for device in rs.context().query_devices()]
+
+
+class PipelineRealSense:
+    """A RealSense device or recording (see the module docstring); `close()` when done."""
+
+    def __init__(self, entry: RealSense):
+        rs = librealsense()
+        self.entry = entry
+        config = rs.config()
+        if entry.recording:
+            if not Path(entry.recording).is_file():
+                raise CameraUnavailable(f"camera '{entry.name}': recording "
+                                        f"{entry.recording!r}: no such file")
+            config.enable_device_from_file(entry.recording, repeat_playback=False)
+        else:
+            serials = connected_serials()
+            wanted = entry.serial or (serials[0] if len(serials) == 1 else "")
+            if not wanted or wanted not in serials:
+                found = ", ".join(repr(s) for s in serials) or "none"
+                what = (f"no RealSense with serial {entry.serial!r} is connected"
+                        if entry.serial else
+                        "serial is empty and there is not exactly one RealSense connected")
+                raise CameraUnavailable(f"camera '{entry.name}': {what} (connected: {found})")
+            config.enable_device(wanted)
+            config.enable_stream(rs.stream.depth, entry.width, entry.height, rs.format.z16,
+                                 entry.fps)
+            config.enable_stream(rs.stream.color, entry.width, entry.height, rs.format.rgb8,
+                                 entry.fps)
+        if entry.record_to:
+            config.enable_record_to_file(entry.record_to)
+        self._pipeline = rs.pipeline()
+        try:
+            profile = self._pipeline.start(config)
+        except RuntimeError as error:
+            source = (f"recording {entry.recording!r}" if entry.recording
+                      else f"device {entry.serial!r}")
+            raise CameraUnavailable(f"camera '{entry.name}': cannot stream from {source} at "
+                                    f"{entry.width} x {entry.height}, {entry.fps} Hz: "
+                                    f"{error}") from None
+        device = profile.get_device()
+        if entry.recording:
+            device.as_playback().set_real_time(False)
+        self.serial = device.get_info(rs.camera_info.serial_number)
+        color = profile.get_stream(rs.stream.color)
+        self.intrinsics = intrinsics_of(color)
+        self._align = rs.align(rs.stream.color)
+        self._check_calibration(color)
+
+    def _check_calibration(self, color_profile) -> None:
+        entry = self.entry
+        if not entry.calibration:
+            return
+        calibration = load_calibration(entry.calibration)
+        size = color_profile.as_video_stream_profile()
+        problem = mismatch(calibration, self.serial, size.width(), size.height()) or \
+            intrinsics_mismatch(calibration, *self.intrinsics)
+        if problem:
+            self.close()
+            raise CalibrationMismatch(f"camera '{entry.name}': calibration file "
+                                      f"{entry.calibration!r} does not match the camera: "
+                                      f"{problem}")
+
+    def next_frame(self) -> RgbdFrame:
+        """The next aligned frame: a live camera's newest (older queued frames are dropped,
+        so a frame taken after a pause is not stale), a recording's next. Raises
+        CameraUnavailable if none comes (a stalled camera, or the end of a recording)."""
+        frameset = None
+        if not self.entry.recording:
+            while (polled := self._pipeline.poll_for_frames()).size() > 0:
+                frameset = polled
+        ok = frameset is not None
+        if not ok:
+            ok, frameset = self._pipeline.try_wait_for_frames(FRAME_TIMEOUT_MS)
+        if not ok:
+            source = "the recording has ended" if self.entry.recording else \
+                f"no frame within {FRAME_TIMEOUT_MS} ms"
+            raise CameraUnavailable(f"camera '{self.entry.name}': {source}")
+        if needs_alignment(frameset):
+            frameset = self._align.process(frameset)
+        return frame_from_frameset(frameset)
+
+    def close(self) -> None:
+        """Stops streaming (and finishes a recording being written). Safe to call twice."""
+        if self._pipeline is not None:
+            try:
+                self._pipeline.stop()
+            except RuntimeError:  # not started
+                pass
+            self._pipeline = None

@@ -1,0 +1,180 @@
+"""The RealSense driver: the emulated camera through librealsense's software device, .db3
+recordings played back through rs.pipeline, and clear errors for cameras that are not there."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from physcap_drake.cli import app
+from physcap_drake.resources import stations_dir
+from physcap_drake.scenario import load_scenario, load_scenario_text
+from physcap_drake.scenario_errors import ScenarioError
+from physcap_drake.station import MakeStation, close_station, ports
+from physcap_drake.station.realsense.calibration_file import (
+    CalibrationMismatch,
+    CameraCalibration,
+    Intrinsics,
+    save_calibration,
+)
+from physcap_drake.station.realsense.camera_system import RealSenseCamera
+from physcap_drake.station.realsense.config import RealSense
+from physcap_drake.station.realsense.pipeline_camera import CameraUnavailable, PipelineRealSense
+from physcap_drake.station.realsense.software_camera import SoftwareRealSense
+
+runner = CliRunner()
+#: A tiny emulated RealSense where the station's camera is (fast to render).
+W, H = 64, 48
+ROBOT = """directives:
+- add_directives: {file: package://physcap_models/piper/piper_100mm.dmd.yaml}
+- add_model: {name: table, file: package://physcap_models/scene/table.sdf}
+- add_weld: {parent: world, child: table::table_top}
+"""
+REAL_ARM = ROBOT + """station: !PiperCan {interface: socketcan, channel: can0}
+simulator_config: {target_realtime_rate: 1.0}
+"""
+
+
+def _emulated_scenario(record_to: str = ""):
+    scenario = load_scenario(stations_dir() / "piper_table.yaml")
+    rendered = scenario.cameras[0]
+    scenario.cameras = [RealSense(name="camera", width=W, height=H, emulate=True,
+                                  record_to=record_to, X_WC=rendered.X_PB)]
+    scenario.cameras[0].emulation.fov_y = 70.0
+    return scenario
+
+
+def _frames(station, times):
+    context = station.CreateDefaultContext()
+    frames = []
+    for t in times:
+        context.SetTime(t)
+        frames.append((station.GetOutputPort(ports.CAMERA_RGB).Eval(context).data.copy(),
+                       station.GetOutputPort(ports.CAMERA_DEPTH).Eval(context).data.copy()))
+    return frames
+
+
+def test_the_software_device_returns_the_pushed_frame_with_its_intrinsics():
+    device = SoftwareRealSense(W, H, 50.0, 51.0, 31.5, 23.5, depth_unit=0.001)
+    rng = np.random.default_rng(0)
+    rgb = rng.integers(0, 256, (H, W, 3), dtype=np.uint8)
+    depth = rng.uniform(0.3, 3.0, (H, W))
+    depth[0, :5] = 0.0
+    frame = device.capture(rgb, depth)
+    device.close()
+    assert np.array_equal(frame.rgb, rgb)
+    assert np.abs(frame.depth - depth).max() <= 0.0005 + 1e-6  # z16 in 1 mm units
+    assert np.allclose(np.round(frame.depth / 0.001), frame.depth / 0.001, atol=1e-3)
+    assert (frame.depth[0, :5] == 0).all()
+    assert (frame.fx, frame.fy, frame.cx, frame.cy) == pytest.approx((50.0, 51.0, 31.5, 23.5))
+
+
+def test_the_emulated_camera_exports_faulty_depth_and_is_reproducible():
+    scenario = _emulated_scenario()
+    station = MakeStation(scenario)
+    try:
+        (rgb_a, depth_a), (rgb_b, depth_b), (_, depth_a2) = _frames(station, [0.0, 0.5, 0.0])
+        assert rgb_a.shape == (H, W, 4) and depth_a.shape == (H, W, 1)
+        assert (rgb_a[:, :, 3] == 255).all() and np.array_equal(rgb_a, rgb_b)
+        table = depth_a > 0
+        assert table.mean() > 0.15  # the table and the arm, below the sky
+        assert np.array_equal(depth_a, depth_a2)  # the same time: the same noise
+        both = (depth_a > 0) & (depth_b > 0)
+        assert 0.005 < np.abs(depth_a - depth_b)[both].mean() < 0.03  # ~1 cm noise at 1 m
+        assert station.HasOutputPort(ports.CAMERA_LABEL)  # the simulator's, as before
+    finally:
+        close_station(station)
+
+
+def test_a_recording_plays_back_through_the_driver_as_it_was_recorded(tmp_path):
+    """Rendered frames recorded to .db3 by the emulated camera come back through rs.pipeline
+    and the driver system: the same RGB, depth within 1 mm, the same intrinsics."""
+    recording = tmp_path / "frames.db3"
+    station = MakeStation(_emulated_scenario(record_to=str(recording)))
+    emulated = station.GetSubsystemByName("realsense_camera")
+    live = _frames(station, [0.0, 0.1, 0.2])
+    close_station(station)  # finishes the recording
+    source = PipelineRealSense(RealSense(name="camera", width=W, height=H,
+                                         recording=str(recording)))
+    driver = RealSenseCamera(source)
+    context = driver.CreateDefaultContext()
+    try:
+        for index, (rgb, depth) in enumerate(live):
+            context.SetTime(index * 0.1)
+            played_rgb = driver.GetOutputPort(ports.CAMERA_RGB).Eval(context).data
+            played_depth = driver.GetOutputPort(ports.CAMERA_DEPTH).Eval(context).data
+            assert np.array_equal(played_rgb, rgb), index
+            assert np.abs(played_depth - depth).max() <= 0.001, index
+        assert source.intrinsics == pytest.approx(emulated.device.intrinsics)
+        with pytest.raises(CameraUnavailable, match="recording has ended"):
+            source.next_frame()
+    finally:
+        driver.close()
+
+
+def test_a_camera_that_is_not_connected_is_a_one_line_error(tmp_path):
+    with pytest.raises(CameraUnavailable, match=r"no RealSense with serial '12345678' is "
+                                                r"connected \(connected: none\)"):
+        PipelineRealSense(RealSense(serial="12345678"))
+    scenario = tmp_path / "rig.yaml"
+    scenario.write_text(REAL_ARM + "cameras: [!RealSense {serial: '12345678'}]\n")
+    result = runner.invoke(app, ["calibrate", "camera", "--scenario", str(scenario),
+                                 "--output", str(tmp_path / "cal.yaml")])
+    assert result.exit_code == 2
+    assert result.output.strip().count("\n") == 0, result.output
+    assert "no RealSense with serial '12345678' is connected" in result.output
+
+
+def test_a_missing_recording_is_a_scenario_error(tmp_path):
+    with pytest.raises(ScenarioError) as error:
+        load_scenario_text(REAL_ARM + "cameras: [!RealSense {recording: none.db3}]\n")
+    assert error.value.key_path == "cameras[0].recording" and "no such file" in str(error.value)
+    scenario = tmp_path / "rig.yaml"
+    scenario.write_text(REAL_ARM + "cameras: [!RealSense {recording: none.db3}]\n")
+    result = runner.invoke(app, ["calibrate", "camera", "--scenario", str(scenario)])
+    assert result.exit_code == 2 and "cameras[0].recording" in result.output
+    assert result.output.strip().count("\n") == 0, result.output
+
+
+def test_a_calibration_made_for_another_camera_is_refused(tmp_path):
+    calibration = tmp_path / "camera.yaml"
+    save_calibration(CameraCalibration(serial="A1", width=1280, height=720,
+                                       intrinsics=Intrinsics(900.0, 900.0, 640.0, 360.0)),
+                     calibration)
+    text = REAL_ARM + f"cameras: [!RealSense {{serial: B2, calibration: '{calibration}'}}]\n"
+    with pytest.raises(ScenarioError) as error:
+        load_scenario_text(text)
+    assert error.value.key_path == "cameras[0].calibration"
+    assert "made for serial 'A1' at 1280 x 720, not serial 'B2' at 640 x 480" in str(error.value)
+    scenario = tmp_path / "rig.yaml"
+    scenario.write_text(text)
+    result = runner.invoke(app, ["calibrate", "camera", "--scenario", str(scenario)])
+    assert result.exit_code == 2 and "made for serial 'A1'" in result.output
+    assert result.output.strip().count("\n") == 0, result.output
+
+
+def test_a_calibration_with_other_intrinsics_is_refused_when_the_camera_opens(tmp_path):
+    recording = tmp_path / "frames.db3"
+    station = MakeStation(_emulated_scenario(record_to=str(recording)))
+    _frames(station, [0.0])
+    close_station(station)
+    calibration = tmp_path / "camera.yaml"
+    save_calibration(CameraCalibration(width=W, height=H,
+                                       intrinsics=Intrinsics(80.0, 80.0, 31.5, 23.5)),
+                     calibration)
+    with pytest.raises(CalibrationMismatch, match="does not match the camera: it was "
+                                                  "calibrated with intrinsics fx 80.0"):
+        PipelineRealSense(RealSense(width=W, height=H, recording=str(recording),
+                                    calibration=str(calibration)))
+
+
+def test_scenarios_name_each_camera_source():
+    scenario = load_scenario_text(ROBOT + "cameras: [!RealSense {emulate: true}]\n")
+    assert isinstance(scenario.cameras[0], RealSense) and scenario.cameras[0].emulate
+    with pytest.raises(ScenarioError) as error:
+        load_scenario_text(ROBOT + "cameras: [!RealSense {serial: '1'}]\n")
+    assert error.value.key_path == "cameras[0].emulate"  # a live camera cannot see a sim
+    with pytest.raises(ScenarioError) as error:
+        load_scenario_text(ROBOT + "cameras: [!RealSense {fps: 25, emulate: true}]\n")
+    assert error.value.key_path == "cameras[0].fps"
