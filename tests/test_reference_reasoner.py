@@ -58,8 +58,12 @@ def test_the_planner_explores_until_the_evidence_singles_out_the_answer():
     plan = _ask("planner")
     assert not plan["sufficient"]
     assert [c["name"] for c in plan["exploration_candidates"]] == [c["name"] for c in CANS]
+    assert "none has been measured yet" in plan["reason"]
     plan = _ask("planner", [_mass("red can", 0.40)])
     assert not plan["sufficient"]
+    assert plan["reason"] == ("mass measured so far: the red can's is 0.400 kg, none meeting "
+                              "the task; still to measure: the blue can, the green can, the "
+                              "black can")
     assert "red can" not in [c["name"] for c in plan["exploration_candidates"]]
     plan = _ask("planner", [_mass("red can", 0.40), _mass("green can", 0.016)])
     assert plan["sufficient"] and "green can" in plan["reason"]

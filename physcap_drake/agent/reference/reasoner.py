@@ -101,7 +101,15 @@ class ReferenceReasoner:
             pick = (min if goal.kind in ("mass", "stiffness") else max)(
                 measured, key=measured.get)
             return pick, f"all were measured; the {pick} comes closest to the property"
-        return None, "the property is hidden from the camera and not measured for all"
+        if not subjects:
+            return None, f"no {goal.subject} is in view"
+        if not measured:
+            return None, (f"the camera cannot show a {goal.subject}'s {goal.kind}, and none has "
+                          "been measured yet")
+        found = ", ".join(f"the {name}'s is {_quantity(value, goal)}"
+                          for name, value in measured.items())
+        return None, (f"{goal.kind} measured so far: {found}, none meeting the task; still "
+                      f"to measure: the {', the '.join(unmeasured)}")
 
     # --- planner -------------------------------------------------------------------------
 
