@@ -10,6 +10,9 @@ Each unfinished episode is one Ray task reserving one CPU:
   by Ray, up to `RETRIES` more times, from the start. An exception inside the episode is not
   retried: its folder gets error.json and the transcript so far, and rerunning the command
   retries it, as with the process pool.
+- Memory: a worker process runs at most `EPISODES_PER_WORKER` episodes (Ray's `max_calls`)
+  and is then replaced, as in the process pool, so what episodes leave behind does not pile
+  up in long-lived workers.
 - Model calls of networked backends go through a zero-CPU actor per episode (see
   `eval.ray_models`), so a task waiting for a model lends its CPU to another episode.
 
@@ -29,7 +32,7 @@ import ray
 
 from physcap_drake.eval.grid import EpisodeSpec
 from physcap_drake.eval.ray_models import episode_client
-from physcap_drake.eval.runner import pending
+from physcap_drake.eval.runner import EPISODES_PER_WORKER, pending
 from physcap_drake.recording.episode_folder import (
     ERROR_FILE,
     MESHCAT_FILE,
@@ -42,7 +45,7 @@ from physcap_drake.recording.episode_folder import (
 RETRIES = 3
 
 
-@ray.remote(num_cpus=1, max_retries=RETRIES)
+@ray.remote(num_cpus=1, max_retries=RETRIES, max_calls=EPISODES_PER_WORKER)
 def run_episode_task(spec: EpisodeSpec, llm: str, model: str | None) -> dict[str, Any]:
     """Runs one episode on a Ray worker; returns {"spec", "files": {name: bytes}, "error"}."""
     client = episode_client(llm, model, spec.seed)

@@ -38,8 +38,11 @@ def run_episode(spec: EpisodeSpec, out: Path, llm: str, model: str | None) -> di
 
 
 def pending(specs: list[EpisodeSpec], out: Path) -> list[EpisodeSpec]:
-    """The episodes of `specs` not finished yet."""
-    return [spec for spec in specs if not is_finished(spec.folder(out))]
+    """The episodes of `specs` not finished yet, in the order they are run: trial by trial
+    (every cell's seed 0, then every cell's seed 1, ...), so a grid stopped half-way has
+    about as many trials in every cell."""
+    return sorted((spec for spec in specs if not is_finished(spec.folder(out))),
+                  key=lambda spec: (spec.seed, spec.task, spec.agent))
 
 
 def run_grid(specs: list[EpisodeSpec], out: Path, *, llm: str = "reference",
