@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import math
-from concurrent.futures import ProcessPoolExecutor
+import multiprocessing
 from datetime import date
 from pathlib import Path
 from typing import Annotated
@@ -32,6 +32,8 @@ app.command("camera")(calibrate_camera)
 
 #: --write saves thresholds only if they classify this share of the held-out trials right.
 WRITE_ACCURACY = 0.95
+#: Trials one worker process runs before a fresh one takes its place (see `_run_all`).
+TRIALS_PER_WORKER = 8
 
 Trials = Annotated[int, typer.Option("--trials", min=1, help="Trials per specimen.")]
 Seed = Annotated[int, typer.Option("--seed", min=0, help="Seed of the perturbations.")]
@@ -68,8 +70,15 @@ def _print_attribution(errors: list[float], draws: list[dict], what: str,
     return shares
 
 
+def _call(job: tuple):
+    function, *args = job
+    return function(*args)
+
+
 def _run_all(function, jobs: list[tuple], workers: int, description: str) -> list:
-    """Runs `function(*job)` for every job, in `workers` processes, with a progress bar."""
+    """Runs `function(*job)` for every job, in `workers` processes (each replaced by a fresh
+    one after TRIALS_PER_WORKER trials: a trial's station leaves memory behind), with a
+    progress bar; returns the results in the order of `jobs`."""
     results = []
     with trial_progress(description, len(jobs)) as advance:
         if workers == 1:
@@ -77,8 +86,9 @@ def _run_all(function, jobs: list[tuple], workers: int, description: str) -> lis
                 results.append(function(*job))
                 advance(True)
         else:
-            with ProcessPoolExecutor(workers) as pool:
-                for result in pool.map(function, *zip(*jobs, strict=True)):
+            with multiprocessing.get_context("spawn").Pool(
+                    workers, maxtasksperchild=TRIALS_PER_WORKER) as pool:
+                for result in pool.imap(_call, [(function, *job) for job in jobs]):
                     results.append(result)
                     advance(True)
     return results
