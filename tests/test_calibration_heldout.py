@@ -32,6 +32,7 @@ def _fake_probe(spread: float):
 def _calibrate(monkeypatch, tmp_path, spread: float, *args: str):
     written = []
     monkeypatch.setattr(cal, "run_stiffness_trial", _fake_probe(spread))
+    monkeypatch.setattr(calibrate, "TRIALS_PER_WORKER", 1000)  # the fake probe stays here
     monkeypatch.setattr(calibrate, "_write_thresholds", written.append)
     out = tmp_path / "stiffness.json"
     result = CliRunner().invoke(app, ["calibrate", "stiffness", "--trials", "4", "--workers",

@@ -35,6 +35,18 @@ def test_each_worker_runs_at_most_its_share_of_episodes_then_a_fresh_one_takes_o
     assert len(per_process) >= 4 and os.getpid() not in per_process
 
 
+@pytest.mark.timeout(240)
+def test_one_worker_is_recycled_too_when_the_grid_outgrows_its_share(tmp_path):
+    specs = [EpisodeSpec("empty_cup", "physcap", seed) for seed in range(3)]
+    alone = run_grid(specs[:2], tmp_path, workers=1, episodes_per_worker=2,
+                     episode=_which_process)
+    assert {r["pid"] for r in alone} == {os.getpid()}
+    pooled = Counter(r["pid"] for r in run_grid(specs, tmp_path, workers=1,
+                                                episodes_per_worker=2,
+                                                episode=_which_process))
+    assert sorted(pooled.values()) == [1, 2] and os.getpid() not in pooled
+
+
 def test_workers_and_their_share_must_be_positive(tmp_path):
     with pytest.raises(ValueError, match="at least 1"):
         run_grid([], tmp_path, workers=2, episodes_per_worker=0)

@@ -76,12 +76,13 @@ def _call(job: tuple):
 
 
 def _run_all(function, jobs: list[tuple], workers: int, description: str) -> list:
-    """Runs `function(*job)` for every job, in `workers` processes (each replaced by a fresh
-    one after TRIALS_PER_WORKER trials: a trial's station leaves memory behind), with a
-    progress bar; returns the results in the order of `jobs`."""
+    """Runs `function(*job)` for every job, in `workers` processes, each replaced by a fresh
+    one after TRIALS_PER_WORKER trials (a trial's station leaves memory behind; one worker
+    for no more trials than that: this process), with a progress bar; returns the results
+    in the order of `jobs`."""
     results = []
     with trial_progress(description, len(jobs)) as advance:
-        if workers == 1:
+        if workers == 1 and len(jobs) <= TRIALS_PER_WORKER:
             for job in jobs:
                 results.append(function(*job))
                 advance(True)

@@ -56,10 +56,11 @@ def run_grid(specs: list[EpisodeSpec], out: Path, *, llm: str = "reference",
              on_done: Callable[[dict[str, Any]], None] | None = None,
              episodes_per_worker: int = EPISODES_PER_WORKER,
              episode: Callable[..., dict[str, Any]] = run_episode) -> list[dict[str, Any]]:
-    """Runs the unfinished episodes of `specs` (workers > 1: that many processes, each
-    replaced after `episodes_per_worker` episodes) and returns their results in the order
-    they finished; `on_done(result)` hears each one. `episode(spec, out, llm, model)` runs
-    one (a module-level function: the workers import it)."""
+    """Runs the unfinished episodes of `specs` in `workers` processes, each replaced after
+    `episodes_per_worker` episodes (one worker for no more episodes than that: this
+    process), and returns their results in the order they finished; `on_done(result)`
+    hears each one. `episode(spec, out, llm, model)` runs one (a module-level function:
+    the workers import it)."""
     if workers < 1 or episodes_per_worker < 1:
         raise ValueError(f"workers and episodes_per_worker must be at least 1, got {workers} "
                          f"and {episodes_per_worker}")
@@ -71,7 +72,7 @@ def run_grid(specs: list[EpisodeSpec], out: Path, *, llm: str = "reference",
         if on_done is not None:
             on_done(result)
 
-    if workers == 1:
+    if workers == 1 and len(todo) <= episodes_per_worker:
         for spec in todo:
             finished(episode(spec, out, llm, model))
         return results
