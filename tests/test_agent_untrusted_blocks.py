@@ -20,8 +20,8 @@ from physcap_drake.agent.variant import AgentVariant
 from physcap_drake.control.errors import ArmFault, SkillRefused
 from physcap_drake.knowledge import KnowledgeEntry, SceneKnowledge
 
-SCENE = Observation((ObjectInView("red can", "can", "red", False, "", 100.0, 60.0),
-                     ObjectInView("blue can", "can", "blue", True, "", 200.0, 60.0)),
+SCENE = Observation((ObjectInView("red can", "can", "red", False, "", 0.12, 100.0, 60.0),
+                     ObjectInView("blue can", "can", "blue", True, "", 0.12, 200.0, 60.0)),
                     b"", 0.0)
 LIMITS = SandboxLimits(cpu_s=2, compute_wall_s=5, memory_mb=512, robot_time_s=60.0,
                        knowledge_chars=600)

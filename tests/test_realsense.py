@@ -89,26 +89,35 @@ def test_the_emulated_camera_exports_faulty_depth_and_is_reproducible():
 
 def test_a_recording_plays_back_through_the_driver_as_it_was_recorded(tmp_path):
     """Rendered frames recorded to .db3 by the emulated camera come back through rs.pipeline
-    and the driver system: the same RGB, depth within 1 mm, the same intrinsics."""
+    and the driver system: the same RGB, depth within 1 mm, the same intrinsics, in order.
+    A pipeline playing a file, like one streaming from a device, may drop a frame while it
+    starts (librealsense plays the first frames in real time until the driver turns that
+    off), so frames are matched by their frame number (the emulated camera's n-th frame is
+    number n) and most, not all, must come back."""
     recording = tmp_path / "frames.db3"
     station = MakeStation(_emulated_scenario(record_to=str(recording)))
     emulated = station.GetSubsystemByName("realsense_camera")
-    live = _frames(station, [0.0, 0.1, 0.2])
+    live = _frames(station, [0.0, 0.1, 0.2, 0.3, 0.4, 0.5])
     close_station(station)  # finishes the recording
     source = PipelineRealSense(RealSense(name="camera", width=W, height=H,
                                          recording=str(recording)))
     driver = RealSenseCamera(source)
     context = driver.CreateDefaultContext()
     try:
-        for index, (rgb, depth) in enumerate(live):
-            context.SetTime(index * 0.1)
-            played_rgb = driver.GetOutputPort(ports.CAMERA_RGB).Eval(context).data
-            played_depth = driver.GetOutputPort(ports.CAMERA_DEPTH).Eval(context).data
-            assert np.array_equal(played_rgb, rgb), index
-            assert np.abs(played_depth - depth).max() <= 0.001, index
-        assert source.intrinsics == pytest.approx(emulated.device.intrinsics)
+        first_rgb = driver.GetOutputPort(ports.CAMERA_RGB).Eval(context).data
+        first_depth = driver.GetOutputPort(ports.CAMERA_DEPTH).Eval(context).data
+        assert any(np.array_equal(first_rgb, rgb) and np.abs(first_depth - depth).max() <= 0.001
+                   for rgb, depth in live)
+        numbers = []
         with pytest.raises(CameraUnavailable, match="recording has ended"):
-            source.next_frame()
+            while True:
+                frame = source.next_frame()
+                rgb, depth = live[frame.frame_number - 1]
+                assert np.array_equal(frame.rgb, rgb[:, :, :3]), frame.frame_number
+                assert np.abs(frame.depth - depth[:, :, 0]).max() <= 0.001, frame.frame_number
+                numbers.append(frame.frame_number)
+        assert numbers == sorted(set(numbers)) and len(numbers) >= 3, numbers
+        assert source.intrinsics == pytest.approx(emulated.device.intrinsics)
     finally:
         driver.close()
 

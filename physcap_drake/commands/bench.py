@@ -106,9 +106,11 @@ def perception(
     json_path: Annotated[Path | None, typer.Option(
         "--json", help="Also write the results to this JSON file.")] = None,
 ) -> None:
-    """RGB-D perception on each task's first view through an emulated RealSense: every
-    visible object located by its task name; worst and mean grasp-point error against the
-    simulator's ground truth, objects not found, attributes seen wrong."""
+    """Measure RGB-D perception against the simulator's ground truth.
+
+    Looks at each task's first view through an emulated RealSense, locates every visible
+    object by its task name and prints the worst and mean grasp-point error, the objects
+    not found and the attributes seen wrong."""
     names = list(TASKS) if tasks == "all" else tasks.split(",")
     jobs = [(task, seed) for task in names for seed in parse_seeds(seeds)]
     results = []

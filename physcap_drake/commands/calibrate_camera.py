@@ -6,11 +6,10 @@ from pathlib import Path
 from typing import Annotated
 
 import typer
-from rich.markup import escape
 
 from physcap_drake.commands.common import (
     console,
-    error_console,
+    fail,
     load_scenario_or_exit,
     save_json,
     trial_progress,
@@ -54,14 +53,14 @@ def calibrate_camera(
     json_path: Annotated[Path | None, typer.Option("--json", help="Write the figures "
                                                    "here.")] = None,
 ) -> None:
-    """Find the camera's pose from a ChArUco board laid at known places on the table; print
-    the reprojection error (and, in simulation, the error against the true pose) and write
-    the calibration file."""
+    """Find the camera's pose from a ChArUco board.
+
+    The board is laid at known places on the table; prints the reprojection error (and, in
+    simulation, the error against the true pose) and writes the calibration file."""
     loaded = load_scenario_or_exit(scenario)
     entry = next((c for c in loaded.cameras if c.name == camera), None)
     if entry is None:
-        error_console.print(f"[bold red]error:[/] {scenario}: no camera named {camera!r}")
-        raise typer.Exit(code=2)
+        fail(f"{scenario}: no camera named {camera!r}")
     placements = [_placement(p) for p in board_at] if board_at else list(PLACEMENTS)
     live = isinstance(entry, RealSense) and not entry.emulate
     try:
@@ -77,8 +76,7 @@ def calibrate_camera(
                 run = calibrate_in_simulation(loaded, camera, placements,
                                               on_view=lambda _: advance(True))
     except (CameraUnavailable, CalibrationMismatch, BoardNotSeen, ImportError) as error:
-        error_console.print(f"[bold red]error:[/] {escape(str(error))}", soft_wrap=True)
-        raise typer.Exit(code=2) from None
+        fail(str(error))
     save_calibration(run.calibration, output)
     X_WC = run.fit.X_WC
     figures = {"camera": camera, "views": len(run.views), "corners": run.fit.corners,

@@ -62,7 +62,6 @@ class SoftwareRealSense:
         registered.rotation = [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0]
         registered.translation = [0.0, 0.0, 0.0]
         self._depth_profile.register_extrinsics_to(self._color_profile, registered)
-        self._recorder = rs.recorder(record_to, self._device) if record_to else None
         self._syncer = rs.syncer()
         for sensor, profile in ((self._depth_sensor, self._depth_profile),
                                 (self._color_sensor, self._color_profile)):
@@ -76,6 +75,8 @@ class SoftwareRealSense:
         self._push(np.zeros((height, width, 3), np.uint8), np.zeros((height, width),
                                                                     np.uint16))
         self._syncer.try_wait_for_frames(SYNC_TIMEOUT_MS)
+        # Recorded from here: a recording holds the camera's frames only, not the blank pair.
+        self._recorder = rs.recorder(record_to, self._device) if record_to else None
 
     def capture(self, rgb: np.ndarray, depth: np.ndarray) -> RgbdFrame:
         """Pushes one frame pair and returns it as the frame path delivers it. rgb: H × W × 3
