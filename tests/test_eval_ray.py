@@ -7,6 +7,7 @@ from __future__ import annotations
 import http.server
 import json
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -40,12 +41,18 @@ def _finish(process: subprocess.Popen) -> str:
     return out
 
 
+def _without_wall_times(transcript: str) -> str:
+    """The transcript without the outcome's wall-clock figures (wall time, model latency)."""
+    lines = [line for line in transcript.splitlines() if not line.startswith("| wall time |")]
+    return re.sub(r"(\| model calls \|[^|]* out), [0-9.]+ s\)", r"\1)", "\n".join(lines))
+
+
 def _episodes(out: Path) -> dict[str, dict]:
-    """Each finished episode's summary (without the varying fields) and transcript."""
+    """Each finished episode's summary and transcript (without the varying figures)."""
     episodes = {}
     for summary in sorted(out.glob("*/*/seed_*/summary.json")):
         data = {k: v for k, v in json.loads(summary.read_text()).items() if k not in VARYING}
-        data["transcript"] = (summary.parent / "transcript.md").read_text()
+        data["transcript"] = _without_wall_times((summary.parent / "transcript.md").read_text())
         episodes[str(summary.parent.relative_to(out))] = data
     return episodes
 
