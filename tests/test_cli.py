@@ -112,7 +112,7 @@ def test_calibrate_mass_writes_one_entry_per_reference_mass(tmp_path):
     result = runner.invoke(app, ["calibrate", "mass", "--trials", "1", "--workers", "1",
                                  "--json", str(out)])
     assert result.exit_code == 0, result.output
-    rows = json.loads(out.read_text())
+    rows = json.loads(out.read_text())["rows"]
     assert [row["true_g"] for row in rows] == [13, 120, 350, 600, 963]
     for row in rows:
         assert abs(row["mean_g"] - row["true_g"]) < 10.0
@@ -126,7 +126,7 @@ def test_run_prints_the_transcript_and_writes_the_summary(tmp_path):
                                  "--json", str(summary_path), "--record", str(calls_path)])
     assert result.exit_code == 0, result.output
     assert "# Code block" not in result.output  # the console shows entries, not markdown
-    assert "MEASURED: red can mass" in result.output and "success" in result.output
+    assert "MEASURED: green can mass" in result.output and "success" in result.output
     summary = json.loads(summary_path.read_text())
     assert summary["success"] is True and summary["oi"] == 1
     assert summary["robot_time_s"] > 10.0 and summary["agent"] == "physcap"

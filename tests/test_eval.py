@@ -12,7 +12,7 @@ import pytest
 from typer.testing import CliRunner
 
 from physcap_drake.cli import app
-from physcap_drake.eval.grid import EpisodeSpec, make_grid, parse_names
+from physcap_drake.eval.grid import EpisodeSpec, make_grid, paper_grid, parse_names
 from physcap_drake.eval.tables import make_cell, results_markdown
 from physcap_drake.recording import topics
 from physcap_drake.recording.episode_folder import record_episode
@@ -23,31 +23,58 @@ def _summary(success: bool, oi: int, robot_time: float) -> dict:
     return {"success": success, "oi": oi, "robot_time_s": robot_time, "wall_time_s": 1.0}
 
 
-def test_a_cell_averages_oi_over_all_trials_and_time_over_successes():
+def test_a_cell_reports_sr_oi_and_time_with_intervals_as_the_paper_counts_them():
+    """OI and time over the successful trials (the paper's rule), OI over all trials kept
+    apart; SR with its Wilson interval, OI and time with Student-t intervals."""
     cell = make_cell("empty_cup", "physcap", [_summary(True, 1, 20.0), _summary(True, 2, 30.0),
                                               _summary(False, 3, 99.0)], unfinished=1)
     assert (cell.trials, cell.successes, cell.unfinished) == (3, 2, 1)
     assert cell.sr == pytest.approx(2 / 3)
-    assert cell.oi_mean == pytest.approx(2.0) and cell.oi_std == pytest.approx(0.8165, abs=1e-4)
+    assert cell.sr_ci95 == pytest.approx((0.2077, 0.9385), abs=1e-4)
+    assert cell.oi_mean == pytest.approx(1.5) and cell.oi_all_mean == pytest.approx(2.0)
+    assert cell.oi_ci95 == pytest.approx((0.0, 1.5 + 12.706 * 0.7071 / 2 ** 0.5), abs=1e-3)
     assert cell.time_mean_s == pytest.approx(25.0) and cell.time_std_s == pytest.approx(5.0)
     row = cell.as_row()
     assert row["paper_sr"] == pytest.approx(0.78) and row["paper_oi"] == pytest.approx(1.44)
+    assert row["time_ci95"][0] < 25.0 < row["time_ci95"][1]
 
 
-def test_a_cell_without_successes_has_no_time():
+def test_a_cell_without_successes_has_no_oi_or_time():
     cell = make_cell("identify_empty_can", "cap", [_summary(False, 0, 10.0)], unfinished=0)
-    assert cell.sr == 0.0 and cell.time_mean_s is None
+    assert cell.sr == 0.0 and cell.time_mean_s is None and cell.oi_mean is None
+    assert cell.sr_ci95[0] == 0.0 and cell.time_ci95 is None
 
 
-def test_results_markdown_has_the_papers_two_tables():
-    cells = {("identify_empty_can", "physcap"): make_cell(
-                 "identify_empty_can", "physcap", [_summary(True, 1, 18.6)], 0),
-             ("empty_cup", "physcap"): make_cell("empty_cup", "physcap",
-                                                 [_summary(True, 2, 30.0)], 0)}
-    text = results_markdown(cells, ["identify_empty_can", "empty_cup"], ["physcap"], {})
+def test_results_markdown_has_the_papers_two_tables_and_says_which_srs_differ():
+    def cell(task, agent, wins, trials):
+        return make_cell(task, agent, [_summary(i < wins, 1, 18.6) for i in range(trials)], 0)
+
+    cells = {("identify_empty_can", "physcap"): cell("identify_empty_can", "physcap", 10, 10),
+             ("identify_empty_can", "cap_physx"): cell("identify_empty_can", "cap_physx", 8, 10),
+             ("identify_empty_can", "cap"): cell("identify_empty_can", "cap", 2, 10),
+             ("empty_cup", "physcap"): cell("empty_cup", "physcap", 1, 1)}
+    text = results_markdown(cells, ["identify_empty_can", "empty_cup"],
+                            ["cap", "cap_physx", "physcap"], {}, plot="results.png")
     assert "## Table 1 layout" in text and "## Simulated empty-cup task" in text
-    assert "| physcap | 1/1 | 1.00 | 18.6 ± 0.0 s |" in text
-    assert "| physcap | 80% | 2.5 | 239.0 ± 27.0 s |" in text  # the paper's Table 1 figure
+    assert "| physcap | 10/10 [72, 100] | 1.00 [1.00, 1.00] | 18.6 ± 0.0 s [18.6, 18.6] |" \
+        in text
+    assert "| physcap | 8/10 (80%) | 2.5 | 239.0 ± 27.0 s |" in text  # the paper's Table 1
+    assert "| physcap | 1/1 [21, 100] | 1.00 | 18.6 ± 0.0 s |" in text  # one trial: no t
+    assert "distinguishable: cap 2/10 < cap_physx 8/10 (p = 0.023); cap 2/10 < physcap " \
+        "10/10 (p = 0.001). Every other pair of variants is not distinguishable." in text
+    assert "![SR, OI and time per variant and task, with the paper's](results.png)" in text
+
+
+def test_the_paper_grid_and_the_protocols_trial_counts():
+    grid = paper_grid()
+    assert len(grid) == 5 * 3 * 10 + 3 * 50
+    cup = {spec.agent for spec in grid if spec.task == "empty_cup"}
+    assert cup == {"cap_physx", "cap_physx_planner", "physcap"}
+    assert max(spec.seed for spec in grid if spec.task == "empty_cup") == 49
+    assert max(spec.seed for spec in grid if spec.task == "find_blue_cube") == 9
+    mixed = make_grid(["find_blue_cube", "empty_cup"], ["physcap"])
+    assert [len([s for s in mixed if s.task == t]) for t in ("find_blue_cube", "empty_cup")] \
+        == [10, 50]
 
 
 def test_grid_names_are_checked():
@@ -74,11 +101,14 @@ def test_eval_runs_the_grid_in_parallel_and_resumes(tmp_path):
     first = _physcap(*args)
     assert first.returncode == 0, first.stdout + first.stderr
     assert "4 to run with 2 worker(s)" in first.stdout
-    for name in ("results.md", "results.csv", "results.json"):
+    for name in ("results.md", "results.csv", "results.json", "results.png"):
         assert (tmp_path / name).is_file()
     results = json.loads((tmp_path / "results.json").read_text())
     cell = next(c for c in results["cells"] if c["agent"] == "physcap")
-    assert (cell["trials"], cell["successes"], cell["oi_mean"]) == (2, 2, 1.0)
+    assert (cell["trials"], cell["successes"]) == (2, 2) and 1.0 <= cell["oi_mean"] <= 2.0
+    low, high = cell["sr_ci95"]
+    assert 0.3 < low < 0.4 and high == 1.0  # Wilson's interval of 2/2
+    assert results["sr_comparisons"][0]["p"] <= 1.0
     summary = tmp_path / "identify_empty_can" / "physcap" / "seed_001" / "summary.json"
     stamp = summary.stat().st_mtime_ns
     (tmp_path / "identify_empty_can" / "cap" / "seed_000" / "summary.json").unlink()
@@ -90,9 +120,11 @@ def test_eval_runs_the_grid_in_parallel_and_resumes(tmp_path):
     assert csv_rows[0].startswith("task,agent,trials,successes") and len(csv_rows) == 3
 
 
-def test_eval_names_an_unknown_agent():
+def test_eval_names_an_unknown_agent_and_keeps_the_paper_grid_whole():
     result = CliRunner().invoke(app, ["eval", "--agents", "physcap,oracle", "--out", "/tmp/x"])
     assert result.exit_code == 2 and "unknown agent variant 'oracle'" in result.output
+    result = CliRunner().invoke(app, ["eval", "--paper", "--trials", "3", "--out", "/tmp/x"])
+    assert result.exit_code == 2 and "--paper runs the paper's grid" in result.output
 
 
 def test_a_replayed_run_gives_identical_results(tmp_path):

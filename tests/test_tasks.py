@@ -9,10 +9,12 @@ import numpy as np
 import pytest
 from pydrake.math import RigidTransform, RollPitchYaw
 
+from physcap_drake.demos.pick_place import TRAY_FLOOR
 from physcap_drake.resources import models_dir
-from physcap_drake.tasks.empty_cup import FULL_WITH_STRAW
+from physcap_drake.tasks.empty_cup import BASKET_BOTTOM, BASKET_FLOOR, FULL_WITH_STRAW
 from physcap_drake.tasks.episode import make_episode
 from physcap_drake.tasks.registry import TASKS, get_task
+from physcap_drake.tasks.tray_tasks import TRAY_BOTTOM
 
 
 @pytest.mark.parametrize("name", sorted(TASKS))
@@ -137,3 +139,76 @@ def test_ripeness_does_not_show_in_the_avocado_models_visuals():
 
     for skin in ("dark", "green"):
         assert visuals(f"avocado_{skin}_ripe") == visuals(f"avocado_{skin}_firm")
+
+
+def _plausible(instance) -> list:
+    task = instance.task
+    if task == "find_blue_cube":
+        return [o for o in instance.objects if o.visible.size == "large"]
+    if task == "pick_ripe_avocado":
+        return [o for o in instance.objects if o.visible.color == "dark"]
+    return [o for o in instance.objects if o.visible.straw]
+
+
+@pytest.mark.parametrize("name", sorted(TASKS))
+def test_the_answer_is_drawn_independently_of_its_place_in_the_row(name):
+    """Over 400 seeds the answer is the leftmost plausible object (+y is left in the
+    camera's image) about half the time, and pinning another answer keeps the scene in
+    sight as it is."""
+    task = get_task(name)
+    leftmost = 0
+    for seed in range(400):
+        instance = task.instance(seed)
+        left = max(_plausible(instance), key=lambda o: o.xy[1])
+        leftmost += left.visible.name == instance.answer
+    assert 0.42 < leftmost / 400 < 0.58
+    instance = task.instance(7)
+    other = next(o.visible.name for o in _plausible(instance)
+                 if o.visible.name != instance.answer)
+    pinned = task.instance(7, other)
+    assert pinned.answer == other
+    def in_sight(objects):  # the hidden cube moves with the cup that hides it
+        return [(o.visible, o.xy) for o in objects if "under" not in o.hidden]
+
+    assert in_sight(pinned.objects) == in_sight(instance.objects)
+
+
+def _place(episode, name: str, xyz, rpy=(0.0, 0.0, 0.0)) -> None:
+    """Puts an object somewhere in the simulated world (a test's hand, not the robot's)."""
+    plant = episode.plant
+    context = plant.GetMyMutableContextFromRoot(episode.api.simulator.get_mutable_context())
+    plant.SetFreeBodyPose(context, episode.instance.body_of(plant, name),
+                          RigidTransform(RollPitchYaw(*rpy), np.asarray(xyz, dtype=float)))
+
+
+@pytest.mark.parametrize(("task", "floor_point"), [
+    ("identify_empty_can", TRAY_BOTTOM + [0.0, 0.0, TRAY_FLOOR]),
+    ("empty_cup", BASKET_BOTTOM + [0.0, 0.0, BASKET_FLOOR]),
+])
+def test_a_put_away_task_fails_when_another_object_is_out_of_place(task, floor_point):
+    episode = make_episode(task, 5)
+    instance = episode.instance
+    _place(episode, instance.answer, floor_point)
+    assert episode.check().success, episode.check().reason
+    other = next(o for o in instance.objects if o.visible.name != instance.answer)
+    _place(episode, other.visible.name, [other.xy[0] - 0.05, other.xy[1], 0.0])
+    result = episode.check()
+    assert not result.success
+    assert result.reason.startswith(f"the {other.visible.name} ended 5.0 cm from where it stood")
+    assert "_" not in result.reason  # named as the camera names it, not by model names
+    _place(episode, other.visible.name, [other.xy[0] + 0.01, other.xy[1], 0.0])
+    assert episode.check().success  # put back within 2 cm
+
+
+def test_a_lifted_cup_must_end_upright_on_the_table_or_the_tray():
+    episode = make_episode("find_blue_cube", 1)
+    hiding = episode.instance.answer
+    _place(episode, hiding, TRAY_BOTTOM + [0.08, -0.04, TRAY_FLOOR])
+    assert episode.check().success, episode.check().reason
+    _place(episode, hiding, TRAY_BOTTOM + [0.08, -0.04, 0.12])  # still in the air
+    result = episode.check()
+    assert not result.success
+    assert f"the {hiding} does not rest on the table or the wooden tray" in result.reason
+    _place(episode, hiding, TRAY_BOTTOM + [0.08, -0.04, TRAY_FLOOR], rpy=(0.3, 0.0, 0.0))
+    result = episode.check()
+    assert not result.success and f"the {hiding} does not stand upright" in result.reason

@@ -12,10 +12,11 @@ kept in the AgentSystem's Context:
   takes in what it printed and measured: the mind goes back to "deciding".
 
 Model calls happen inside an event, so simulated time stands still while models answer (and
-while generated code computes between robot calls). The episode ends after the final code
-block, when the success check passes (the check is ground truth and is never shown to the
-agents; it only stops the episode), at the step limit, the robot-time limit, or when an agent
-gives no usable answer: the mind is then "done" or "failed".
+while generated code computes between robot calls). The agent ends the episode itself: after
+the final code block (the planner found the information sufficient, or the coder said the
+task is complete), or at the step limit, the robot-time limit, or when an agent gives no
+usable answer: the mind is then "done" or "failed". The task's success check (ground truth)
+runs only after that, the same way for every variant, and is never shown to the agents.
 
 A code block that fails goes back to the coder with its error and its code, to be written
 again for the same step (`rewrite_wanted`), as long as the episode's budget of rewrites lasts
@@ -165,8 +166,8 @@ class AgentLoop:
     """The policy of one episode (see the module docstring); it keeps no episode state of
     its own: that is the AgentMind it is handed and returns.
 
-    check(): the task's ground-truth check (an object with .success and .reason), used only
-    to stop the episode. robot_time_limit: s. on_phase(phase, steps, oi): hears each change
+    check(): the task's ground-truth check (an object with .success and .reason), run once
+    the episode is over. robot_time_limit: s. on_phase(phase, steps, oi): hears each change
     of phase ("observing", "planning", "prioritizing", "coding", "executing", "done",
     "failed"). block_retries: failed code blocks the coder may write again per episode.
     Without `prompts`, requests carry the camera image unless the model takes none.
@@ -331,10 +332,6 @@ class AgentLoop:
         if mind.steps:
             last = mind.steps[-1]
             if last.kind == "final" and last.ok:
-                return "done", ""
-            if (self.variant.stop_on_success and self._check is not None
-                    and self._check().success):
-                self._note(mind, "result", "the task's success check passed: episode over")
                 return "done", ""
         if self.api.robot_time >= self._robot_time_limit:
             return "failed", (f"robot-time limit reached ({self.api.robot_time:.0f} s >= "

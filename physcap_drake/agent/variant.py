@@ -38,9 +38,6 @@ class AgentVariant:
     order: str = "prioritizer"
     # The most code blocks one episode may run.
     max_steps: int = 10
-    # Whether the episode ends as soon as the task's success check passes (the check is
-    # ground truth and never reaches the agents). Exhaustive variants explore everything.
-    stop_on_success: bool = True
     # How often a malformed answer is sent back for repair before the episode fails.
     repair_attempts: int = 2
 

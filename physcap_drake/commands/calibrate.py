@@ -2,7 +2,8 @@
 
 from __future__ import annotations
 
-from concurrent.futures import ProcessPoolExecutor
+import math
+import multiprocessing
 from datetime import date
 from pathlib import Path
 from typing import Annotated
@@ -13,15 +14,26 @@ from pydrake.common.yaml import yaml_dump_typed
 from rich.table import Table
 
 from physcap_drake.commands.calibrate_camera import calibrate_camera
-from physcap_drake.commands.common import console, save_json, trial_progress
+from physcap_drake.commands.common import console, fail, save_json, trial_progress
 from physcap_drake.physx import calibration as cal
-from physcap_drake.physx.stiffness_levels import StiffnessThresholds, load_thresholds
+from physcap_drake.physx import mismatch
+from physcap_drake.physx.stiffness_levels import (
+    StiffnessThresholds,
+    level_from_deformation,
+    load_thresholds,
+    majority_level,
+)
 from physcap_drake.resources import make_package_map, stations_dir
 from physcap_drake.scenario import load_scenario
 
 app = typer.Typer(help="Validate and calibrate the physical probes and the camera.",
                   no_args_is_help=True)
 app.command("camera")(calibrate_camera)
+
+#: --write saves thresholds only if they classify this share of the held-out trials right.
+WRITE_ACCURACY = 0.95
+#: Trials one worker process runs before a fresh one takes its place (see `_run_all`).
+TRIALS_PER_WORKER = 8
 
 Trials = Annotated[int, typer.Option("--trials", min=1, help="Trials per specimen.")]
 Seed = Annotated[int, typer.Option("--seed", min=0, help="Seed of the perturbations.")]
@@ -30,19 +42,54 @@ JsonOut = Annotated[Path | None, typer.Option("--json", help="Write the results 
 PlotOut = Annotated[Path | None, typer.Option("--plot", help="Save a figure here (PNG).")]
 Noise = Annotated[bool, typer.Option("--noise/--no-noise",
                                      help="Use the station's sensor-noise model.")]
+Mismatch = Annotated[bool, typer.Option(
+    "--mismatch", help="Try the probe on arms that are not its model: per trial, link "
+    "masses and centres of mass, torque-sensor gain and offset, joint friction, finger "
+    "compliance and specimen moduli are drawn from stated ranges (physx/mismatch.py).")]
+MismatchOnly = Annotated[str | None, typer.Option(
+    "--mismatch-only", help="Draw only these groups (comma-separated: "
+    + ", ".join(mismatch.GROUPS) + "); implies --mismatch.")]
+
+
+def _groups(on: bool, only: str | None) -> tuple[str, ...]:
+    """The mismatch groups to draw; a bad name exits with code 2."""
+    if only is None:
+        return mismatch.GROUPS if on else ()
+    try:
+        return mismatch.parse_groups(only)
+    except ValueError as error:
+        fail(str(error))
+
+
+def _print_attribution(errors: list[float], draws: list[dict], what: str,
+                       scales: list[float] | None = None) -> dict[str, float]:
+    shares = mismatch.attribute(errors, draws, scales)
+    if shares:
+        console.print(f"share of the spread of {what} explained by each mismatch group "
+                      "(adjusted R²): " + ", ".join(f"{g} {v:.2f}" for g, v in shares.items()))
+    return shares
+
+
+def _call(job: tuple):
+    function, *args = job
+    return function(*args)
 
 
 def _run_all(function, jobs: list[tuple], workers: int, description: str) -> list:
-    """Runs `function(*job)` for every job, in `workers` processes, with a progress bar."""
+    """Runs `function(*job)` for every job, in `workers` processes, each replaced by a fresh
+    one after TRIALS_PER_WORKER trials (a trial's station leaves memory behind; one worker
+    for no more trials than that: this process), with a progress bar; returns the results
+    in the order of `jobs`."""
     results = []
     with trial_progress(description, len(jobs)) as advance:
-        if workers == 1:
+        if workers == 1 and len(jobs) <= TRIALS_PER_WORKER:
             for job in jobs:
                 results.append(function(*job))
                 advance(True)
         else:
-            with ProcessPoolExecutor(workers) as pool:
-                for result in pool.map(function, *zip(*jobs, strict=True)):
+            with multiprocessing.get_context("spawn").Pool(
+                    workers, maxtasksperchild=TRIALS_PER_WORKER) as pool:
+                for result in pool.imap(_call, [(function, *job) for job in jobs]):
                     results.append(result)
                     advance(True)
     return results
@@ -50,13 +97,16 @@ def _run_all(function, jobs: list[tuple], workers: int, description: str) -> lis
 
 @app.command("mass")
 def mass(trials: Trials = 20, seed: Seed = 0, workers: Workers = 2, noise: Noise = True,
+         mismatch_on: Mismatch = False, mismatch_only: MismatchOnly = None,
          json_path: JsonOut = None, plot: PlotOut = None) -> None:
     """Validate get_mass on five reference masses.
 
     Weighs each mass (13 g to 963 g) --trials times at perturbed places and prints the
     mean, standard deviation and error per mass, and the robot time per measurement.
+    get_mass fits nothing from data, so every trial is a held-out one.
     """
-    jobs = [(grams, trial, seed, noise) for grams in cal.REFERENCE_MASSES_G
+    groups = _groups(mismatch_on, mismatch_only)
+    jobs = [(grams, trial, seed, noise, groups) for grams in cal.REFERENCE_MASSES_G
             for trial in range(trials)]
     trial_results = _run_all(cal.run_mass_trial, jobs, workers, "get_mass")
     for (grams, trial, *_), result in zip(jobs, trial_results, strict=True):
@@ -64,7 +114,8 @@ def mass(trials: Trials = 20, seed: Seed = 0, workers: Workers = 2, noise: Noise
             console.print(f"{grams} g, trial {trial}: failed: {result.reason}")
     rows = cal.summarize_mass(trial_results)
     table = Table(title=f"get_mass, {trials} trials per mass"
-                  + ("" if noise else " (noise-free)"))
+                  + ("" if noise else " (noise-free)")
+                  + (f", mismatch: {', '.join(groups)}" if groups else ""))
     for column in ("true (g)", "mean (g)", "std (g)", "error (g)", "failures",
                    "max robot time (s)"):
         table.add_column(column, justify="right")
@@ -80,8 +131,22 @@ def mass(trials: Trials = 20, seed: Seed = 0, workers: Workers = 2, noise: Noise
                   "measurement: " + ("yes" if within and trials > 1 else "NO" if not within
                                      else "not judged (a standard deviation needs --trials 2 "
                                           "or more)"))
+    shares = {}
+    if groups:
+        done = [t for t in trial_results if t.ok]
+        shares = _print_attribution([t.estimate_g - t.true_g for t in done],
+                                    [t.mismatch for t in done], "the mass error",
+                                    [t.true_g for t in done])
     if json_path is not None:
-        save_json(json_path, rows)
+        save_json(json_path, {
+            "rows": rows, "within_goal": within, "seeds": [cal.trial_seed(seed, k)
+                                                          for k in range(trials)],
+            "noise": noise, "mismatch": list(groups), "mismatch_attribution": shares,
+            "trials": [{"true_g": t.true_g, "estimate_g": None if math.isnan(t.estimate_g)
+                        else t.estimate_g, "ok": t.ok, "seed": t.seed,
+                        "robot_time_s": t.robot_time_s, "reason": t.reason,
+                        "mismatch": t.mismatch} for t in trial_results],
+        })
     if plot is not None:
         _plot_mass(rows, plot)
         console.print(f"saved {plot}")
@@ -112,97 +177,166 @@ def _plot_mass(rows: list[dict], path: Path) -> None:
 
 
 @app.command("stiffness")
-def stiffness(trials: Annotated[int, typer.Option("--trials", min=1,
-                                                  help="Trials per specimen.")] = 10,
+def stiffness(trials: Annotated[int, typer.Option(
+                  "--trials", min=1, help="Trials per specimen for fitting the thresholds, "
+                  "and as many again, on other seeds, for scoring them.")] = 10,
               seed: Seed = 0, workers: Workers = 2, noise: Noise = True,
+              mismatch_on: Mismatch = False, mismatch_only: MismatchOnly = None,
               json_path: JsonOut = None, plot: PlotOut = None,
               write: Annotated[bool, typer.Option(
-                  "--write", help="Save the fitted thresholds to the thresholds file.")] = False,
+                  "--write", help="Save the fitted thresholds to the thresholds file, if "
+                  f"they classify at least {WRITE_ACCURACY:.0%} of the held-out trials "
+                  "right.")] = False,
               avocados: Annotated[bool, typer.Option(
-                  "--avocados/--no-avocados", help="Also probe the three avocados.")] = True,
+                  "--avocados/--no-avocados", help="Also probe the three avocados (on the "
+                  "held-out seeds).")] = True,
               ) -> None:
     """Validate and calibrate get_stiffness on five specimens.
 
-    Squeezes the specimens (levels 1..5) --trials times each and prints the deformation
-    per specimen, the confusion matrix with the thresholds in use, the thresholds fitted on
-    these trials (--write saves them) and, with --avocados, the levels measured on ripe and
-    unripe avocados.
+    Fits the thresholds on --trials squeezes per specimen (levels 1..5) and scores them on
+    as many others, on disjoint seeds (both printed); prints the deformation per specimen,
+    the confusion matrices, the thresholds in use scored on the same held-out trials and,
+    with --avocados, the levels of ripe and unripe avocados. --write saves only thresholds
+    that passed the held-out check.
     """
+    groups = _groups(mismatch_on, mismatch_only)
+    fit_trials, heldout_trials = cal.split_trials(trials)
     specimens = [f"stiffness_level{level}" for level in cal.STIFFNESS_LEVELS]
+    jobs = [(specimen, trial, seed, noise, groups) for specimen in specimens
+            for trial in fit_trials + heldout_trials]
     if avocados:
-        specimens += list(cal.AVOCADOS)
-    jobs = [(specimen, trial, seed, noise) for specimen in specimens for trial in range(trials)]
+        jobs += [(specimen, trial, seed, noise, groups) for specimen in cal.AVOCADOS
+                 for trial in heldout_trials]
     results = _run_all(cal.run_stiffness_trial, jobs, workers, "get_stiffness")
-    by_specimen = {s: [r for r in results if r.specimen == s] for s in specimens}
-    table = Table(title=f"get_stiffness, {trials} trials per specimen")
-    for column in ("specimen", "Δd mean (mm)", "Δd std (mm)", "levels measured",
-                   "max robot time (s)"):
-        table.add_column(column, justify="right")
-    means = {}
-    for specimen, rows in by_specimen.items():
-        deformations = np.array([d for r in rows for d in r.deformations_mm])
-        finite = deformations[np.isfinite(deformations)]
-        means[specimen] = float(finite.mean()) if finite.size else float("nan")
-        levels = " ".join(str(r.level) for r in rows)
-        table.add_row(specimen, f"{means[specimen]:.2f}",
-                      f"{finite.std():.2f}" if finite.size else "-", levels,
-                      f"{np.max([r.robot_time_s for r in rows]):.1f}")
-    console.print(table)
-    fitted = cal.fit_thresholds({level: means[f"stiffness_level{level}"]
-                                 for level in cal.STIFFNESS_LEVELS})
-    thresholds = StiffnessThresholds(fitted, f"physcap calibrate stiffness --trials {trials} "
-                                             f"--seed {seed}, {date.today().isoformat()}")
-    # Scored with the thresholds the robot uses (the file), not the ones fitted on these
-    # trials: run with another --seed than the calibration to validate on fresh data.
+    fit_seeds = [cal.trial_seed(seed, k) for k in fit_trials]
+    heldout_seeds = [cal.trial_seed(seed, k) for k in heldout_trials]
+    fitting = [r for r in results if r.seed in fit_seeds and r.specimen in specimens]
+    heldout = [r for r in results if r.seed in heldout_seeds and r.specimen in specimens]
+    means = cal.mean_deformations(fitting)
+    _print_deformations(results, means, trials, groups)
+    fitted = StiffnessThresholds(
+        cal.fit_thresholds({level: means[f"stiffness_level{level}"]
+                            for level in cal.STIFFNESS_LEVELS}), "")
     in_use = load_thresholds(load_scenario(stations_dir() / cal.SCENARIO)
                              .physx.stiffness.thresholds_file)
-    specimen_trials = [r for r in results if r.specimen.startswith("stiffness_level")]
-    matrix = cal.confusion_matrix(specimen_trials, in_use)
-    accuracy = float(np.trace(matrix[:, 1:]) / matrix.sum())
+    fit_matrix = cal.confusion_matrix(fitting, fitted)
+    heldout_matrix = cal.confusion_matrix(heldout, fitted)
+    in_use_matrix = cal.confusion_matrix(heldout, in_use)
+    fit_accuracy, heldout_accuracy = cal.accuracy(fit_matrix), cal.accuracy(heldout_matrix)
+    in_use_accuracy = cal.accuracy(in_use_matrix)
+    console.print(f"fitting seeds: {_span(fit_seeds)}; held-out seeds: {_span(heldout_seeds)}")
+    console.print("thresholds fitted on the fitting seeds (mm): "
+                  + ", ".join(f"{t:.2f}" for t in fitted.thresholds_mm))
+    console.print(_confusion_table(heldout_matrix, "held-out trials, fitted thresholds"))
+    console.print(f"accuracy of the fitted thresholds: {fit_accuracy:.3f} on the fitting "
+                  f"seeds, {heldout_accuracy:.3f} on the held-out seeds")
     console.print("thresholds in use (mm): " + ", ".join(f"{t:.2f}" for t in
                                                          in_use.thresholds_mm)
-                  + f"  ({in_use.source})")
-    console.print("thresholds fitted on these trials (mm): "
-                  + ", ".join(f"{t:.2f}" for t in fitted))
-    console.print(_confusion_table(matrix))
-    console.print(f"accuracy (diagonal fraction, thresholds in use): {accuracy:.3f}")
-    avocado_summary = {}
-    for specimen, ripeness in cal.AVOCADOS.items():
-        if specimen in by_specimen:
-            levels = [r.level for r in by_specimen[specimen]]
-            avocado_summary[ripeness] = levels
-            console.print(f"{ripeness} avocado: levels {levels}")
-    if avocado_summary:
-        ripe = avocado_summary["overripe"] + avocado_summary["ripe"]
-        separated = all(1 <= level <= 2 for level in ripe) and all(
-            level >= 3 for level in avocado_summary["unripe"])
-        console.print(f"ripe avocados ≤ 2 and unripe ≥ 3 in every trial: "
-                      f"{'yes' if separated else 'NO'}")
+                  + f"  ({in_use.source}); accuracy on the held-out seeds: "
+                  f"{in_use_accuracy:.3f}")
+    avocado_summary = _avocado_levels(results, fitted, avocados)
     slowest = max(r.robot_time_s for r in results)
     console.print(f"slowest measurement: {slowest:.1f} s of robot time "
                   f"({'within' if slowest <= 40.0 else 'OVER'} 40 s)")
-    if write:
-        _write_thresholds(thresholds)
+    shares = {}
+    if groups:
+        shares = _stiffness_attribution(results, specimens)
     if json_path is not None:
         save_json(json_path, {
-            "accuracy": accuracy,
-            "thresholds_mm": in_use.thresholds_mm,
-            "fitted_thresholds_mm": fitted,
-            "confusion_matrix": matrix.tolist(),
-            "mean_deformation_mm": means,
-            "avocado_levels": avocado_summary,
-            "trials": [{"specimen": r.specimen, "level": r.level,
+            "fit_seeds": fit_seeds, "heldout_seeds": heldout_seeds,
+            "fitted_thresholds_mm": fitted.thresholds_mm,
+            "fit_accuracy": fit_accuracy, "heldout_accuracy": heldout_accuracy,
+            "fit_confusion_matrix": fit_matrix.tolist(),
+            "heldout_confusion_matrix": heldout_matrix.tolist(),
+            "in_use_thresholds_mm": in_use.thresholds_mm,
+            "in_use_heldout_accuracy": in_use_accuracy,
+            "in_use_heldout_confusion_matrix": in_use_matrix.tolist(),
+            "mean_deformation_mm_fitting": means,
+            "avocado_levels_heldout": avocado_summary,
+            "noise": noise, "mismatch": list(groups), "mismatch_attribution": shares,
+            "trials": [{"specimen": r.specimen, "seed": r.seed, "level": r.level,
                         "deformations_mm": [None if not np.isfinite(d) else d
                                             for d in r.deformations_mm],
-                        "robot_time_s": r.robot_time_s} for r in results],
+                        "robot_time_s": r.robot_time_s, "reason": r.reason,
+                        "mismatch": r.mismatch} for r in results],
         })
     if plot is not None:
-        _plot_stiffness(by_specimen, fitted, plot)
+        _plot_stiffness({s: [r for r in results if r.specimen == s]
+                         for s in dict.fromkeys(r.specimen for r in results)},
+                        fitted.thresholds_mm, plot)
         console.print(f"saved {plot}")
+    if write:
+        if heldout_accuracy < WRITE_ACCURACY:
+            fail(f"not written: the fitted thresholds classify {heldout_accuracy:.1%} of the "
+                 f"held-out trials right, below {WRITE_ACCURACY:.0%}", code=1)
+        fitted.source = (f"physcap calibrate stiffness --trials {trials} --seed {seed}"
+                         + (f" --mismatch-only {','.join(groups)}" if groups else "")
+                         + f": fitted on seeds {_span(fit_seeds)}, held-out accuracy "
+                         f"{heldout_accuracy:.3f} on seeds {_span(heldout_seeds)}, "
+                         f"{date.today().isoformat()}")
+        _write_thresholds(fitted)
 
 
-def _confusion_table(matrix: np.ndarray) -> Table:
-    table = Table(title="confusion matrix (rows: true level, columns: measured; 0 = failed)")
+def _span(seeds: list[int]) -> str:
+    return f"{seeds[0]}..{seeds[-1]}" if seeds else "none"
+
+
+def _print_deformations(results, means_fitting: dict, trials: int, groups) -> None:
+    table = Table(title=f"get_stiffness, {trials} + {trials} trials per specimen"
+                  + (f", mismatch: {', '.join(groups)}" if groups else ""))
+    for column in ("specimen", "Δd mean, fitting (mm)", "Δd std (mm)", "levels measured",
+                   "max robot time (s)"):
+        table.add_column(column, justify="right")
+    for specimen in dict.fromkeys(r.specimen for r in results):
+        rows = [r for r in results if r.specimen == specimen]
+        values = np.array([d for r in rows for d in r.deformations_mm])
+        finite = values[np.isfinite(values)]
+        mean = means_fitting.get(specimen, float(finite.mean()) if finite.size else np.nan)
+        table.add_row(specimen, f"{mean:.2f}", f"{finite.std():.2f}" if finite.size else "-",
+                      " ".join(str(r.level) for r in rows),
+                      f"{np.max([r.robot_time_s for r in rows]):.1f}")
+    console.print(table)
+
+
+def _avocado_levels(results, thresholds: StiffnessThresholds, on: bool) -> dict:
+    """Levels of the avocados (held-out seeds) with the fitted thresholds, and the check
+    that ripe ones read ≤ 2 and unripe ones ≥ 3."""
+    summary = {}
+    for specimen, ripeness in cal.AVOCADOS.items():
+        rows = [r for r in results if r.specimen == specimen]
+        if rows:
+            summary[ripeness] = [majority_level([level_from_deformation(d, thresholds)
+                                                 for d in r.deformations_mm]) for r in rows]
+            console.print(f"{ripeness} avocado: levels {summary[ripeness]}")
+    if on and summary:
+        ripe = summary["overripe"] + summary["ripe"]
+        separated = all(1 <= level <= 2 for level in ripe) and all(
+            level >= 3 for level in summary["unripe"])
+        console.print(f"ripe avocados ≤ 2 and unripe ≥ 3 in every trial: "
+                      f"{'yes' if separated else 'NO'}")
+    return summary
+
+
+def _stiffness_attribution(results, specimens: list[str]) -> dict[str, float]:
+    """Mismatch groups against the spread of log(Δd) around each specimen's median."""
+    errors, draws = [], []
+    for specimen in specimens:
+        rows = [r for r in results if r.specimen == specimen]
+        logs = [float(np.log(np.nanmean(r.deformations_mm))) for r in rows
+                if np.isfinite(r.deformations_mm).any()]
+        if not logs:
+            continue
+        median = float(np.median(logs))
+        for r in rows:
+            if np.isfinite(r.deformations_mm).any():
+                errors.append(float(np.log(np.nanmean(r.deformations_mm))) - median)
+                draws.append(r.mismatch)
+    return _print_attribution(errors, draws, "log Δd")
+
+
+def _confusion_table(matrix: np.ndarray, what: str) -> Table:
+    table = Table(title=f"confusion matrix, {what} (rows: true level, columns: measured; "
+                        "0 = failed)")
     table.add_column("true", justify="right")
     for level in range(matrix.shape[1]):
         table.add_column(str(level), justify="right")

@@ -80,12 +80,16 @@ def check_can_in_tray(plant, plant_context: Context, can_body: str = "soda_can",
 
 def check_in_tray(plant, plant_context: Context, body, tray, radius: float,
                   upright: bool = True, inner_half=TRAY_INNER_HALF,
-                  floor: float = TRAY_FLOOR) -> PlaceCheck:
+                  floor: float = TRAY_FLOOR, label: str = "",
+                  container: str = "") -> PlaceCheck:
     """Ground-truth check that `body` (an object of `radius` m around its base frame's z
     axis) is wholly inside the `tray` body's inner walls, resting on its floor, and with
     `upright` also standing upright (tilt ≤ 10°). `inner_half` (x, y half-sizes inside the
-    walls) and `floor` (thickness) describe the container, m; the defaults are the tray's."""
-    what = body.name().replace("_", " ")
+    walls) and `floor` (thickness) describe the container, m; the defaults are the tray's.
+    The reason names the object `label` and the container `container` (default: their
+    body names)."""
+    what = label or body.name().replace("_", " ")
+    where = container or tray.name()
     X_can = plant.EvalBodyPoseInWorld(plant_context, body)
     X_tray = plant.EvalBodyPoseInWorld(plant_context, tray)
     axis = X_can.rotation().matrix()[:, 2]
@@ -94,11 +98,10 @@ def check_in_tray(plant, plant_context: Context, body, tray, radius: float,
         return PlaceCheck(False, f"the {what} is tipped over ({np.degrees(tilt):.0f}°)")
     offset = X_tray.inverse().multiply(X_can.translation())
     if np.any(np.abs(offset[:2]) + radius > inner_half):
-        return PlaceCheck(False, f"the {what} is not inside the {tray.name()} (offset "
+        return PlaceCheck(False, f"the {what} is not inside the {where} (offset "
                                  f"{offset[:2].round(3)} "
                                  "m from its centre)")
     if not -0.005 <= offset[2] - floor <= 0.01:
-        return PlaceCheck(False, f"the {what} is not resting on the {tray.name()} floor (bottom "
-                                 f"{offset[2]:.3f} m above the tray frame)")
-    return PlaceCheck(True, f"the {what} is {'upright ' if upright else ''}in the "
-                            f"{tray.name()}")
+        return PlaceCheck(False, f"the {what} is not resting on the {where} floor (bottom "
+                                 f"{offset[2]:.3f} m above its frame)")
+    return PlaceCheck(True, f"the {what} is {'upright ' if upright else ''}in the {where}")

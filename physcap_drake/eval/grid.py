@@ -2,7 +2,10 @@
 
     <out>/<task>/<agent>/seed_<NNN>/   one episode folder (see recording.episode_folder)
 
-Trial k of a cell uses layout seed k, so every variant meets the same ten scenes.
+Trial k of a cell uses layout seed k, so every variant meets the same scenes. The number of
+trials follows the paper's protocol unless given: ten per cell of its real-arm tasks (its
+Table 1) and fifty for its simulated task; `paper_grid()` is exactly the paper's grid (its
+simulated table has three variants only).
 """
 
 from __future__ import annotations
@@ -18,6 +21,10 @@ PAPER_VARIANT_ORDER = ("cap", "cap_physx", "cap_physx_planner", "physcap_joint",
 #: The paper's real-arm tasks (its Table 1) and its simulated task.
 TABLE_1_TASKS = ("find_blue_cube", "identify_empty_can", "pick_ripe_avocado")
 SIMULATION_TASKS = ("empty_cup",)
+#: Trials per cell in the paper's protocol.
+PAPER_TRIALS = {**dict.fromkeys(TABLE_1_TASKS, 10), "empty_cup": 50}
+#: The variants of the paper's simulated table (CaP and PhysCaP-joint were not run there).
+PAPER_SIMULATION_AGENTS = ("cap_physx", "cap_physx_planner", "physcap")
 
 
 @dc.dataclass(frozen=True, order=True)
@@ -58,9 +65,22 @@ def all_tasks() -> list[str]:
     return list(TASKS)
 
 
-def make_grid(tasks: list[str], agents: list[str], trials: int,
+def default_trials(task: str) -> int:
+    """Trials per cell of `task` in the paper's protocol (ten for a task it did not run)."""
+    return PAPER_TRIALS.get(task, 10)
+
+
+def make_grid(tasks: list[str], agents: list[str], trials: int | None = None,
               first_seed: int = 0) -> list[EpisodeSpec]:
-    if trials < 1:
+    """Every task × agent × trial; `trials` None takes each task's `default_trials`."""
+    if trials is not None and trials < 1:
         raise ValueError(f"trials must be at least 1, got {trials}")
     return [EpisodeSpec(task, agent, seed) for task in tasks for agent in agents
-            for seed in range(first_seed, first_seed + trials)]
+            for seed in range(first_seed, first_seed + (trials or default_trials(task)))]
+
+
+def paper_grid() -> list[EpisodeSpec]:
+    """The paper's grid: its Table 1 (five variants × three real-arm tasks × 10 trials) and
+    its simulated table (three variants × empty_cup × 50 trials)."""
+    return (make_grid(list(TABLE_1_TASKS), list(PAPER_VARIANT_ORDER))
+            + make_grid(list(SIMULATION_TASKS), list(PAPER_SIMULATION_AGENTS)))

@@ -3,19 +3,34 @@
 Each trial builds the calibration scene with one specimen from models/calibration/ at a
 randomly perturbed place, measures it through the robot API (the probes see only what the
 arm reports), and returns the figures; the specimen's true value comes from its file name.
+Trial k of a run with --seed s has the trial seed 1000·s + k: it fixes the place (with the
+specimen), the sensor noise and, with a mismatch, the arm.
+
+Held out: the stiffness thresholds are fitted on one set of trial seeds and scored on
+another, disjoint one (`split_trials`). get_mass fits nothing from data (its model is the
+arm's file and the joint servo's stiffness), so all its trials are evaluation.
+
+Mismatch (see physx/mismatch.py): each trial's simulated arm departs from its model by
+drawn deviations; the estimators keep the nominal model.
 """
 
 from __future__ import annotations
 
 import dataclasses as dc
 import math
+from typing import Any
 
 import numpy as np
 from pydrake.common.schema import Transform
 from pydrake.multibody.parsing import AddModel, ModelDirective
 
 from physcap_drake.control.errors import SkillError
-from physcap_drake.physx.stiffness_levels import level_from_deformation, majority_level
+from physcap_drake.physx import mismatch
+from physcap_drake.physx.stiffness_levels import (
+    StiffnessThresholds,
+    level_from_deformation,
+    majority_level,
+)
 from physcap_drake.resources import stations_dir
 from physcap_drake.robot_api import RobotAPI
 from physcap_drake.robot_stack import build_robot_stack
@@ -37,10 +52,24 @@ MASS_GRASP_HEIGHT = 0.04
 STIFFNESS_GRASP_HEIGHT = 0.015
 
 
-def _scenario_with(specimen: str, seed: int, trial: int,
-                   noise: bool) -> tuple[Scenario, np.ndarray]:
+def split_trials(trials: int) -> tuple[list[int], list[int]]:
+    """(fitting trials, held-out trials): `trials` each, disjoint."""
+    return list(range(trials)), list(range(trials, 2 * trials))
+
+
+def trial_seed(seed: int, trial: int) -> int:
+    """The seed naming trial `trial` of a run with `seed` (the scenario's random seed)."""
+    return 1000 * seed + trial
+
+
+def _scenario_with(specimen: str, seed: int, trial: int, noise: bool,
+                   drawn: dict[str, Any] | None = None,
+                   compliant: bool = False) -> tuple[Scenario, np.ndarray]:
+    """The calibration scenario with `specimen` at the trial's perturbed place (and the
+    mismatch `drawn` applied; the modulus only to a `compliant` specimen), and its base
+    point (world frame, m)."""
     scenario = load_scenario(stations_dir() / SCENARIO)
-    scenario.random_seed = seed * 1000 + trial
+    scenario.random_seed = trial_seed(seed, trial)
     rng = np.random.default_rng((seed, trial, sum(map(ord, specimen))))
     xy = NOMINAL_XY + rng.uniform(-PERTURBATION, PERTURBATION, 2)
     pose = Transform()
@@ -51,6 +80,8 @@ def _scenario_with(specimen: str, seed: int, trial: int,
     if not noise:
         scenario.station.torque_noise = SensorNoise(std=[0.0] * 6, resolution=[0.0] * 6)
         scenario.station.effort_noise = SensorNoise(std=[0.0], resolution=[0.0])
+    if drawn:
+        mismatch.apply(scenario, drawn, specimen if compliant else None)
     return scenario, np.array([xy[0], xy[1], 0.0])
 
 
@@ -66,21 +97,27 @@ class MassTrial:
     ok: bool
     robot_time_s: float
     reason: str = ""
+    seed: int = 0
+    mismatch: dict = dc.field(default_factory=dict)
 
 
-def run_mass_trial(grams: int, trial: int, seed: int = 0, noise: bool = True) -> MassTrial:
-    """Weighs the `grams` reference mass once, at a perturbed place. A skill that fails
-    makes the trial a failure (with its reason), not an exception."""
-    scenario, base = _scenario_with(f"mass_{grams:03d}g", seed, trial, noise)
+def run_mass_trial(grams: int, trial: int, seed: int = 0, noise: bool = True,
+                   groups: tuple[str, ...] = ()) -> MassTrial:
+    """Weighs the `grams` reference mass once, at the trial's place (on an arm drawn for
+    the mismatch `groups`, if any). A skill that fails makes the trial a failure (with its
+    reason), not an exception."""
+    drawn = mismatch.draw(trial_seed(seed, trial), groups)
+    scenario, base = _scenario_with(f"mass_{grams:03d}g", seed, trial, noise, drawn)
     api = _api(scenario)
     try:
         api.get_mass(base + [0.0, 0.0, MASS_GRASP_HEIGHT])
     except SkillError as error:
         return MassTrial(float(grams), math.nan, False, api.robot_time,
-                         f"skill error: {error}")
+                         f"skill error: {error}", trial_seed(seed, trial), drawn)
     measurement = api.last_mass
     return MassTrial(float(grams), 1000.0 * measurement.mass_kg, measurement.ok,
-                     measurement.robot_time_s, measurement.reason)
+                     measurement.robot_time_s, measurement.reason, trial_seed(seed, trial),
+                     drawn)
 
 
 @dc.dataclass(frozen=True)
@@ -90,20 +127,25 @@ class StiffnessTrial:
     deformations_mm: tuple[float, ...]
     robot_time_s: float
     reason: str = ""
+    seed: int = 0
+    mismatch: dict = dc.field(default_factory=dict)
 
 
-def run_stiffness_trial(specimen: str, trial: int, seed: int = 0,
-                        noise: bool = True) -> StiffnessTrial:
-    """Probes the stiffness specimen (or avocado) `specimen` once, at a perturbed place."""
-    scenario, base = _scenario_with(specimen, seed, trial, noise)
+def run_stiffness_trial(specimen: str, trial: int, seed: int = 0, noise: bool = True,
+                        groups: tuple[str, ...] = ()) -> StiffnessTrial:
+    """Probes the stiffness specimen (or avocado) `specimen` once, at the trial's place (on
+    an arm, and with a specimen modulus, drawn for the mismatch `groups`, if any)."""
+    drawn = mismatch.draw(trial_seed(seed, trial), groups)
+    scenario, base = _scenario_with(specimen, seed, trial, noise, drawn, compliant=True)
     api = _api(scenario)
     try:
         api.get_stiffness(base + [0.0, 0.0, STIFFNESS_GRASP_HEIGHT])
     except SkillError as error:
-        return StiffnessTrial(specimen, 0, (), api.robot_time, f"skill error: {error}")
+        return StiffnessTrial(specimen, 0, (), api.robot_time, f"skill error: {error}",
+                              trial_seed(seed, trial), drawn)
     measurement = api.last_stiffness
     return StiffnessTrial(specimen, measurement.level, measurement.result.deformations_mm,
-                          measurement.robot_time_s)
+                          measurement.robot_time_s, "", trial_seed(seed, trial), drawn)
 
 
 def summarize_mass(trials: list[MassTrial]) -> list[dict]:
@@ -134,12 +176,32 @@ def fit_thresholds(mean_deformation_by_level: dict[int, float]) -> list[float]:
     return [float(np.sqrt(a * b)) for a, b in zip(means, means[1:], strict=False)]
 
 
-def confusion_matrix(trials: list[StiffnessTrial], thresholds) -> np.ndarray:
+def true_level(specimen: str) -> int:
+    return int(specimen.removeprefix("stiffness_level"))
+
+
+def confusion_matrix(trials: list[StiffnessTrial],
+                     thresholds: StiffnessThresholds) -> np.ndarray:
     """Rows: the specimen's true level 1..5; columns: the measured level 0..5 (0 = failed),
     re-classified per squeeze with `thresholds` and voted."""
     matrix = np.zeros((len(STIFFNESS_LEVELS), 6), dtype=int)
     for t in trials:
-        true_level = int(t.specimen.removeprefix("stiffness_level"))
         levels = [level_from_deformation(d, thresholds) for d in t.deformations_mm]
-        matrix[true_level - 1, majority_level(levels)] += 1
+        matrix[true_level(t.specimen) - 1, majority_level(levels)] += 1
     return matrix
+
+
+def accuracy(matrix: np.ndarray) -> float:
+    """The fraction of trials classified at their true level (failures count as wrong)."""
+    return float(np.trace(matrix[:, 1:]) / matrix.sum()) if matrix.sum() else math.nan
+
+
+def mean_deformations(trials: list[StiffnessTrial]) -> dict[str, float]:
+    """Mean deformation per specimen over its trials' squeezes, mm (NaN if none finished)."""
+    means = {}
+    for specimen in dict.fromkeys(t.specimen for t in trials):
+        values = np.array([d for t in trials if t.specimen == specimen
+                           for d in t.deformations_mm])
+        finite = values[np.isfinite(values)]
+        means[specimen] = float(finite.mean()) if finite.size else math.nan
+    return means

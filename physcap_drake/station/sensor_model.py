@@ -13,11 +13,12 @@ from physcap_drake.station.sim_config import SensorNoise
 class ReportedSignal(LeafSystem):
     """Turns a true signal into what the arm would report on the bus.
 
-    The value reported at time t is the true input plus zero-mean Gaussian noise drawn for
-    sample k = floor(t · sample_rate) (so the noise changes at the arm's feedback rate while
-    the true part follows the simulation), rounded to the nearest multiple of `resolution`,
-    then limited to [lower, upper] when given. The noise depends only on the seed and the
-    sample index, so it is identical from run to run and needs no state.
+    The value reported at time t is gain · (true input) + offset plus zero-mean Gaussian
+    noise drawn for sample k = floor(t · sample_rate) (so the noise changes at the arm's
+    feedback rate while the true part follows the simulation), rounded to the nearest
+    multiple of `resolution`, then limited to [lower, upper] when given. The noise depends
+    only on the seed and the sample index, so it is identical from run to run and needs no
+    state.
 
     Input port:  true (n), in the signal's units.
     Output port: reported (n), same units.
@@ -29,6 +30,8 @@ class ReportedSignal(LeafSystem):
         size = len(noise.std)
         self._std = np.asarray(noise.std, dtype=float)
         self._resolution = np.asarray(noise.resolution, dtype=float)
+        self._gain = np.asarray(noise.gain or [1.0] * size, dtype=float)
+        self._offset = np.asarray(noise.offset or [0.0] * size, dtype=float)
         self._rate = float(noise.sample_rate)
         self._seed = int(seed)
         self._stream = int(stream)
@@ -47,7 +50,8 @@ class ReportedSignal(LeafSystem):
 
     def _report(self, context: Context, output: BasicVector) -> None:
         sample_index = math.floor(context.get_time() * self._rate + 1e-9)
-        value = self._true.Eval(context) + self.sample_noise(sample_index)
+        value = (self._gain * self._true.Eval(context) + self._offset
+                 + self.sample_noise(sample_index))
         quantized = self._resolution > 0
         step = np.where(quantized, self._resolution, 1.0)
         value = np.where(quantized, np.round(value / step) * step, value)

@@ -79,11 +79,12 @@ class GripperServoConfig:
 
 @dc.dataclass
 class SensorNoise:
-    """How a reported signal departs from the truth: it is sampled at `sample_rate`, gets
-    zero-mean Gaussian noise of standard deviation `std`, then is rounded to multiples of
-    `resolution` (the size of one count on the bus). Zero std and zero resolution give the
-    exact signal. The noise is a deterministic function of the scenario's random seed and the
-    sample index, so a run is reproducible.
+    """How a reported signal departs from the truth: it is scaled by `gain` and shifted by
+    `offset` (a sensor's calibration error), sampled at `sample_rate`, gets zero-mean
+    Gaussian noise of standard deviation `std`, then is rounded to multiples of `resolution`
+    (the size of one count on the bus). Zero std and zero resolution give the exact signal.
+    The noise is a deterministic function of the scenario's random seed and the sample index,
+    so a run is reproducible.
     """
 
     # Standard deviation per element, in the signal's units.
@@ -92,11 +93,71 @@ class SensorNoise:
     resolution: list[float] = dc.field(default_factory=list)
     # Rate at which the arm reports a new value, Hz (the PiPER's high-speed feedback: 200 Hz).
     sample_rate: float = 200.0
+    # Factor on the true value per element (empty: 1, a perfectly calibrated sensor). The
+    # robot's software assumes 1; `physcap calibrate --mismatch` draws it.
+    gain: list[float] = dc.field(default_factory=list)
+    # Constant added per element, in the signal's units (empty: 0).
+    offset: list[float] = dc.field(default_factory=list)
 
     def check(self, at: ConfigChecker, size: int) -> None:
         at.vector("std", self.std, size, minimum=0.0)
         at.vector("resolution", self.resolution, size, minimum=0.0)
         at.number("sample_rate", self.sample_rate, minimum=0.0, open_minimum=True)
+        if self.gain:
+            at.vector("gain", self.gain, size, minimum=0.0, open_minimum=True)
+        if self.offset:
+            at.vector("offset", self.offset, size)
+
+
+@dc.dataclass
+class LinkDeviation:
+    """How one link of the simulated arm, as built, departs from its model file (the
+    drawings the controller's gravity feed-forward, inverse kinematics and the mass
+    estimator use)."""
+
+    # Factor on the link's mass and on its rotational inertia about its centre of mass.
+    mass_scale: float = 1.0
+    # Factor on each coordinate (x, y, z) of the centre of mass in the link's frame.
+    com_scale: list[float] = dc.field(default_factory=lambda: [1.0, 1.0, 1.0])
+
+    def check(self, at: ConfigChecker) -> None:
+        at.number("mass_scale", self.mass_scale, minimum=0.0, open_minimum=True)
+        at.vector("com_scale", self.com_scale, 3)
+
+
+@dc.dataclass
+class AsBuilt:
+    """How the simulated world departs from the models the robot's software uses. Empty
+    (the default): exactly as modelled. No real arm matches its model; `physcap calibrate
+    --mismatch` draws these per trial (see physx/mismatch.py) to try the estimators against
+    an arm they do not know exactly. Applied when the world is built, never to the
+    controller's or the estimators' own models."""
+
+    # Per arm link (by its name in the arm's model file, e.g. link2): mass and centre of mass.
+    links: dict[str, LinkDeviation] = dc.field(default_factory=dict)
+    # Viscous friction per joint J1..J6, N·m·s/rad (the plant's joint damping; empty: none).
+    joint_damping: list[float] = dc.field(default_factory=list)
+    # Coulomb friction per joint J1..J6, N·m (empty: none): a friction torque with
+    # presliding memory (Dahl's model, see station/joint_friction.py), so a joint at rest
+    # keeps the friction its last motion left, and the motor torque the arm reports at a
+    # pose depends on the side the joint came from.
+    joint_friction: list[float] = dc.field(default_factory=list)
+    # Series compliance of each finger, m per N of squeeze force: the motor, whose encoder
+    # gives `gripper.position_measured`, closes this much further than the pad per newton.
+    finger_compliance: float = 0.0
+    # Factor on the hydroelastic modulus of the compliant geometries of named model
+    # instances (e.g. a stiffness specimen: {stiffness_level3: 1.1}).
+    modulus_scale: dict[str, float] = dc.field(default_factory=dict)
+
+    def check(self, at: ConfigChecker) -> None:
+        for name, link in self.links.items():
+            link.check(at.child("links").child(name))
+        for key in ("joint_damping", "joint_friction"):
+            if getattr(self, key):
+                at.vector(key, getattr(self, key), NUM_ARM_JOINTS, minimum=0.0)
+        at.number("finger_compliance", self.finger_compliance, minimum=0.0, maximum=1e-3)
+        for name, scale in self.modulus_scale.items():
+            at.child("modulus_scale").number(name, scale, minimum=0.0, open_minimum=True)
 
 
 def _default_torque_noise() -> SensorNoise:
@@ -137,6 +198,8 @@ class SimPiper:
     torque_noise: SensorNoise = dc.field(default_factory=_default_torque_noise)
     # Noise and quantization of `gripper.effort_measured` (normalized, 0..1).
     effort_noise: SensorNoise = dc.field(default_factory=_default_effort_noise)
+    # How the simulated arm and world depart from their models (default: not at all).
+    as_built: AsBuilt = dc.field(default_factory=AsBuilt)
 
     def check(self, at: ConfigChecker) -> None:
         at.vector("initial_arm_position", self.initial_arm_position, NUM_ARM_JOINTS)
@@ -145,3 +208,4 @@ class SimPiper:
         self.gripper_servo.check(at.child("gripper_servo"))
         self.torque_noise.check(at.child("torque_noise"), NUM_ARM_JOINTS)
         self.effort_noise.check(at.child("effort_noise"), 1)
+        self.as_built.check(at.child("as_built"))

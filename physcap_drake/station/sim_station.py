@@ -7,17 +7,22 @@ from pydrake.geometry import Meshcat
 from pydrake.multibody.plant import AddMultibodyPlant, MultibodyPlant
 from pydrake.multibody.tree import JointActuator, ModelInstanceIndex, PdControllerGains
 from pydrake.systems.framework import Diagram, DiagramBuilder
-from pydrake.systems.primitives import ConstantVectorSource, Demultiplexer
+from pydrake.systems.primitives import Adder, ConstantVectorSource, Demultiplexer, Gain
 from pydrake.visualization import ApplyVisualizationConfig
 
 from physcap_drake.station import ports
 from physcap_drake.station.arm_feedforward import make_arm_feedforward
+from physcap_drake.station.as_built import (
+    add_directives_as_built,
+    apply_joint_damping,
+    scale_moduli,
+)
 from physcap_drake.station.cameras import add_cameras
 from physcap_drake.station.gripper_servo import GripperServo
+from physcap_drake.station.joint_friction import JointFriction
 from physcap_drake.station.joint_target_interpolator import JointTargetInterpolator
 from physcap_drake.station.render_world import add_render_world
 from physcap_drake.station.robot_model import (
-    add_directives,
     arm_joint_limits,
     make_controller_plant,
     moving_joints,
@@ -79,9 +84,10 @@ def MakeSimStation(scenario, meshcat: Meshcat | None = None) -> Diagram:
     "plant" and "scene_graph" are the simulated world (for sim-only tools and tests).
     """
     config: SimPiper = scenario.station
+    as_built = config.as_built
     builder = DiagramBuilder()
     plant, scene_graph = AddMultibodyPlant(scenario.plant_config, builder)
-    add_directives(plant, scenario.directives)
+    add_directives_as_built(plant, scenario.directives, config.arm_model, as_built)
     arm = plant.GetModelInstanceByName(config.arm_model)
     gripper = plant.GetModelInstanceByName(config.gripper_model)
     servo = config.joint_servo
@@ -89,6 +95,9 @@ def MakeSimStation(scenario, meshcat: Meshcat | None = None) -> Diagram:
         actuator.set_controller_gains(PdControllerGains(p=servo.stiffness[i],
                                                         d=servo.damping[i]))
     lower, upper = _release_arm_end_stops(plant, arm)
+    if as_built.joint_damping:
+        apply_joint_damping(plant, moving_joints(plant, arm), as_built.joint_damping)
+    scale_moduli(plant, scene_graph, as_built.modulus_scale)
     plant.Finalize()
     time_step = plant.time_step()
 
@@ -141,6 +150,14 @@ def MakeSimStation(scenario, meshcat: Meshcat | None = None) -> Diagram:
         config.torque_noise, seed=scenario.random_seed, stream=_TORQUE_NOISE_STREAM))
     builder.Connect(plant.get_net_actuation_output_port(arm), torque.get_input_port())
     builder.ExportOutput(torque.get_output_port(), ports.ARM_TORQUE_MEASURED)
+    if as_built.joint_friction:
+        friction = builder.AddNamedSystem("joint_friction", JointFriction(
+            as_built.joint_friction, num_velocities=plant.num_velocities(),
+            velocity_indices=[j.velocity_start() for j in moving_joints(plant, arm)],
+            period=time_step))
+        builder.Connect(arm_state.get_output_port(1), friction.get_input_port())
+        builder.Connect(friction.get_output_port(),
+                        plant.get_applied_generalized_force_input_port())
 
     # The gripper: one motor, two coupled fingers.
     gripper_servo = builder.AddNamedSystem("gripper_servo", GripperServo(
@@ -152,8 +169,19 @@ def MakeSimStation(scenario, meshcat: Meshcat | None = None) -> Diagram:
                     plant.get_actuation_input_port(gripper))
     builder.ExportInput(gripper_servo.GetInputPort("opening_commanded"), ports.GRIPPER_POSITION)
     builder.ExportInput(gripper_servo.GetInputPort("force_limit"), ports.GRIPPER_FORCE_LIMIT)
-    builder.ExportOutput(gripper_servo.GetOutputPort("opening_measured"),
-                         ports.GRIPPER_POSITION_MEASURED)
+    opening = gripper_servo.GetOutputPort("opening_measured")
+    if as_built.finger_compliance > 0.0:
+        # The motor, whose encoder reports, runs ahead of the pads by c·f per finger (f: the
+        # finger's force, positive opening): the opening reads c·(2f) more than the pads'.
+        deflection = builder.AddNamedSystem("finger_compliance", Gain(
+            as_built.finger_compliance, 1))
+        reported = builder.AddNamedSystem("opening_reported", Adder(2, 1))
+        builder.Connect(gripper_servo.GetOutputPort("finger_force"),
+                        deflection.get_input_port())
+        builder.Connect(opening, reported.get_input_port(0))
+        builder.Connect(deflection.get_output_port(), reported.get_input_port(1))
+        opening = reported.get_output_port()
+    builder.ExportOutput(opening, ports.GRIPPER_POSITION_MEASURED)
     effort = builder.AddNamedSystem("effort_sensor", ReportedSignal(
         config.effort_noise, seed=scenario.random_seed, stream=_EFFORT_NOISE_STREAM,
         lower=0.0, upper=1.0))

@@ -18,16 +18,19 @@ import numpy as np
 
 from physcap_drake.demos.pick_place import PlaceCheck, check_in_tray, move_to_tray
 from physcap_drake.perception.visible_objects import VisibleObject
+from physcap_drake.tasks.ground_truth import check_others_stayed, choose_answer, near_container
 from physcap_drake.tasks.task_instance import SceneObject, TaskInstance
-from physcap_drake.tasks.tray_tasks import _choose_answer, _near_tray
 
 COLORS = ("red", "yellow", "blue", "white")
 #: How many of the full cups carry a straw besides the empty one (see the module docstring).
 FULL_WITH_STRAW = 1
 EMPTY_KG, FULL_KG = 0.035, 0.350
-#: Spawn region of the cups (world frame, m) and the least distance between two of them.
+#: Spawn region of the cups (world frame, m) and the least distance between two of them:
+#: the open fingers' outer faces are 68 mm from the grasp point, the neighbour's wall 28 mm
+#: from its axis, and the grasp point may be 10 mm off, so less than 106 mm lets the fingers
+#: knock a neighbour over on the way down.
 REGION_LOWER, REGION_UPPER = np.array([0.30, 0.0]), np.array([0.44, 0.32])
-MIN_SPACING = 0.10
+MIN_SPACING = 0.12
 #: The basket (as placed in stations/empty_cup.yaml): floor centre, floor, inner half-size.
 BASKET_BOTTOM = np.array([0.32, -0.26, 0.0])
 BASKET_FLOOR = 0.004
@@ -35,6 +38,8 @@ BASKET_INNER_HALF = np.array([0.116, 0.086])
 CUP_RADIUS, CUP_GRASP_HEIGHT = 0.028, 0.041
 #: The task's time limit on robot execution time, s (LIBERO's episode limit).
 TIME_LIMIT = 200.0
+#: This task's own number in its random streams.
+STREAM = 19
 
 
 def _spawn(rng: np.random.Generator, count: int) -> list[np.ndarray]:
@@ -62,14 +67,14 @@ class EmptyCup:
                    f"{TIME_LIMIT:.0f} s of robot time. Leave the other cups where they are.")
 
     def instance(self, seed: int, answer: str = "") -> TaskInstance:
-        rng = np.random.default_rng((seed, 19))
+        rng = np.random.default_rng((seed, STREAM))
         spots = _spawn(rng, len(COLORS))
         names = [f"{color} cup" for color in COLORS]
         # The straw cups first, then the empty one among them: which of them is empty
         # changes nothing in view (pinning another straw cup keeps the same scene).
         straws = sorted(rng.choice(len(names), 1 + FULL_WITH_STRAW, replace=False))
         straws = [names[i] for i in straws]
-        answer = _choose_answer(rng, straws, answer, self.name)
+        answer = choose_answer(seed, STREAM, straws, answer, self.name)
         objects = tuple(SceneObject(
             f"{color}_cup", f"objects/libero_cup_{color}_{'straw' if name in straws else 'plain'}",
             VisibleObject(name, "cup", color, straw=name in straws),
@@ -79,7 +84,8 @@ class EmptyCup:
         return TaskInstance(self.name, seed, self.prompt, objects, answer)
 
     def check(self, episode) -> PlaceCheck:
-        """Ground truth: the empty cup in the basket, no full one, within the time limit."""
+        """Ground truth: the empty cup in the basket, no full one, the full ones where they
+        stood (within 2 cm), within the time limit."""
         instance, plant, plant_context = episode.instance, episode.plant, episode.plant_context
         robot_time = episode.api.robot_time
         basket = plant.GetBodyByName("basket")
@@ -91,13 +97,16 @@ class EmptyCup:
             if obj.visible.name == instance.answer:
                 inside = check_in_tray(plant, plant_context, body, basket, CUP_RADIUS,
                                        upright=False, inner_half=BASKET_INNER_HALF,
-                                       floor=BASKET_FLOOR)
+                                       floor=BASKET_FLOOR, label=obj.visible.name,
+                                       container="basket")
                 if not inside.success:
                     return PlaceCheck(False, f"the empty {obj.visible.name} is not in the "
                                              f"basket: {inside.reason}")
-            elif _near_tray(plant, plant_context, body, basket, BASKET_INNER_HALF):
+            elif near_container(plant, plant_context, body, basket, BASKET_INNER_HALF):
                 return PlaceCheck(False, f"the {obj.visible.name} (full) is in the basket")
-        return PlaceCheck(True, f"the empty {instance.answer} is in the basket")
+        return check_others_stayed(instance, plant, plant_context) or PlaceCheck(
+            True, f"the empty {instance.answer} is in the basket; the full cups stand where "
+                  "they stood")
 
     def solve(self, instance: TaskInstance, api, wrong: bool = False) -> None:
         """Scripted solution that knows the answer; with `wrong`, it moves the most tempting

@@ -43,9 +43,10 @@ from physcap_drake.station import (
 from physcap_drake.station.realsense.config import emulated_like
 from physcap_drake.tasks.registry import get_task
 from physcap_drake.tasks.task_instance import TaskInstance
+from physcap_drake.tasks.tray_tasks import TRAY_NAME
 
 #: The tray every task puts things on, as the camera sees it.
-TRAY = VisibleObject("wooden tray", "tray", "brown")
+TRAY = VisibleObject(TRAY_NAME, "tray", "brown")
 BASKET = VisibleObject("basket", "basket", "brown")
 #: Who decides an episode's success: the simulator's ground truth, or the final camera view.
 JUDGES = ("simulator", "perception")

@@ -1,8 +1,10 @@
 """The two "put the right one on the tray" tasks: identify_empty_can and pick_ripe_avocado.
 
 Four objects stand in a row across the table, left of the tray; one of them carries the
-hidden property the prompt asks for. Layouts and the answer come from the seed (the answer
-only among the visually plausible objects) and the answer can be pinned.
+hidden property the prompt asks for. Layouts and the answer come from the seed, each from a
+random stream of its own (the answer only among the visually plausible objects, see
+`ground_truth.choose_answer`), and the answer can be pinned. Success: the answer alone is in
+the tray and the others stand where they stood (within 2 cm, or put back there).
 """
 
 from __future__ import annotations
@@ -11,38 +13,30 @@ import dataclasses as dc
 
 import numpy as np
 
-from physcap_drake.demos.pick_place import (
-    TRAY_INNER_HALF,
-    PlaceCheck,
-    check_in_tray,
-    move_to_tray,
-)
+from physcap_drake.demos.pick_place import PlaceCheck, check_in_tray, move_to_tray
 from physcap_drake.perception.visible_objects import VisibleObject
+from physcap_drake.tasks.ground_truth import check_others_stayed, choose_answer, near_container
 from physcap_drake.tasks.task_instance import SceneObject, TaskInstance
 
 #: Row of the four objects: x and the y of each slot (world frame, m), and the jitter. The
-#: avocados (84 mm wide) stand further apart, so the open fingers (100 mm, plus their own
-#: thickness) fit between two of them.
+#: slots are 135 mm apart so the open fingers (their outer faces 68 mm from the grasp
+#: point, which perception places up to about 10 mm off the object's axis) reach down
+#: beside a can (Ø 66 mm) or an avocado (84 mm) without touching its neighbours: with the
+#: old 110 mm and ±10 mm of jitter the fingers knocked a neighbouring can in 5 of 28 trials.
 ROW_X = 0.37
-ROW_Y = (0.27, 0.16, 0.05, -0.06)
-AVOCADO_ROW_Y = (0.31, 0.175, 0.04, -0.095)
-JITTER = 0.01
+ROW_Y = (0.31, 0.175, 0.04, -0.095)
+JITTER = 0.006
 #: The tray's floor centre (as placed in the task scenarios), m.
 TRAY_BOTTOM = np.array([0.30, -0.27, 0.0])
+#: The tray as the camera describes it (perception's name for it).
+TRAY_NAME = "wooden tray"
+#: Each task's own number in its random streams.
+CAN_STREAM, AVOCADO_STREAM = 11, 13
 
 
 def _row(rng: np.random.Generator, ys=ROW_Y) -> list[tuple[float, float]]:
     return [(ROW_X + rng.uniform(-JITTER, JITTER), y + rng.uniform(-JITTER, JITTER))
             for y in ys]
-
-
-def _choose_answer(rng, plausible: list[str], pinned: str, task: str) -> str:
-    if pinned:
-        if pinned not in plausible:
-            raise ValueError(f"task.answer {pinned!r} is not a possible answer of {task}; "
-                             f"choose one of {plausible}")
-        return pinned
-    return plausible[int(rng.integers(len(plausible)))]
 
 
 @dc.dataclass(frozen=True)
@@ -56,21 +50,25 @@ class TrayTask:
     upright: bool
 
     def check(self, episode) -> PlaceCheck:
-        """Ground truth: the answer is in the tray and no other object is."""
+        """Ground truth: the answer is in the tray, no other object is, and the others stand
+        within 2 cm of where they stood."""
         instance, plant, plant_context = episode.instance, episode.plant, episode.plant_context
         tray = plant.GetBodyByName("tray")
         for obj in instance.objects:
             body = instance.body_of(plant, obj.visible.name)
-            inside = check_in_tray(plant, plant_context, body, tray, self.radius,
-                                   self.upright)
-            if obj.visible.name == instance.answer and not inside.success:
-                return PlaceCheck(False, f"the {obj.visible.name} (the answer) is not in the "
-                                         f"tray: {inside.reason}")
-            if obj.visible.name != instance.answer and _near_tray(plant, plant_context, body,
-                                                                  tray):
-                return PlaceCheck(False, f"the {obj.visible.name} is in the tray, but the "
-                                         f"answer was the {instance.answer}")
-        return PlaceCheck(True, f"the {instance.answer} alone is in the tray")
+            if obj.visible.name == instance.answer:
+                inside = check_in_tray(plant, plant_context, body, tray, self.radius,
+                                       self.upright, label=obj.visible.name,
+                                       container=TRAY_NAME)
+                if not inside.success:
+                    return PlaceCheck(False, f"the {obj.visible.name} (the answer) is not in "
+                                             f"the {TRAY_NAME}: {inside.reason}")
+            elif near_container(plant, plant_context, body, tray):
+                return PlaceCheck(False, f"the {obj.visible.name} is in the {TRAY_NAME}, but "
+                                         f"the answer was the {instance.answer}")
+        return check_others_stayed(instance, plant, plant_context) or PlaceCheck(
+            True, f"the {instance.answer} alone is in the {TRAY_NAME}; the others stand "
+                  "where they stood")
 
     def solve(self, instance: TaskInstance, api, wrong: bool = False) -> None:
         """Scripted solution that knows the answer (for testing the task only); with
@@ -84,14 +82,6 @@ class TrayTask:
         obj = instance.object(target)
         grasp = np.array([*obj.xy, self.grasp_height])
         move_to_tray(api, grasp, self.grasp_height, TRAY_BOTTOM)
-
-
-def _near_tray(plant, plant_context, body, tray, inner_half=TRAY_INNER_HALF) -> bool:
-    """Whether `body`'s base is within the container's walls and below its rim (ground truth)."""
-    X_tray = plant.EvalBodyPoseInWorld(plant_context, tray)
-    offset = X_tray.inverse().multiply(plant.EvalBodyPoseInWorld(plant_context,
-                                                                 body).translation())
-    return bool(np.all(np.abs(offset[:2]) < inner_half) and offset[2] < 0.05)
 
 
 CAN_COLORS = ("red", "green", "blue", "black")
@@ -109,9 +99,10 @@ class IdentifyEmptyCan(TrayTask):
               "wooden tray. Leave the other cans where they are.")
 
     def instance(self, seed: int, answer: str = "") -> TaskInstance:
-        rng = np.random.default_rng((seed, 11))
+        rng = np.random.default_rng((seed, CAN_STREAM))
         colors = list(rng.permutation(CAN_COLORS))
-        answer = _choose_answer(rng, [f"{c} can" for c in OPEN_COLORS], answer, self.name)
+        answer = choose_answer(seed, CAN_STREAM, [f"{c} can" for c in OPEN_COLORS], answer,
+                               self.name)
         objects = []
         for color, xy in zip(colors, _row(rng), strict=True):
             is_open = color in OPEN_COLORS
@@ -135,15 +126,15 @@ class PickRipeAvocado(TrayTask):
               "wooden tray. Leave the others where they are.")
 
     def instance(self, seed: int, answer: str = "") -> TaskInstance:
-        rng = np.random.default_rng((seed, 13))
+        rng = np.random.default_rng((seed, AVOCADO_STREAM))
         skins = list(rng.permutation(["dark", "dark", "green", "green"]))
-        slots = _row(rng, AVOCADO_ROW_Y)
+        slots = _row(rng)
         names, counters = [], {"dark": 0, "green": 0}
         for skin in skins:  # numbered left to right as the camera sees them (+y is left)
             counters[skin] += 1
             names.append(f"{skin} avocado {counters[skin]}")
-        answer = _choose_answer(rng, [n for n in names if n.startswith("dark")], answer,
-                                self.name)
+        answer = choose_answer(seed, AVOCADO_STREAM, [n for n in names if n.startswith("dark")],
+                               answer, self.name)
         objects = []
         for index, (skin, name, xy) in enumerate(zip(skins, names, slots, strict=True)):
             ripe = name == answer
@@ -151,5 +142,6 @@ class PickRipeAvocado(TrayTask):
                 body=f"avocado_{index}",
                 model=f"objects/avocado_{skin}_{'ripe' if ripe else 'firm'}",
                 visible=VisibleObject(name, "avocado", skin), xy=xy,
-                hidden={"stiffness_level": 2 if ripe else 4, "ripe": ripe}))
+                # The levels get_stiffness measures on these models (ripe 1, firm 4).
+                hidden={"stiffness_level": 1 if ripe else 4, "ripe": ripe}))
         return TaskInstance(self.name, seed, self.prompt, tuple(objects), answer)

@@ -4,7 +4,10 @@ It answers the planner, prioritizer and coder requests from the request's struct
 context (the same content as the prompt: the task text, the objects in view with their
 visible attributes, the measurements and the steps so far) and nothing else. It reads the
 goal with `task_reading`, judges objects by `priors`, and writes code from the templates in
-`agents/code/`. Its only randomness (the vision-only coder's guess) comes from its seed.
+`agents/code/`. Its only randomness comes from its seed (the trial's): the vision-only
+coder's guess, and the order of candidates that look equally likely (a random rank per
+object name, the same all episode long), so that ties are not broken by position in the
+image, which would make its interaction count depend on where the answer happens to stand.
 """
 
 from __future__ import annotations
@@ -98,7 +101,15 @@ class ReferenceReasoner:
             pick = (min if goal.kind in ("mass", "stiffness") else max)(
                 measured, key=measured.get)
             return pick, f"all were measured; the {pick} comes closest to the property"
-        return None, "the property is hidden from the camera and not measured for all"
+        if not subjects:
+            return None, f"no {goal.subject} is in view"
+        if not measured:
+            return None, (f"the camera cannot show a {goal.subject}'s {goal.kind}, and none has "
+                          "been measured yet")
+        found = ", ".join(f"the {name}'s is {_quantity(value, goal)}"
+                          for name, value in measured.items())
+        return None, (f"{goal.kind} measured so far: {found}, none meeting the task; still "
+                      f"to measure: the {', the '.join(unmeasured)}")
 
     # --- planner -------------------------------------------------------------------------
 
@@ -123,8 +134,8 @@ class ReferenceReasoner:
                              if o["name"] not in self._measured(context, goal)]
         candidates = [] if sufficient else [self._candidate(o, goal) for o in open_subjects]
         if mode == "joint_planner":
-            candidates.sort(key=lambda c: -plausibility(_find(in_view, c["name"]), goal,
-                                                        in_view)[0])
+            candidates.sort(key=lambda c: (-plausibility(_find(in_view, c["name"]), goal,
+                                                         in_view)[0], self._tie_rank(c["name"])))
         answer = {"sufficient": sufficient, "reason": reason,
                   "central_objects": [
                       {"name": o["name"], "description": _look(o),
@@ -165,9 +176,15 @@ class ReferenceReasoner:
                 score = round(10.0 * value, 1)
             scored.append({"name": candidate["name"], "priority_score": score,
                            "reason": reason})
-        order = sorted(range(len(scored)), key=lambda i: -scored[i]["priority_score"])
+        order = sorted(range(len(scored)), key=lambda i: (-scored[i]["priority_score"],
+                                                          self._tie_rank(scored[i]["name"])))
         return {"scored_candidates": scored,
                 "prioritized_candidates": [context["candidates"][i] for i in order]}
+
+    def _tie_rank(self, name: str) -> float:
+        """A random rank in [0, 1) drawn per (seed, object name): orders equally likely
+        candidates the same way all episode, independently of their place in the image."""
+        return float(np.random.default_rng((self._seed, 31, zlib.crc32(name.encode()))).random())
 
     # --- coder ---------------------------------------------------------------------------
 

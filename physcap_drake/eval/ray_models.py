@@ -1,0 +1,70 @@
+"""Model calls of a Ray episode task, made by a zero-CPU actor so the task's CPU is free
+while a model thinks.
+
+An episode's simulated time stands still while a model answers, so an episode waiting for a
+model computes nothing. On a Ray cluster the episode task (one CPU) sends each request to an
+actor of its own that reserves no CPU and calls the backend; the task waits in `ray.get`,
+and Ray lends the CPU of a task blocked in `ray.get` to other tasks until the answer is back.
+So with remote models a cluster of N CPUs simulates N episodes while many more wait on their
+models. The offline backends (reference, replay) answer at once and stay in the task's process.
+
+The actor builds its backend with `make_llm` (retries included); the task wraps the remote
+client in a `RecordingClient`, so calls are recorded where the episode runs, with their
+latency as the task saw it.
+"""
+
+from __future__ import annotations
+
+import ray
+
+from physcap_drake.agent.llm import make_llm
+from physcap_drake.agent.llm.base import LLMClient, LLMRequest, LLMResponse
+from physcap_drake.agent.llm.recording import RecordingClient
+
+#: Backends that answer in the task's own process (no network wait to overlap).
+OFFLINE_BACKENDS = ("reference", "replay")
+
+
+def is_offline(llm: str) -> bool:
+    return llm.strip().partition(":")[0] in OFFLINE_BACKENDS
+
+
+@ray.remote(num_cpus=0)
+class ModelCaller:
+    """Holds one episode's backend client and answers its requests (reserves no CPU)."""
+
+    def __init__(self, llm: str, model: str | None, seed: int):
+        self._client = make_llm(llm, model, seed=seed).inner
+
+    def identity(self) -> tuple[str, str]:
+        return self._client.name, self._client.model
+
+    def complete(self, request: LLMRequest) -> tuple[LLMResponse, int]:
+        response = self._client.complete(request)
+        return response, int(getattr(self._client, "last_attempts", 1) or 1)
+
+
+class RayModelClient:
+    """An LLMClient whose calls go to a `ModelCaller` actor; `last_attempts` is the attempts
+    the actor's backend made on the latest call."""
+
+    def __init__(self, caller):
+        self._caller = caller
+        self.name, self.model = ray.get(caller.identity.remote())
+        self.last_attempts = 1
+
+    def complete(self, request: LLMRequest) -> LLMResponse:
+        try:
+            response, self.last_attempts = ray.get(self._caller.complete.remote(request))
+        except ray.exceptions.RayTaskError as error:  # the backend's own exception
+            cause = error.cause
+            raise (cause if isinstance(cause, Exception) else error) from None
+        return response
+
+
+def episode_client(llm: str, model: str | None, seed: int) -> LLMClient | None:
+    """The client an episode task uses: a recorded remote client for a networked backend,
+    None for an offline one (the episode then builds its own in-process)."""
+    if is_offline(llm):
+        return None
+    return RecordingClient(RayModelClient(ModelCaller.remote(llm, model, seed)))

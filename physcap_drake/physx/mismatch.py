@@ -1,0 +1,147 @@
+"""An arm that is not its model: deviations drawn per calibration trial
+(`physcap calibrate mass|stiffness --mismatch`).
+
+The estimators compute with the arm's model file (masses, centres of mass) and assume an ideal
+torque sensor, frictionless joints and rigid fingers; no real arm is that. With a mismatch,
+each trial's simulated world departs from the model by values drawn uniformly from these
+ranges (the estimators keep the nominal model):
+
+| group | what | range |
+|---|---|---|
+| links | mass (and rotational inertia) of link1..link6 | × [0.8, 1.2] each |
+| links | centre of mass, each coordinate in the link's frame | × [0.8, 1.2] each |
+| torque_gain | torque sensor gain, J1..J6 | × [0.95, 1.05] each |
+| torque_offset | torque sensor offset | ± 0.05 N·m on J1–J3, ± 0.01 N·m on J4–J6 |
+| friction | Coulomb friction with presliding memory | [0, 0.03] N·m on J1–J3, [0, 0.01] on J4–J6 |
+| friction | viscous friction | [0, 0.05] N·m·s/rad each |
+| fingers | series compliance of each finger | [0, 2e-5] m/N (up to 0.5 mm more travel at f̂ = 0.5) |
+| moduli | hydroelastic modulus of the specimen | × [0.85, 1.15] |
+
+The offsets are about ten counts of motor current; the friction levels are assumptions (no
+figure is published for the PiPER), small next to J2's 4.7 N·m of gravity torque at home but
+as large as the torque a 13 g mass makes at 30 cm (0.04 N·m). Each group is drawn from a
+random stream of its own, so a run with some groups drawn gives them the same values a run
+with all groups gives: running one group at a time shows which one costs accuracy.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from physcap_drake.scenario import Scenario
+from physcap_drake.station.sim_config import LinkDeviation
+
+GROUPS = ("links", "torque_gain", "torque_offset", "friction", "fingers", "moduli")
+ARM_LINKS = tuple(f"link{i}" for i in range(1, 7))
+MASS_SCALE = COM_SCALE = (0.8, 1.2)
+TORQUE_GAIN = (0.95, 1.05)
+TORQUE_OFFSET = np.array([0.05, 0.05, 0.05, 0.01, 0.01, 0.01])  # N·m, ±
+COULOMB = np.array([0.03, 0.03, 0.03, 0.01, 0.01, 0.01])  # N·m, upper bound
+VISCOUS = 0.05  # N·m·s/rad, upper bound
+FINGER_COMPLIANCE = 2e-5  # m/N, upper bound
+MODULUS_SCALE = (0.85, 1.15)
+
+
+def parse_groups(text: str) -> tuple[str, ...]:
+    """"all" or a comma-separated list of GROUPS."""
+    if text.strip() == "all":
+        return GROUPS
+    names = tuple(name.strip() for name in text.split(",") if name.strip())
+    unknown = [name for name in names if name not in GROUPS]
+    if unknown or not names:
+        raise ValueError(f"unknown mismatch group(s) {', '.join(map(repr, unknown)) or '(none)'}"
+                         f"; use 'all' or a comma-separated list of: {', '.join(GROUPS)}")
+    return names
+
+
+def _rng(seed: int, group: str) -> np.random.Generator:
+    return np.random.default_rng((seed, 4242, GROUPS.index(group)))
+
+
+def draw(seed: int, groups: tuple[str, ...]) -> dict[str, Any]:
+    """The deviations of trial `seed` for `groups`, as plain data (for the report)."""
+    drawn: dict[str, Any] = {}
+    if "links" in groups:
+        rng = _rng(seed, "links")
+        drawn["links"] = {name: {"mass_scale": float(rng.uniform(*MASS_SCALE)),
+                                 "com_scale": rng.uniform(*COM_SCALE, 3).tolist()}
+                          for name in ARM_LINKS}
+    if "torque_gain" in groups:
+        drawn["torque_gain"] = _rng(seed, "torque_gain").uniform(*TORQUE_GAIN, 6).tolist()
+    if "torque_offset" in groups:
+        rng = _rng(seed, "torque_offset")
+        drawn["torque_offset"] = (TORQUE_OFFSET * rng.uniform(-1.0, 1.0, 6)).tolist()
+    if "friction" in groups:
+        rng = _rng(seed, "friction")
+        drawn["joint_friction"] = (COULOMB * rng.uniform(0.0, 1.0, 6)).tolist()
+        drawn["joint_damping"] = rng.uniform(0.0, VISCOUS, 6).tolist()
+    if "fingers" in groups:
+        drawn["finger_compliance"] = float(_rng(seed, "fingers").uniform(0.0,
+                                                                         FINGER_COMPLIANCE))
+    if "moduli" in groups:
+        drawn["modulus_scale"] = float(_rng(seed, "moduli").uniform(*MODULUS_SCALE))
+    return drawn
+
+
+def apply(scenario: Scenario, drawn: dict[str, Any], specimen: str | None = None) -> None:
+    """Puts drawn deviations into the scenario's simulated station (`station.as_built` and
+    the torque sensor's gain and offset); the modulus scale goes to the compliant model
+    `specimen` (None: to no model)."""
+    station = scenario.station
+    as_built = station.as_built
+    if "links" in drawn:
+        as_built.links = {name: LinkDeviation(**values)
+                          for name, values in drawn["links"].items()}
+    if "torque_gain" in drawn:
+        station.torque_noise.gain = list(drawn["torque_gain"])
+    if "torque_offset" in drawn:
+        station.torque_noise.offset = list(drawn["torque_offset"])
+    if "joint_friction" in drawn:
+        as_built.joint_friction = list(drawn["joint_friction"])
+        as_built.joint_damping = list(drawn["joint_damping"])
+    if "finger_compliance" in drawn:
+        as_built.finger_compliance = drawn["finger_compliance"]
+    if "modulus_scale" in drawn and specimen is not None:
+        as_built.modulus_scale = {specimen: drawn["modulus_scale"]}
+
+
+def features(drawn: dict[str, Any], group: str, scale: float = 1.0) -> list[float]:
+    """The drawn values of `group` as numbers, deviations from nominal (the torque gain's
+    multiplied by `scale`, e.g. the true mass, since its error grows with the load)."""
+    if group == "links":
+        return [v for link in drawn.get("links", {}).values()
+                for v in [link["mass_scale"] - 1.0, *np.subtract(link["com_scale"], 1.0)]]
+    if group == "torque_gain":
+        return [(g - 1.0) * scale for g in drawn.get("torque_gain", [])]
+    if group == "torque_offset":
+        return list(drawn.get("torque_offset", []))
+    if group == "friction":
+        return [*drawn.get("joint_friction", []), *drawn.get("joint_damping", [])]
+    if group == "fingers":
+        return [drawn["finger_compliance"]] if "finger_compliance" in drawn else []
+    return [drawn["modulus_scale"] - 1.0] if "modulus_scale" in drawn else []
+
+
+def attribute(errors: list[float], draws: list[dict[str, Any]],
+              scales: list[float] | None = None) -> dict[str, float]:
+    """How much of the spread of `errors` each group's draws explain: per group, the
+    adjusted R² of a least-squares fit of the errors on that group's values (the groups are
+    drawn independently, so their shares roughly add up). Groups not drawn are left out."""
+    errors = np.asarray(errors, dtype=float)
+    scales = scales or [1.0] * len(errors)
+    shares = {}
+    total = float(np.sum((errors - errors.mean()) ** 2))
+    for group in GROUPS:
+        rows = [features(d, group, s) for d, s in zip(draws, scales, strict=True)]
+        if not rows or not rows[0] or total == 0.0:
+            continue
+        X = np.column_stack([np.ones(len(rows)), np.asarray(rows)])
+        n, k = X.shape
+        if n <= k:
+            continue
+        coefficients, *_ = np.linalg.lstsq(X, errors, rcond=None)
+        residual = float(np.sum((errors - X @ coefficients) ** 2))
+        shares[group] = 1.0 - (residual / (n - k)) / (total / (n - 1))
+    return dict(sorted(shares.items(), key=lambda item: -item[1]))

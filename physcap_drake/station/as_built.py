@@ -1,0 +1,107 @@
+"""Building the simulated world as built rather than as drawn (`station.as_built`).
+
+The arm's links get the masses and centres of mass of `as_built.links`: a copy of its model
+file with those values in place of the drawn ones is parsed (the controller's and the estimators'
+own models keep the file as it is). Joint damping goes on the plant's joints, and the
+compliant geometries of named models get their hydroelastic modulus scaled. All of it
+happens while the plant is built, before it is finalized.
+"""
+
+from __future__ import annotations
+
+import tempfile
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
+from pydrake.geometry import ProximityProperties, RoleAssign
+from pydrake.multibody.parsing import (
+    FlattenModelDirectives,
+    ModelDirectives,
+    Parser,
+    ProcessModelDirectives,
+)
+from pydrake.multibody.plant import MultibodyPlant
+
+from physcap_drake.resources import add_model_packages, make_package_map
+from physcap_drake.station.sim_config import AsBuilt
+
+#: Drake's SDF extensions keep their `drake:` prefix when the text is written back.
+ET.register_namespace("drake", "http://drake.mit.edu")
+
+
+def add_directives_as_built(plant: MultibodyPlant, directives: list, arm_model: str,
+                            as_built: AsBuilt) -> None:
+    """Adds the models of `directives` to `plant` like `robot_model.add_directives`, the arm
+    model `arm_model` with the link deviations of `as_built`."""
+    parser = Parser(plant)
+    add_model_packages(parser.package_map())
+    if not as_built.links:
+        ProcessModelDirectives(ModelDirectives(directives=directives), plant, parser)
+        return
+    flat = FlattenModelDirectives(ModelDirectives(directives=directives), make_package_map())
+    arm = [d.add_model for d in flat.directives
+           if d.add_model is not None and d.add_model.name == arm_model]
+    if not arm:
+        raise ValueError(f"station.as_built.links: no model named {arm_model!r} in the "
+                         "scenario's directives")
+    path = make_package_map().ResolveUrl(arm[0].file)
+    with open(path) as source:
+        text = deviate_links(source.read(), as_built, path)
+    # The deviated model is parsed from a file of its own (the arm's model has no meshes
+    # or other relative references); the file is gone once the plant holds the model.
+    with tempfile.TemporaryDirectory(prefix="physcap_as_built_") as folder:
+        deviated = Path(folder) / Path(path).name
+        deviated.write_text(text)
+        arm[0].file = deviated.as_uri()
+        ProcessModelDirectives(flat, plant, parser)
+
+
+def deviate_links(sdf: str, as_built: AsBuilt, label: str) -> str:
+    """The SDF text with each named link's inertial mass, inertia and centre of mass
+    scaled as `as_built.links` says."""
+    root = ET.fromstring(sdf)
+    links = {link.get("name"): link for link in root.iter("link")}
+    for name, deviation in as_built.links.items():
+        if name not in links:
+            raise ValueError(f"station.as_built.links.{name}: {label} has no link {name!r} "
+                             f"(links: {', '.join(sorted(links))})")
+        inertial = links[name].find("inertial")
+        mass = inertial.find("mass")
+        mass.text = repr(float(mass.text) * deviation.mass_scale)
+        for moment in inertial.find("inertia"):
+            moment.text = repr(float(moment.text) * deviation.mass_scale)
+        pose = inertial.find("pose")
+        values = [float(v) for v in pose.text.split()]
+        values[:3] = [v * s for v, s in zip(values[:3], deviation.com_scale, strict=True)]
+        pose.text = " ".join(repr(v) for v in values)
+    return ET.tostring(root, encoding="unicode")
+
+
+def apply_joint_damping(plant: MultibodyPlant, joints: list, damping: list[float]) -> None:
+    """Viscous friction on the arm's joints (J1..J6), N·m·s/rad."""
+    for joint, value in zip(joints, damping, strict=True):
+        joint.set_default_damping(float(value))
+
+
+def scale_moduli(plant: MultibodyPlant, scene_graph, scales: dict[str, float]) -> None:
+    """Scales the hydroelastic modulus of the compliant geometries of each named model."""
+    inspector = scene_graph.model_inspector()
+    for name, scale in scales.items():
+        if not plant.HasModelInstanceNamed(name):
+            raise ValueError(f"station.as_built.modulus_scale: no model named {name!r}")
+        instance = plant.GetModelInstanceByName(name)
+        scaled = 0
+        for index in plant.GetBodyIndices(instance):
+            for geometry in plant.GetCollisionGeometriesForBody(plant.get_body(index)):
+                old = inspector.GetProximityProperties(geometry)
+                if not old.HasProperty("hydroelastic", "hydroelastic_modulus"):
+                    continue
+                new = ProximityProperties(old)
+                modulus = old.GetProperty("hydroelastic", "hydroelastic_modulus")
+                new.UpdateProperty("hydroelastic", "hydroelastic_modulus", modulus * scale)
+                scene_graph.AssignRole(plant.get_source_id(), geometry, new,
+                                       RoleAssign.kReplace)
+                scaled += 1
+        if not scaled:
+            raise ValueError(f"station.as_built.modulus_scale.{name}: the model has no "
+                             "compliant hydroelastic geometry")
