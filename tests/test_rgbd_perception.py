@@ -26,6 +26,7 @@ from physcap_drake.perception.describe import ObjectView
 from physcap_drake.perception.judge import contents, judge_placement, judge_uncovered
 from physcap_drake.perception.object_memory import ObjectMemory
 from physcap_drake.perception.phrases import PointingError, resolve
+from physcap_drake.perception.regions import footprint_rectangle
 from physcap_drake.perception.robot_mask import RobotSelfFilter
 from physcap_drake.perception.seen_object import SeenObject
 from physcap_drake.perception.shapes import classify, vocabulary_of
@@ -193,6 +194,23 @@ def test_first_views_through_an_emulated_realsense(task, seed):
         mismatch = result.mismatch.replace("straw missed", "") if task == "empty_cup" \
             else result.mismatch
         assert not mismatch.strip(", "), result
+
+
+def test_a_tray_with_a_can_standing_in_it_keeps_its_rectangle():
+    """The floor of a 0.27 m x 0.20 m tray seen around a can standing near one corner (a
+    hole of 7 cm across, and the can's shadow side hidden) still gives the tray's own
+    rectangle: its sides along the table's axes within 1 degree, its extent within 1 cm."""
+    rng = np.random.default_rng(3)
+    xy = rng.uniform([0.17, -0.37], [0.44, -0.17], (6000, 2))
+    hole = np.hypot(*(xy - [0.36, -0.22]).T) < 0.035
+    hidden = (xy[:, 0] > 0.36) & (xy[:, 1] > -0.26) & (xy[:, 1] < -0.18)
+    points = np.column_stack([xy, np.full(len(xy), 0.015)])[~hole & ~hidden]
+    corners = footprint_rectangle(points)
+    sides = np.diff(np.vstack([corners, corners[:1]]), axis=0)
+    headings = np.degrees(np.arctan2(sides[:, 1], sides[:, 0])) % 90.0
+    assert np.all(np.minimum(headings, 90.0 - headings) < 1.0), headings
+    extent = np.sort(np.linalg.norm(sides[:2], axis=1))
+    assert extent == pytest.approx([0.20 * 0.96, 0.27 * 0.96], abs=0.01)
 
 
 def test_an_agent_episode_on_rgbd_perception_judged_by_the_camera():

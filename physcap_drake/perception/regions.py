@@ -215,14 +215,23 @@ def _split_on_table(pixels: np.ndarray, box, geometry: SceneGeometry) -> list[np
 
 
 def footprint_rectangle(points: np.ndarray, percent: float = 2.0) -> np.ndarray:
-    """The rectangle (4 × 2 corners on the table, m) spanned by the points' footprint along
-    its principal axes, from the `percent` to the 100 - `percent` percentile each way."""
+    """The rectangle (4 × 2 corners on the table, m) of least area around the points'
+    footprint, its extent along each side from the `percent` to the 100 - `percent`
+    percentile. The sides are searched over every heading (1° steps), not taken from the
+    points' principal axes: those turn with the points' distribution, e.g. by tens of
+    degrees when an object standing in a tray hides part of its floor."""
     xy = points[:, :2]
     mean = xy.mean(axis=0)
-    axes = np.linalg.svd(xy - mean, full_matrices=False)[2]
-    along = (xy - mean) @ axes.T
-    low, high = np.percentile(along, percent, axis=0), np.percentile(along, 100 - percent,
-                                                                     axis=0)
+    best = None
+    for heading in np.radians(np.arange(0.0, 90.0, 1.0)):
+        axes = np.array([[np.cos(heading), np.sin(heading)],
+                         [-np.sin(heading), np.cos(heading)]])
+        along = (xy - mean) @ axes.T
+        low, high = np.percentile(along, [percent, 100 - percent], axis=0)
+        area = float(np.prod(high - low))
+        if best is None or area < best[0]:
+            best = (area, axes, low, high)
+    _, axes, low, high = best
     corners = np.array([[low[0], low[1]], [high[0], low[1]], [high[0], high[1]],
                         [low[0], high[1]]])
     return mean + corners @ axes
