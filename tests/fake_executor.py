@@ -9,6 +9,7 @@ import numpy as np
 from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import LeafSystem
 
+from physcap_drake.clock import Clock
 from physcap_drake.control.requests import (
     MoveGripper,
     RobotRequest,
@@ -108,6 +109,19 @@ def assert_actions(served, expected) -> None:
                 assert value == wanted
             else:
                 np.testing.assert_allclose(value, wanted)
+
+
+def build_with_request_path(builder, served) -> tuple:
+    """Exports `served`'s request input and status output (the top of a request path),
+    builds the diagram, makes its Clock and puts an empty request on the input. Returns
+    (diagram, clock, the diagram's request input port)."""
+    builder.ExportInput(served.GetInputPort(REQUEST_PORT), REQUEST_PORT)
+    builder.ExportOutput(served.GetOutputPort(STATUS_PORT), STATUS_PORT)
+    diagram = builder.Build()
+    clock = Clock(diagram)
+    port = diagram.GetInputPort(REQUEST_PORT)
+    port.FixValue(clock.mutable_context, RobotRequest())
+    return diagram, clock, port
 
 
 def ask(diagram, clock, action, sequence: int = 1, timeout: float = 60.0):

@@ -16,6 +16,7 @@ from fake_executor import (
     FakeExecutor,
     ask,
     assert_actions,
+    build_with_request_path,
     served_log,
 )
 from pydrake.systems.framework import BasicVector, DiagramBuilder
@@ -26,7 +27,6 @@ from physcap_drake.control.requests import (
     MoveGripper,
     MoveToJoints,
     MoveToPose,
-    RobotRequest,
     SkillState,
     SkillStatus,
     Wait,
@@ -109,12 +109,7 @@ class Rig:
                         self.estimator.GetInputPort(WINDOW_PORT))
         builder.Connect(self.estimator.GetOutputPort(ESTIMATE_PORT),
                         self.probe.GetInputPort(ESTIMATE_PORT))
-        builder.ExportInput(self.probe.GetInputPort(REQUEST_PORT), REQUEST_PORT)
-        builder.ExportOutput(self.probe.GetOutputPort(STATUS_PORT), STATUS_PORT)
-        self.diagram = builder.Build()
-        self.clock = Clock(self.diagram)
-        self.port = self.diagram.GetInputPort(REQUEST_PORT)
-        self.port.FixValue(self.clock.mutable_context, RobotRequest())
+        self.diagram, self.clock, self.port = build_with_request_path(builder, self.probe)
 
     def status(self, root=None) -> SkillStatus:
         return self.diagram.GetOutputPort(STATUS_PORT).Eval(root or self.clock.context)

@@ -5,9 +5,9 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from fake_executor import build_with_request_path
 from pydrake.systems.framework import BasicVector, DiagramBuilder, LeafSystem
 
-from physcap_drake.clock import Clock
 from physcap_drake.control.planning_model import PlanningModel
 from physcap_drake.control.requests import (
     MoveGripper,
@@ -18,7 +18,6 @@ from physcap_drake.control.requests import (
 )
 from physcap_drake.control.skill_executor import (
     MONITOR_PERIOD,
-    REQUEST_PORT,
     STATUS_PORT,
     SkillExecutor,
 )
@@ -88,12 +87,8 @@ class Rig:
             builder.Connect(self.executor.GetOutputPort(name), arm.GetInputPort(name))
         for name in (ports.ARM_POSITION_MEASURED, ports.GRIPPER_POSITION_MEASURED):
             builder.Connect(arm.GetOutputPort(name), self.executor.GetInputPort(name))
-        builder.ExportInput(self.executor.GetInputPort(REQUEST_PORT), REQUEST_PORT)
-        builder.ExportOutput(self.executor.GetOutputPort(STATUS_PORT), STATUS_PORT)
-        self.diagram = builder.Build()
-        self.clock = Clock(self.diagram)
-        self.request_port = self.diagram.GetInputPort(REQUEST_PORT)
-        self.request_port.FixValue(self.clock.mutable_context, RobotRequest())
+        self.diagram, self.clock, self.request_port = build_with_request_path(
+            builder, self.executor)
 
     @property
     def status(self):

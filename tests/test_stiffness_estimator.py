@@ -7,14 +7,22 @@ import math
 
 import numpy as np
 import pytest
-from fake_executor import FORCE, SKILL_TIME, STROKE, FakeExecutor, ask, assert_actions, served_log
+from fake_executor import (
+    FORCE,
+    SKILL_TIME,
+    STROKE,
+    FakeExecutor,
+    ask,
+    assert_actions,
+    build_with_request_path,
+    served_log,
+)
 from pydrake.systems.framework import BasicVector, DiagramBuilder, LeafSystem
 
 from physcap_drake.clock import Clock
 from physcap_drake.control.requests import (
     MoveGripper,
     MoveToPose,
-    RobotRequest,
     SkillState,
     Wait,
 )
@@ -261,12 +269,7 @@ class ProbeRig:
                         estimator.GetInputPort(SQUEEZE_PORT))
         builder.Connect(estimator.GetOutputPort(RESULT_PORT), self.probe.GetInputPort(
             RESULT_PORT))
-        builder.ExportInput(self.probe.GetInputPort(REQUEST_PORT), REQUEST_PORT)
-        builder.ExportOutput(self.probe.GetOutputPort(STATUS_PORT), STATUS_PORT)
-        self.diagram = builder.Build()
-        self.clock = Clock(self.diagram)
-        self.port = self.diagram.GetInputPort(REQUEST_PORT)
-        self.port.FixValue(self.clock.mutable_context, RobotRequest())
+        self.diagram, self.clock, self.port = build_with_request_path(builder, self.probe)
 
     def ask(self, action, sequence: int = 1):
         return ask(self.diagram, self.clock, action, sequence)
