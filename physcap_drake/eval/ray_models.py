@@ -20,20 +20,24 @@ import ray
 from physcap_drake.agent.llm import make_llm
 from physcap_drake.agent.llm.base import LLMClient, LLMRequest, LLMResponse
 from physcap_drake.agent.llm.recording import RecordingClient
+from physcap_drake.agent.llm.settings import ModelSettings
 
 #: Backends that answer in the task's own process (no network wait to overlap).
 OFFLINE_BACKENDS = ("reference", "replay")
 
 
-def is_offline(llm: str) -> bool:
-    return llm.strip().partition(":")[0] in OFFLINE_BACKENDS
+def is_offline(llm: str | ModelSettings) -> bool:
+    """Whether the backend (a spec, or the settings of `physcap eval`'s model flags) answers
+    in the task's own process."""
+    spec = llm.llm if isinstance(llm, ModelSettings) else llm
+    return spec.strip().partition(":")[0] in OFFLINE_BACKENDS
 
 
 @ray.remote(num_cpus=0)
 class ModelCaller:
     """Holds one episode's backend client and answers its requests (reserves no CPU)."""
 
-    def __init__(self, llm: str, model: str | None, seed: int):
+    def __init__(self, llm: str | ModelSettings, model: str | None, seed: int):
         self._client = make_llm(llm, model, seed=seed).inner
 
     def identity(self) -> tuple[str, str]:
@@ -62,7 +66,8 @@ class RayModelClient:
         return response
 
 
-def episode_client(llm: str, model: str | None, seed: int) -> LLMClient | None:
+def episode_client(llm: str | ModelSettings, model: str | None, seed: int
+                   ) -> LLMClient | None:
     """The client an episode task uses: a recorded remote client for a networked backend,
     None for an offline one (the episode then builds its own in-process)."""
     if is_offline(llm):

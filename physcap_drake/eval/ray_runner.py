@@ -30,6 +30,7 @@ from typing import Any
 
 import ray
 
+from physcap_drake.agent.llm.settings import ModelSettings
 from physcap_drake.eval.grid import EpisodeSpec
 from physcap_drake.eval.ray_models import episode_client
 from physcap_drake.eval.runner import EPISODES_PER_WORKER, pending
@@ -46,7 +47,8 @@ RETRIES = 3
 
 
 @ray.remote(num_cpus=1, max_retries=RETRIES, max_calls=EPISODES_PER_WORKER)
-def run_episode_task(spec: EpisodeSpec, llm: str, model: str | None) -> dict[str, Any]:
+def run_episode_task(spec: EpisodeSpec, llm: str | ModelSettings, model: str | None
+                     ) -> dict[str, Any]:
     """Runs one episode on a Ray worker; returns {"spec", "files": {name: bytes}, "error"}."""
     client = episode_client(llm, model, spec.seed)
     options = {} if client is None else {"client": client}
@@ -96,7 +98,8 @@ def connect(address: str | None, workers: int) -> bool:
     return True
 
 
-def run_grid_on_ray(specs: list[EpisodeSpec], out: Path, *, llm: str = "reference",
+def run_grid_on_ray(specs: list[EpisodeSpec], out: Path, *,
+                    llm: str | ModelSettings = "reference",
                     model: str | None = None, address: str | None = None, workers: int = 2,
                     on_done: Callable[[dict[str, Any]], None] | None = None
                     ) -> list[dict[str, Any]]:
