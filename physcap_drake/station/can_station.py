@@ -18,9 +18,10 @@ from physcap_drake.can.faults import FaultSettings, FaultyBus
 from physcap_drake.can.link import PiperLink
 from physcap_drake.can.simulated_motion import SimulatedMotion, simulated_motion
 from physcap_drake.station import ports
+from physcap_drake.station.can_cameras import CanCameras, emulated_world, rendered_names
 from physcap_drake.station.can_config import PiperCan
 from physcap_drake.station.can_interface import PiperCanInterface
-from physcap_drake.station.can_scene import SCENE_OUTPUTS, EmulatedScene, NoScene
+from physcap_drake.station.can_scene import EmulatedScene, NoScene
 
 INTERFACE, SCENE = "piper_can", "scene"
 EMULATED_FIRMWARE = "S-V1.8-2"
@@ -55,21 +56,25 @@ def MakeCanStation(scenario, meshcat=None) -> Diagram:
                          "--meshcat")
     emulator = motion = None
     if config.emulate:
-        emulator, motion = _start_emulator(scenario, config)
+        emulator, motion = _start_emulator(emulated_world(scenario), config)
         faults = config.faults
         bus = FaultyBus(can.Bus(interface="virtual", channel=config.channel),
                         FaultSettings(faults.loss, faults.delay, faults.garble),
                         seed=faults.seed)
     else:
         bus = _open_bus(config)
-    if emulator is not None:
-        scene = EmulatedScene(emulator, motion)
-    else:
-        camera = next(c for c in scenario.cameras if c.name == "camera")
-        scene = NoScene(camera.width, camera.height)
+    cameras = None
     try:
+        if emulator is not None:
+            scene = EmulatedScene(emulator, motion, rendered_names(scenario))
+        else:
+            scene = NoScene(0, 0, names=(ports.BODY_POSES,), why="this PiperCan station has "
+                            "no simulated world (station.emulate: false)")
+        cameras = CanCameras(scenario, scene, world=emulator is not None)
         link = PiperLink(bus, config).start()
-    except Exception:
+    except BaseException:
+        if cameras is not None:
+            cameras.close()
         if emulator is not None:
             _release_emulator(emulator)
         raise
@@ -79,9 +84,7 @@ def MakeCanStation(scenario, meshcat=None) -> Diagram:
         builder.ExportInput(interface.GetInputPort(name), name)
     for name in ports.VECTOR_OUTPUTS:
         builder.ExportOutput(interface.GetOutputPort(name), name)
-    builder.AddNamedSystem(SCENE, scene)
-    for name in SCENE_OUTPUTS:
-        builder.ExportOutput(scene.GetOutputPort(name), name)
+    cameras.add_to(builder)
     diagram = builder.Build()
     diagram.set_name("station")
     # Threads must not outlive the interpreter (an emulator inside Drake's C++ would abort).
