@@ -147,8 +147,21 @@ def _load(label: str, **source) -> Scenario:
     except Exception as error:  # yaml syntax errors carry their own line and column
         raise ScenarioError(filename=label, key_path="", expected="valid YAML",
                             problem=str(error)) from error
+    if "filename" in source:
+        _resolve_camera_files(scenario, Path(source["filename"]).parent)
     check_scenario(scenario, label)
     return scenario
+
+
+def _resolve_camera_files(scenario: Scenario, folder: Path) -> None:
+    """Makes the files a RealSense entry names (calibration, recording, record_to) relative
+    to the scenario file's folder, as a reader of the file expects."""
+    for camera in scenario.cameras:
+        if isinstance(camera, RealSense):
+            for key in ("calibration", "recording", "record_to"):
+                value = getattr(camera, key)
+                if value and not Path(value).is_absolute():
+                    setattr(camera, key, str(folder / value))
 
 
 def check_scenario(scenario: Scenario, filename: str = "<scenario>") -> None:

@@ -133,8 +133,9 @@ def run(task: Annotated[str, typer.Option("--task", help=f"One of: {', '.join(TA
         except ScenarioError as error:
             fail(str(error))
     if (judge or (scenario_task.judge if scenario_task else "")) == "operator" and not can_ask():
-        fail("--judge operator asks you at the end of the episode, and stdin is not a "
-             "terminal; run it in a terminal or use --judge perception")
+        fail("the operator judge (--judge operator, or the scenario's task.judge) asks you at "
+             "the end of the episode, and stdin is not a terminal; run it in a terminal or "
+             "use --judge perception")
     client = ModelChoice(llm, model, vertex_project, vertex_location).client(seed)
     viewer = make_meshcat(live=meshcat) if (meshcat or meshcat_html) else None
 
