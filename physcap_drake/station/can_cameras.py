@@ -27,11 +27,9 @@ import dataclasses as dc
 from pydrake.systems.framework import DiagramBuilder, LeafSystem
 
 from physcap_drake.station import ports
-from physcap_drake.station.can_scene import NoScene
+from physcap_drake.station.can_scene import IMAGES, NoScene
 from physcap_drake.station.ports import camera_port
 from physcap_drake.station.realsense.config import RealSense
-
-IMAGES = ("rgb", "depth", "label")
 
 
 def is_device(entry) -> bool:
@@ -39,13 +37,15 @@ def is_device(entry) -> bool:
     return isinstance(entry, RealSense) and not entry.emulate
 
 
-def emulated_world(scenario):
+def emulated_world(scenario, *, cameras: bool = True):
     """The scenario the emulator simulates: the same scene, with every camera that needs the
     simulated world as a plain rendered camera (an emulated RealSense as the camera that
-    renders its view; its driver runs on the CAN station), and no live or recorded camera."""
-    cameras = [entry.rendering_config() if isinstance(entry, RealSense) else entry
-               for entry in scenario.cameras if not is_device(entry)]
-    return dc.replace(scenario, cameras=cameras)
+    renders its view; its driver runs on the CAN station), and no live or recorded camera.
+    `cameras` False: no camera at all (an emulator in a process of its own, whose station
+    renders nothing)."""
+    rendered = [entry.rendering_config() if isinstance(entry, RealSense) else entry
+                for entry in scenario.cameras if not is_device(entry)]
+    return dc.replace(scenario, cameras=rendered if cameras else [])
 
 
 def rendered_names(scenario) -> tuple[str, ...]:
