@@ -77,8 +77,16 @@ class TaskConfig:
     # Task name: "" (none), "identify_empty_can", "pick_ripe_avocado", ...
     name: str = ""
     # Pin which object carries the hidden property (its name, e.g. "red can"); "" draws it
-    # from the random seed among the visually plausible ones.
+    # from the random seed among the visually plausible ones. On a rig without a simulated
+    # world this is how the perception judge knows which object the task is about.
     answer: str = ""
+    # What sees the objects in an episode: "rgbd" (colour and depth alone) or "label" (the
+    # simulator's perfect segmenter); "" leaves it to `physcap run --perception` (label).
+    perception: str = ""
+    # Who decides an episode's success: "simulator" (ground truth), "perception" (the
+    # final camera view) or "operator" (asked at the end); "" leaves it to
+    # `physcap run --judge` (simulator).
+    judge: str = ""
 
 
 @dc.dataclass
@@ -139,8 +147,21 @@ def _load(label: str, **source) -> Scenario:
     except Exception as error:  # yaml syntax errors carry their own line and column
         raise ScenarioError(filename=label, key_path="", expected="valid YAML",
                             problem=str(error)) from error
+    if "filename" in source:
+        _resolve_camera_files(scenario, Path(source["filename"]).parent)
     check_scenario(scenario, label)
     return scenario
+
+
+def _resolve_camera_files(scenario: Scenario, folder: Path) -> None:
+    """Makes the files a RealSense entry names (calibration, recording, record_to) relative
+    to the scenario file's folder, as a reader of the file expects."""
+    for camera in scenario.cameras:
+        if isinstance(camera, RealSense):
+            for key in ("calibration", "recording", "record_to"):
+                value = getattr(camera, key)
+                if value and not Path(value).is_absolute():
+                    setattr(camera, key, str(folder / value))
 
 
 def check_scenario(scenario: Scenario, filename: str = "<scenario>") -> None:
@@ -153,8 +174,12 @@ def check_scenario(scenario: Scenario, filename: str = "<scenario>") -> None:
     scenario.skills.check(at.child("skills"))
     scenario.physx.check(at.child("physx"))
     _check_directives(scenario, at)
-    _check_cameras(scenario.cameras, at, simulated=isinstance(scenario.station, SimPiper))
+    at.child("task").choice("perception", scenario.task.perception, ["", "rgbd", "label"])
+    at.child("task").choice("judge", scenario.task.judge,
+                            ["", "simulator", "perception", "operator"])
     station = scenario.station
+    _check_cameras(scenario.cameras, at, simulated=isinstance(station, SimPiper),
+                   world=isinstance(station, SimPiper) or station.emulate)
     if isinstance(station, SimPiper):
         _check_against_robot(scenario, station, at, at.child("station"))
     elif isinstance(station, PiperCan):
@@ -247,7 +272,9 @@ def _check_against_robot(scenario: Scenario, station: SimPiper, at: ConfigChecke
 
 
 def _check_cameras(cameras: list[CameraConfig | RealSense], at: ConfigChecker, *,
-                   simulated: bool) -> None:
+                   simulated: bool, world: bool) -> None:
+    """simulated: the station is the simulated arm; world: there is a simulated world
+    (the simulated arm's, or a CAN station's emulator) to render emulated cameras in."""
     names = [camera.name for camera in cameras]
     if MAIN_CAMERA not in names:
         at.fail("cameras", f"a camera named {MAIN_CAMERA!r} (the station's camera)",
@@ -261,6 +288,10 @@ def _check_cameras(cameras: list[CameraConfig | RealSense], at: ConfigChecker, *
             if simulated and not camera.emulate:
                 here.fail("emulate", "true on a simulated station (!SimPiper): a live or "
                           "recorded camera cannot see the simulated scene", "got false")
+            if camera.emulate and not world:
+                here.fail("emulate", "false on a PiperCan station without an emulator "
+                          "(station.emulate: false): there is no simulated world to render",
+                          "got true")
             continue
         here.number("width", camera.width, minimum=0, open_minimum=True)
         here.number("height", camera.height, minimum=0, open_minimum=True)

@@ -30,7 +30,9 @@ def load_error(text: str) -> ScenarioError:
 @pytest.mark.parametrize("path", sorted(stations_dir().glob("*.yaml")), ids=lambda p: p.name)
 def test_every_shipped_scenario_loads(path: Path):
     scenario = load_scenario(path)
-    expected = PiperCan if path.stem.endswith("_piper_can") else SimPiper
+    over_can = path.stem.endswith(("_piper_can", "_rig_emulated")) or path.stem.startswith(
+        "real_")
+    expected = PiperCan if over_can else SimPiper
     assert isinstance(scenario.station, expected)
 
 

@@ -27,6 +27,7 @@ from physcap_drake.agent.transcript import Transcript, TranscriptEntry
 from physcap_drake.agent.variant import load_variant
 from physcap_drake.clock import Clock
 from physcap_drake.control.errors import ArmFault
+from physcap_drake.perception.judge import Verdict
 from physcap_drake.perception.object_locator import ObjectLocator
 from physcap_drake.perception.vlm_pointer import VlmPointer
 from physcap_drake.recording.agent_recording import AgentRecording
@@ -55,11 +56,17 @@ class AgentRun:
     transcript: Transcript
     calls: list[CallRecord]
     episode: Episode
+    # Who judged success, and the simulator's ground truth beside another judge's verdict
+    # (None without a simulated world, or when the simulator judged).
+    judge: str = "simulator"
+    ground_truth: object | None = None
 
     def summary(self) -> dict:
-        """The metrics as plain data: success, oi, robot_time_s, and the run's particulars."""
+        """The metrics as plain data: success, oi, robot_time_s, and the run's particulars
+        (with another judge than the simulator: the judge, and the simulator's verdict
+        where a simulated world exists, as simulator_success and simulator_reason)."""
         outcome = self.outcome
-        return {
+        summary = {
             "task": self.task, "agent": self.agent, "seed": self.seed, "llm": self.llm,
             "model": self.model, "success": outcome.success, "reason": outcome.reason,
             "oi": outcome.oi, "robot_time_s": round(outcome.robot_time_s, 3),
@@ -71,6 +78,12 @@ class AgentRun:
             "output_tokens": sum(c.output_tokens for c in self.calls),
             "llm_latency_s": round(sum(c.latency_s for c in self.calls), 3),
         }
+        if self.judge != "simulator":
+            summary["judge"] = self.judge
+        if self.ground_truth is not None:
+            summary["simulator_success"] = bool(self.ground_truth.success)
+            summary["simulator_reason"] = self.ground_truth.reason
+        return summary
 
 
 def drive_agent(clock: Clock, system: AgentSystem, context, loop: AgentLoop) -> AgentMind:
@@ -89,6 +102,26 @@ def drive_agent(clock: Clock, system: AgentSystem, context, loop: AgentLoop) -> 
     return mind
 
 
+def judge_outcome(episode: Episode, outcome: EpisodeOutcome,
+                  operator: Callable[[], Verdict] | None, transcript: Transcript
+                  ) -> tuple[EpisodeOutcome, Verdict | None]:
+    """The outcome with the operator's verdict when the operator judges (asked now, the
+    episode over and the arm holding; it goes into the transcript), and the simulator's
+    ground truth when another judge decided and a simulated world exists (else None)."""
+    if episode.judge == "operator":
+        if operator is None:
+            raise ValueError("judge 'operator' needs someone to ask (operator=...)")
+        verdict = operator()
+        outcome = dc.replace(outcome, success=bool(verdict.success),
+                             reason=f"the operator: {verdict.reason}")
+        transcript.add("result", len(outcome.steps), outcome.robot_time_s,
+                       f"success: {outcome.success} ({outcome.reason})")
+    truth = None
+    if episode.judge != "simulator" and episode.has_world:
+        truth = episode.ground_truth()
+    return outcome, truth
+
+
 def run_agent_episode(task: str, seed: int, *, agent: str = "physcap",
                       llm: str | ModelSettings = "reference",
                       model: str | None = None, meshcat=None,
@@ -99,7 +132,8 @@ def run_agent_episode(task: str, seed: int, *, agent: str = "physcap",
                       scenario_file: str | Path | None = None,
                       perception: str = "label", judge: str = "simulator",
                       on_start: Callable[[Episode], None] | None = None,
-                      wall_time_limit: float | None = WALL_TIME_LIMIT) -> AgentRun:
+                      wall_time_limit: float | None = WALL_TIME_LIMIT,
+                      operator: Callable[[], Verdict] | None = None) -> AgentRun:
     """Runs one episode of `task` with layout `seed`. `llm` is a backend spec (see
     physcap_drake.agent.llm.factory); `client` overrides it with a ready client (it should
     be a RecordingClient for the calls to be reported). `on_entry` hears each transcript
@@ -115,7 +149,8 @@ def run_agent_episode(task: str, seed: int, *, agent: str = "physcap",
     `on_start(episode)` is called once the episode is built and its simulator initialized,
     before the agent's first decision (a live viewer paces the simulator and frames its
     view there). `wall_time_limit`: s of wall-clock time after which no model call is made
-    (None: no limit); `llm` may also be a `ModelSettings`."""
+    (None: no limit); `llm` may also be a `ModelSettings`. `operator()` asks the operator
+    for the verdict when `judge` is "operator" (see judge_outcome)."""
     if pointer not in ("offline", "vlm"):
         raise ValueError(f"pointer must be 'offline' or 'vlm', got {pointer!r}")
     if wall_time_limit is not None and not wall_time_limit > 0:
@@ -152,7 +187,8 @@ def run_agent_episode(task: str, seed: int, *, agent: str = "physcap",
 
     transcript = Transcript(on_any_entry)
     loop = AgentLoop(task=episode.instance.prompt, variant=variant, llm=client, api=episode.api,
-                     check=episode.check, seed=seed, limits=limits,
+                     check=None if episode.judge == "operator" else episode.check,
+                     seed=seed, limits=limits,
                      robot_time_limit=robot_time_limit, transcript=transcript,
                      on_phase=on_phase)
     system.attach(loop, lambda: episode.api.robot_time,
@@ -175,11 +211,12 @@ def run_agent_episode(task: str, seed: int, *, agent: str = "physcap",
             mind = drive_agent(clock, system, agent_context, loop)
         # Judged before the station is released: a camera judge still needs its camera.
         outcome = loop.outcome(mind, time.monotonic() - start)
+        outcome, truth = judge_outcome(episode, outcome, operator, transcript)
     finally:
         episode.close()
     run = AgentRun(task, variant.name, seed, getattr(client, "name", llm),
                    getattr(client, "model", model or ""), outcome, transcript,
-                   list(getattr(client, "records", [])), episode)
+                   list(getattr(client, "records", [])), episode, episode.judge, truth)
     if recording is not None:
         recording.finish(run.summary())
     return run

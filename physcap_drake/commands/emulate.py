@@ -12,6 +12,7 @@ import typer
 from physcap_drake.can.emulator import PiperEmulator
 from physcap_drake.can.simulated_motion import simulated_motion
 from physcap_drake.commands.common import console, fail, load_scenario_or_exit
+from physcap_drake.station.can_cameras import emulated_world
 
 
 def emulate_piper(
@@ -34,7 +35,8 @@ def emulate_piper(
         raise typer.BadParameter(f"--interface must be socketcan or virtual, not {interface!r}")
     motion = None
     if scenario is not None:
-        motion = simulated_motion(load_scenario_or_exit(scenario))
+        # The world renders no camera here: cameras belong to the station that connects.
+        motion = simulated_motion(emulated_world(load_scenario_or_exit(scenario), cameras=False))
     try:
         bus = can.Bus(interface=interface, channel=channel)
     except (OSError, can.CanError) as error:

@@ -43,6 +43,7 @@ from physcap_drake.commands.model_options import (
     VertexLocation,
     VertexProject,
 )
+from physcap_drake.commands.operator_judge import ask_operator, can_ask
 from physcap_drake.commands.options import ContactForces, Hold, LiveMeshcat
 from physcap_drake.commands.progress import Heartbeat
 from physcap_drake.config_checks import check_scenario_task
@@ -91,13 +92,16 @@ def run(task: Annotated[str, typer.Option("--task", help=f"One of: {', '.join(TA
             "--pointer", help="How get_object_pose finds objects: offline (phrases resolved "
                               "against the perceived objects) or vlm (the model points; "
                               "needs an image model).")] = "offline",
-        perception: Annotated[str, typer.Option(
+        perception: Annotated[str | None, typer.Option(
             "--perception", help="What sees the objects: rgbd (colour and depth images "
                                  "alone, the camera emulated as a RealSense in simulation) "
-                                 "or label (the simulator's perfect segmenter).")] = "label",
-        judge: Annotated[str, typer.Option(
-            "--judge", help="Who decides success: simulator (ground truth) or perception "
-                            "(the final camera view).")] = "simulator",
+                                 "or label (the simulator's perfect segmenter). Default: "
+                                 "the scenario's task.perception, else label.")] = None,
+        judge: Annotated[str | None, typer.Option(
+            "--judge", help="Who decides success: simulator (ground truth), perception (the "
+                            "final camera view) or operator (you, asked at the end; needs a "
+                            "terminal). Default: the scenario's task.judge, else "
+                            "simulator.")] = None,
         llm: Llm = "reference",
         model: Model = None,
         vertex_project: VertexProject = None,
@@ -145,11 +149,17 @@ def run(task: Annotated[str, typer.Option("--task", help=f"One of: {', '.join(TA
         fail("--hold needs --meshcat")
     if out is not None and out.exists() and not out.is_dir():
         fail(f"--out {out} is a file; give a folder for the episode")
+    scenario_task = None
     if scenario is not None:
+        scenario_task = load_scenario_or_exit(scenario).task
         try:
-            check_scenario_task(task, load_scenario_or_exit(scenario).task.name, str(scenario))
+            check_scenario_task(task, scenario_task.name, str(scenario))
         except ScenarioError as error:
             fail(str(error))
+    if (judge or (scenario_task.judge if scenario_task else "")) == "operator" and not can_ask():
+        fail("the operator judge (--judge operator, or the scenario's task.judge) asks you at "
+             "the end of the episode, and stdin is not a terminal; run it in a terminal or "
+             "use --judge perception")
     client = ModelChoice(llm, model, vertex_project, vertex_location, timeout, retries,
                          schema_mode, images, temperature, llm_seed, max_tokens,
                          api_key_env).client(seed)
@@ -169,7 +179,8 @@ def run(task: Annotated[str, typer.Option("--task", help=f"One of: {', '.join(TA
                       f"{escape(TASKS[task].prompt)}")
     options = dict(agent=agent, client=client, meshcat=viewer, pointer=pointer,
                    perception=perception, judge=judge, scenario_file=scenario,
-                   on_entry=printer, on_start=on_start)
+                   on_entry=printer, on_start=on_start,
+                   operator=lambda: ask_operator(console, before=printer and printer.stop))
     if episode_timeout is not None:
         options["wall_time_limit"] = episode_timeout
     try:

@@ -43,11 +43,28 @@ class CameraGeometry:
     @classmethod
     def from_entry(cls, entry) -> CameraGeometry:
         """The geometry of a scenario camera entry: a rendered CameraConfig, or a RealSense
-        (an emulated one renders with exactly these intrinsics; a live device's must match
-        its calibration file, which the driver checks)."""
+        (an emulated one renders with exactly these intrinsics; a live or recorded one's are
+        its calibration file's, which the driver holds the device to). Raises ValueError
+        for a live or recorded camera without a calibration file (or one without
+        intrinsics)."""
         if isinstance(entry, CameraConfig):
             return cls.from_config(entry)
-        return cls.from_config(entry.rendering_config())
+        if entry.emulate:
+            return cls.from_config(entry.rendering_config())
+        from physcap_drake.station.realsense.calibration_file import load_calibration
+
+        if not entry.calibration:
+            raise ValueError(f"camera '{entry.name}': perception needs the camera's "
+                             "calibration file (calibration: F, from `physcap calibrate "
+                             "camera`), which holds its intrinsics")
+        calibration = load_calibration(entry.calibration)
+        known = calibration.intrinsics
+        if known.fx <= 0:
+            raise ValueError(f"camera '{entry.name}': calibration file "
+                             f"{entry.calibration!r} holds no intrinsics; calibrate again "
+                             "with `physcap calibrate camera`")
+        return cls(calibration.width, calibration.height, known.fx, known.fy, known.cx,
+                   known.cy, calibration.pose)
 
     def back_project(self, u, v, depth) -> np.ndarray:
         """World points (N × 3, m) of pixels (u, v) seen at `depth` (m); arrays broadcast."""

@@ -5,8 +5,8 @@ simulation-only outputs (`camera.label`, `body_poses`) exist only where there is
 simulation. With an emulator, its simulated scene is that world: the emulated arm runs it
 in its own process and publishes its state; `EmulatedScene` keeps a copy of the same scene
 (built from the same scenario) to render and read. Without one, `NoScene` keeps the port
-contract but refuses to be evaluated, naming the port (no camera driver is part of this
-project yet; a camera added beside the interface will provide the image ports).
+contract but refuses to be evaluated, naming the port. Camera drivers (a live or emulated
+RealSense) hang off either: see `can_cameras`.
 """
 
 from __future__ import annotations
@@ -21,12 +21,18 @@ from pydrake.systems.framework import Context, LeafSystem
 
 from physcap_drake.station import ports
 from physcap_drake.station.can_session import CanSession
+from physcap_drake.station.ports import camera_port
 
 SCENE_OUTPUTS = (*ports.IMAGE_OUTPUTS, ports.BODY_POSES)
+#: The images a rendered camera gives, and the name of the station's camera.
+IMAGES = ("rgb", "depth", "label")
+MAIN_CAMERA = "camera"
 
 
 class EmulatedScene(LeafSystem):
-    """camera.rgb, camera.depth, camera.label and body_poses of the emulator's simulated scene.
+    """`<camera>.rgb`, `<camera>.depth`, `<camera>.label` of each rendered camera in
+    `cameras` (names of the emulator's simulated station's cameras; the station camera by
+    default) and body_poses, all of the emulator's simulated scene.
 
     Each evaluation copies the world state the emulated arm last published into this
     system's own copy of the scene and evaluates the simulated station's port there, so
@@ -35,7 +41,7 @@ class EmulatedScene(LeafSystem):
     image are ground truth for success checks only.
     """
 
-    def __init__(self, scenario, session: CanSession):
+    def __init__(self, scenario, session: CanSession, cameras: tuple[str, ...] = (MAIN_CAMERA,)):
         super().__init__()
         from physcap_drake.station.sim_station import MakeSimStation
 
@@ -44,12 +50,14 @@ class EmulatedScene(LeafSystem):
         self.plant = self.station.GetSubsystemByName("plant")
         self._context = self.station.CreateDefaultContext()
         self._plant_context = self.plant.GetMyMutableContextFromRoot(self._context)
-        for name in SCENE_OUTPUTS:
+        names = [camera_port(camera, image) for camera in cameras for image in IMAGES]
+        for name in (*names, ports.BODY_POSES):
             port = self.station.GetOutputPort(name)
             self.DeclareAbstractOutputPort(name, port.Allocate, self._copier(port),
                                            {self.time_ticket()})
         # The first image costs several times the next ones (renderer set-up): pay it now.
-        self.station.GetOutputPort(ports.CAMERA_RGB).Eval(self._context)
+        for camera in cameras:
+            self.station.GetOutputPort(camera_port(camera, "rgb")).Eval(self._context)
 
     @property
     def world_size(self) -> int:
@@ -111,29 +119,42 @@ def _parameters(context: Context) -> dict[int, np.ndarray]:
 
 
 class NoScene(LeafSystem):
-    """The scene ports of a station without a camera or a simulation (see module docstring)."""
+    """Ports of a station without a simulation that keep the port contract but refuse to be
+    evaluated, naming the port (see module docstring).
 
-    def __init__(self, camera_width: int, camera_height: int):
+    Args:
+        camera_width, camera_height: size of the images the refused camera ports allocate, px.
+        names: which of SCENE_OUTPUTS to declare (all by default).
+        why: what is missing, said after the port's name in the error.
+    """
+
+    def __init__(self, camera_width: int, camera_height: int, *,
+                 names: tuple[str, ...] = SCENE_OUTPUTS,
+                 why: str = "this PiperCan station has no emulator (station.emulate: false) "
+                            "and no camera driver"):
         super().__init__()
         from pydrake.systems.sensors import ImageDepth32F, ImageLabel16I, ImageRgba8U
 
         empty = MultibodyPlant(0.0)
         empty.Finalize()
-        models = {ports.CAMERA_RGB: ImageRgba8U(camera_width, camera_height),
-                  ports.CAMERA_DEPTH: ImageDepth32F(camera_width, camera_height),
-                  ports.CAMERA_LABEL: ImageLabel16I(camera_width, camera_height)}
-        for name in SCENE_OUTPUTS:
+        models = {"rgb": ImageRgba8U(camera_width, camera_height),
+                  "depth": ImageDepth32F(camera_width, camera_height),
+                  "label": ImageLabel16I(camera_width, camera_height)}
+        for name in names:
             if name == ports.BODY_POSES:
                 allocate = empty.get_body_poses_output_port().Allocate
             else:
-                allocate = (lambda model: lambda: AbstractValue.Make(model))(models[name])
-            self.DeclareAbstractOutputPort(name, allocate, self._refuse(name))
+                allocate = _allocator(models[name.rsplit(".", 1)[1]])  # <camera>.<image>
+            self.DeclareAbstractOutputPort(name, allocate, self._refuse(name, why))
 
     @staticmethod
-    def _refuse(name: str):
+    def _refuse(name: str, why: str):
         def calc(context: Context, output: AbstractValue) -> None:
-            what = ("simulation-only ground truth" if name in ports.SIM_ONLY_OUTPUTS
-                    else "a camera image")
-            raise RuntimeError(f"{name} is {what}, and this PiperCan station has no "
-                               "emulator (station.emulate: false) and no camera driver")
+            what = ("simulation-only ground truth" if name == ports.BODY_POSES
+                    or name.endswith(".label") else "a camera image")
+            raise RuntimeError(f"{name} is {what}, and {why}")
         return calc
+
+
+def _allocator(model):
+    return lambda: AbstractValue.Make(model)

@@ -16,9 +16,10 @@ from contextlib import contextmanager
 from pydrake.systems.framework import Diagram, DiagramBuilder
 
 from physcap_drake.station import ports
+from physcap_drake.station.can_cameras import CanCameras, emulated_world, rendered_names
 from physcap_drake.station.can_config import PiperCan
 from physcap_drake.station.can_interface import PiperCanInterface
-from physcap_drake.station.can_scene import SCENE_OUTPUTS, EmulatedScene, NoScene
+from physcap_drake.station.can_scene import EmulatedScene, NoScene
 from physcap_drake.station.can_session import CanSession
 
 INTERFACE, SCENE = "piper_can", "scene"
@@ -31,23 +32,31 @@ def MakeCanStation(scenario, meshcat=None) -> Diagram:
     if meshcat is not None:
         raise ValueError("station: !PiperCan does not draw in Meshcat yet; run without "
                          "--meshcat")
-    session = CanSession(scenario)
-    if config.emulate:
-        scene = EmulatedScene(scenario, session)
-        session.world_size = scene.world_size
-    else:
-        camera = next(c for c in scenario.cameras if c.name == "camera")
-        scene = NoScene(camera.width, camera.height)
-    session.wait_ready()  # the processes run, unconnected: initializing only connects
+    # The emulated arm's process simulates the world (its cameras are built, never
+    # rendered): this station renders them from its own copy of that world (EmulatedScene).
+    session = CanSession(emulated_world(scenario))
+    cameras = None
+    try:
+        if config.emulate:
+            scene = EmulatedScene(emulated_world(scenario), session, rendered_names(scenario))
+            session.world_size = scene.world_size
+        else:
+            scene = NoScene(0, 0, names=(ports.BODY_POSES,), why="this PiperCan station has "
+                            "no simulated world (station.emulate: false)")
+        cameras = CanCameras(scenario, scene, world=config.emulate)
+        session.wait_ready()  # the processes run, unconnected: initializing only connects
+    except BaseException:
+        if cameras is not None:
+            cameras.close()
+        session.close()
+        raise
     builder = DiagramBuilder()
     interface = builder.AddNamedSystem(INTERFACE, PiperCanInterface(session, config))
     for name in ports.VECTOR_INPUTS:
         builder.ExportInput(interface.GetInputPort(name), name)
     for name in ports.VECTOR_OUTPUTS:
         builder.ExportOutput(interface.GetOutputPort(name), name)
-    builder.AddNamedSystem(SCENE, scene)
-    for name in SCENE_OUTPUTS:
-        builder.ExportOutput(scene.GetOutputPort(name), name)
+    cameras.add_to(builder)
     diagram = builder.Build()
     diagram.set_name("station")
     return diagram

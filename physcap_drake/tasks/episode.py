@@ -41,6 +41,7 @@ from physcap_drake.station import (
     scene_snapshot,
 )
 from physcap_drake.station.realsense.config import emulated_like
+from physcap_drake.station.sim_config import SimPiper
 from physcap_drake.tasks.registry import get_task
 from physcap_drake.tasks.task_instance import TaskInstance
 from physcap_drake.tasks.tray_tasks import TRAY_NAME
@@ -48,8 +49,9 @@ from physcap_drake.tasks.tray_tasks import TRAY_NAME
 #: The tray every task puts things on, as the camera sees it.
 TRAY = VisibleObject(TRAY_NAME, "tray", "brown")
 BASKET = VisibleObject("basket", "basket", "brown")
-#: Who decides an episode's success: the simulator's ground truth, or the final camera view.
-JUDGES = ("simulator", "perception")
+#: Who decides an episode's success: the simulator's ground truth, the final camera view, or
+#: the operator at the rig (asked when the episode ends; see agent.episode_runner).
+JUDGES = ("simulator", "perception", "operator")
 #: The perception modules an episode can use: RGB-D (the default path on a real rig) and the
 #: simulator's label segmenter (an ablation).
 PERCEPTIONS = ("rgbd", "label")
@@ -67,6 +69,16 @@ class Episode:
     judge: str = "simulator"
 
     @property
+    def has_world(self) -> bool:
+        """Whether a simulated world stands behind the station (ground truth exists)."""
+        return has_world(self.scenario)
+
+    def ground_truth(self):
+        """The task's success check on the simulated world's ground truth (whatever the
+        judge). Raises RuntimeError on a station without a simulated world."""
+        return get_task(self.instance.task).check(self)
+
+    @property
     def plant(self):
         """The simulated world's plant (the sim station's, or the emulator's)."""
         return scene_plant(self.robot.station)
@@ -81,7 +93,10 @@ class Episode:
         "perception") from the final camera view (`perception.judge`)."""
         if self.judge == "perception":
             return self.judge_from_camera()
-        return get_task(self.instance.task).check(self)
+        if self.judge == "operator":
+            raise RuntimeError("the operator judges at the end of the episode (see "
+                               "agent.episode_runner); there is no check to call")
+        return self.ground_truth()
 
     def judge_from_camera(self):
         """The outcome as the camera sees it now: the task's object alone in its container,
@@ -105,25 +120,40 @@ class Episode:
         close_station(self.robot.station)
 
 
+def has_world(scenario: Scenario) -> bool:
+    """Whether the scenario's station has a simulated world (the simulated arm's, or an
+    emulator's behind a CAN station): ground truth, rendered cameras, the label image."""
+    return isinstance(scenario.station, SimPiper) or scenario.station.emulate
+
+
 def make_episode(task_name: str, seed: int, answer: str = "", meshcat=None, *,
                  with_agent: bool = False, sink: McapSink | None = None,
                  scenario_file: str | Path | None = None,
-                 perception: str = "label", judge: str = "simulator") -> Episode:
+                 perception: str | None = None, judge: str | None = None) -> Episode:
     """Loads stations/<task>.yaml (or `scenario_file`), lays out the objects for `seed`,
     builds and initializes the simulation with the objects' hidden masses, and wires camera
     perception (`perception`: "rgbd" or "label", see the module docstring) to the API (and,
     `with_agent`, to an AgentSystem in the diagram). With a `sink`, an McapRecorder in the
-    diagram records the station's signals to it. `judge`: who decides success ("simulator"
-    or "perception", see Episode.check). Call `close()` on the episode when done."""
+    diagram records the station's signals to it. `judge`: who decides success ("simulator",
+    "perception" or "operator", see Episode.check). `perception` and `judge` left None take
+    the scenario's `task.perception` / `task.judge`, else "label" and "simulator". Raises
+    ValueError for a choice the station cannot serve (ground truth or the label image on a
+    rig without a simulated world). Call `close()` on the episode when done."""
+    task = get_task(task_name)
+    scenario = load_scenario(scenario_file or stations_dir() / task.scenario_file)
+    perception = perception or scenario.task.perception or "label"
+    judge = judge or scenario.task.judge or "simulator"
     if perception not in PERCEPTIONS:
         raise ValueError(f"perception must be one of {', '.join(PERCEPTIONS)}; "
                          f"got {perception!r}")
     if judge not in JUDGES:
         raise ValueError(f"judge must be one of {', '.join(JUDGES)}; got {judge!r}")
-    task = get_task(task_name)
-    scenario = load_scenario(scenario_file or stations_dir() / task.scenario_file)
     instance = task.instance(seed, answer or scenario.task.answer)
-    instance.add_to(scenario)
+    world = has_world(scenario)
+    if not world:
+        _check_rig_choices(instance, perception, judge, answer or scenario.task.answer)
+    else:  # the layout drawn from the seed; on a real rig the objects are where they are
+        instance.add_to(scenario)
     if perception == "rgbd":
         scenario.cameras = [emulated_like(c) if c.name == MAIN_CAMERA and isinstance(
             c, CameraConfig) else c for c in scenario.cameras]
@@ -150,8 +180,9 @@ def make_episode(task_name: str, seed: int, answer: str = "", meshcat=None, *,
     except BaseException:
         close_station(robot.station)
         raise
-    with scene_ground_truth(robot.station, clock.mutable_context) as (plant, context):
-        instance.apply_hidden_masses(plant, context)
+    if world:  # on a real rig the objects weigh what they weigh
+        with scene_ground_truth(robot.station, clock.mutable_context) as (plant, context):
+            instance.apply_hidden_masses(plant, context)
     station_context = robot.station.GetMyContextFromRoot(clock.context)
 
     def read_station(name: str):
@@ -160,6 +191,22 @@ def make_episode(task_name: str, seed: int, answer: str = "", meshcat=None, *,
     locator = ObjectLocator(make_perception(robot.station), read_inputs=read_station)
     api = RobotAPI(robot, clock, locator=locator)
     return Episode(instance, scenario, robot, api, judge)
+
+
+def _check_rig_choices(instance: TaskInstance, perception: str, judge: str,
+                       answer: str) -> None:
+    """Refuses what a rig without a simulated world cannot do (see make_episode)."""
+    if judge == "simulator":
+        raise ValueError("--judge simulator needs a simulated world, and this station is the "
+                         "real arm (station.emulate: false); use --judge operator or "
+                         "--judge perception")
+    if perception == "label":
+        raise ValueError("--perception label is the simulator's segmenter, and this station "
+                         "is the real arm (station.emulate: false); use --perception rgbd")
+    if judge == "perception" and read_task(instance.prompt).kind != "hidden" and not answer:
+        raise ValueError("--judge perception on the real arm needs task.answer in the "
+                         "scenario: which object the task is about (e.g. \"red can\"), "
+                         "as only you know it")
 
 
 def _catalog(instance: TaskInstance, plant) -> dict:

@@ -112,8 +112,12 @@ def intrinsics_mismatch(calibration: CameraCalibration, fx: float, fy: float, cx
 
 
 def check_calibration(entry, at: ConfigChecker) -> None:
-    """Scenario check of a RealSense entry's calibration file: it exists, parses, and
-    was made for this camera (serial and resolution)."""
+    """Scenario check of a RealSense entry's calibration file: it parses and was made for
+    this camera (serial and resolution). A file that does not exist yet passes here (so
+    `physcap calibrate camera` can load the scenario that names it): the camera refuses to
+    open without it, and so does the perception that needs its pose."""
+    if not Path(entry.calibration).exists():
+        return
     try:
         calibration = load_calibration(entry.calibration)
     except CalibrationMismatch as error:

@@ -60,6 +60,7 @@ class RealSense:
     height: int = 480
     fps: int = 30
     # Play this librealsense recording (.db3) back instead of streaming from a device.
+    # (Relative file names here are relative to the scenario file's folder.)
     recording: str = ""
     # Record everything the camera delivers to this .db3 file.
     record_to: str = ""
