@@ -50,6 +50,7 @@ from physcap_drake.config_checks import check_scenario_task
 from physcap_drake.recording.episode_folder import MCAP_FILE, record_episode
 from physcap_drake.scenario_errors import ScenarioError
 from physcap_drake.station.view import frame_on_table
+from physcap_drake.tasks.episode import JUDGES, PERCEPTIONS
 from physcap_drake.tasks.registry import TASKS
 
 STYLES = {"decision": "bold cyan", "error": "bold red", "measurement": "bold green",
@@ -149,6 +150,10 @@ def run(task: Annotated[str, typer.Option("--task", help=f"One of: {', '.join(TA
         fail("--hold needs --meshcat")
     if out is not None and out.exists() and not out.is_dir():
         fail(f"--out {out} is a file; give a folder for the episode")
+    for flag, value, choices in (("--perception", perception, PERCEPTIONS),
+                                 ("--judge", judge, JUDGES)):
+        if value is not None and value not in choices:
+            fail(f"{flag} {value!r} is not one of {', '.join(choices)}")
     scenario_task = None
     if scenario is not None:
         scenario_task = load_scenario_or_exit(scenario).task
