@@ -130,6 +130,11 @@ def test_torque_scaling_follows_the_firmware(firmware, scale_j1, scale_j5):
 def test_firmware_string_is_found_in_the_reply():
     frames = [b"xxS-V1.8", b"-2 extra"]
     assert codec.decode_firmware(frames) == "S-V1.8-2"
+    # The reply's frames arrive one by one: a version cut by a frame not yet read is no
+    # version (the emulator's "H-V1.2-1 S-V1.8-2 ..." once gave "S-V1.8-" here).
+    with pytest.raises(codec.FrameError, match="incomplete so far"):
+        codec.decode_firmware([b"H-V1.2-1", b" S-V1.8-"])
+    assert codec.decode_firmware([b"H-V1.2-1", b" S-V1.8-", b"2 emulat"]) == "S-V1.8-2"
     assert codec.parse_firmware("S-V1.8-2") == (1, 8, 2)
     with pytest.raises(ValueError, match="not a PiPER firmware"):
         codec.parse_firmware("V2")

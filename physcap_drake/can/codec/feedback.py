@@ -72,6 +72,8 @@ def decode_firmware(frames: list[bytes]) -> str:
     index = text.find("S-V")
     if index < 0:
         raise FrameError(f"no firmware version in the 0x4AF reply {text!r}")
+    if len(text) < index + 8:  # the version's last characters are in a frame still to come
+        raise FrameError(f"the 0x4AF reply is incomplete so far: {text!r}")
     return text[index:index + 8]
 
 
