@@ -111,16 +111,18 @@ def assert_actions(served, expected) -> None:
                 np.testing.assert_allclose(value, wanted)
 
 
-def build_with_request_path(builder, served) -> tuple:
-    """Exports `served`'s request input and status output (the top of a request path),
-    builds the diagram, makes its Clock and puts an empty request on the input. Returns
-    (diagram, clock, the diagram's request input port)."""
-    builder.ExportInput(served.GetInputPort(REQUEST_PORT), REQUEST_PORT)
-    builder.ExportOutput(served.GetOutputPort(STATUS_PORT), STATUS_PORT)
+def build_with_request_path(builder, served, request: str = REQUEST_PORT,
+                            status: str = STATUS_PORT, idle=None) -> tuple:
+    """Exports `served`'s `request` input and `status` output (the top of a request path,
+    or another request/answer pair of ports), builds the diagram, makes its Clock and puts
+    `idle` (default: an empty RobotRequest) on the input. Returns (diagram, clock, the
+    diagram's request input port)."""
+    builder.ExportInput(served.GetInputPort(request), request)
+    builder.ExportOutput(served.GetOutputPort(status), status)
     diagram = builder.Build()
     clock = Clock(diagram)
-    port = diagram.GetInputPort(REQUEST_PORT)
-    port.FixValue(clock.mutable_context, RobotRequest())
+    port = diagram.GetInputPort(request)
+    port.FixValue(clock.mutable_context, RobotRequest() if idle is None else idle)
     return diagram, clock, port
 
 

@@ -21,7 +21,6 @@ from fake_executor import (
 )
 from pydrake.systems.framework import BasicVector, DiagramBuilder
 
-from physcap_drake.clock import Clock
 from physcap_drake.control.planning_model import TCP_FRAME
 from physcap_drake.control.requests import (
     MoveGripper,
@@ -201,13 +200,8 @@ def estimator_rig(model, torque_load: float):
     tau = builder.AddSystem(ConstantVectorSource(torque))
     builder.Connect(q.get_output_port(), estimator.GetInputPort(ports.ARM_POSITION_MEASURED))
     builder.Connect(tau.get_output_port(), estimator.GetInputPort(ports.ARM_TORQUE_MEASURED))
-    builder.ExportInput(estimator.GetInputPort(WINDOW_PORT), WINDOW_PORT)
-    builder.ExportOutput(estimator.GetOutputPort(ESTIMATE_PORT), ESTIMATE_PORT)
-    diagram = builder.Build()
-    clock = Clock(diagram)
-    port = diagram.GetInputPort(WINDOW_PORT)
-    port.FixValue(clock.mutable_context, WindowRequest())
-    return diagram, clock, port
+    return build_with_request_path(builder, estimator, WINDOW_PORT, ESTIMATE_PORT,
+                                   WindowRequest())
 
 
 def test_the_estimator_averages_requested_windows_and_publishes_the_mass(estimator_model):
