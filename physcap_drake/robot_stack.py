@@ -19,6 +19,7 @@ from collections.abc import Callable
 
 from pydrake.geometry import Meshcat
 from pydrake.systems.framework import (
+    Context,
     Diagram,
     DiagramBuilder,
     InputPort,
@@ -80,12 +81,16 @@ class RobotStack:
     # With build_robot_stack(..., make_recorder=...): the recorder of the station's outputs.
     recorder: LeafSystem | None = None
 
-    def make_clock(self) -> Clock:
+    def make_clock(self, set_up: Callable[[Context], None] | None = None) -> Clock:
         """The diagram's clock: an initialized simulator configured by the scenario, with
-        no request on `robot.request` yet."""
+        no request on `robot.request` yet. `set_up(root context)` sets initial conditions
+        (e.g. a task's hidden masses) before the simulator initializes, so nothing changes
+        the diagram's state from outside once it runs."""
         context = self.diagram.CreateDefaultContext()
         if self.request_input is not None:
             self.request_input.FixValue(context, RobotRequest())
+        if set_up is not None:
+            set_up(context)
         return Clock(self.diagram, self.scenario.simulator_config, context)
 
 

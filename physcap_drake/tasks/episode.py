@@ -175,12 +175,19 @@ def make_episode(task_name: str, seed: int, answer: str = "", meshcat=None, *,
         else None,
         make_recorder=None if sink is None else (
             lambda station: make_mcap_recorder(sink, station, scenario)))
+    simulated = robot.station.HasSubsystemNamed("plant")
+
+    def set_up(root) -> None:  # initial conditions of the simulated world, before it runs
+        if simulated:
+            with scene_ground_truth(robot.station, root) as (plant, context):
+                instance.apply_hidden_masses(plant, context)
+
     try:
-        clock = robot.make_clock()
+        clock = robot.make_clock(set_up)
     except BaseException:
         close_station(robot.station)
         raise
-    if world:  # on a real rig the objects weigh what they weigh
+    if world and not simulated:  # the emulated arm's world, in its own process, once started
         with scene_ground_truth(robot.station, clock.mutable_context) as (plant, context):
             instance.apply_hidden_masses(plant, context)
     station_context = robot.station.GetMyContextFromRoot(clock.context)
