@@ -13,7 +13,7 @@ from physcap_drake.agent.llm import make_llm
 from physcap_drake.agent.loop import AgentLoop, AgentMind
 from physcap_drake.agent.transcript import Transcript
 from physcap_drake.agent.variant import load_variant
-from physcap_drake.tasks.episode import make_episode
+from physcap_drake.app.episode import make_episode
 
 TASK, SEED = "identify_empty_can", 0
 MODEL_DELAY = 0.3  # s of wall time each model call takes here

@@ -67,8 +67,9 @@ from physcap_drake.agent.schemas import (
 from physcap_drake.agent.structured_call import AgentAnswerError, ask_structured, unfence_code
 from physcap_drake.agent.transcript import Transcript
 from physcap_drake.agent.variant import AgentVariant
-from physcap_drake.control.errors import ArmFault, SkillError
+from physcap_drake.control.errors import SkillError
 from physcap_drake.robot_api import RobotAPI
+from physcap_drake.station.arm_fault import ArmFault
 
 #: How long the arm holds still after a code block stopped with an error, s.
 SAFE_HOLD = 0.5
