@@ -4,6 +4,9 @@ The recording's metadata names the task and seed; the scene is rebuilt from them
 only: nothing is simulated), then each recorded sample poses it: the arm's joints and the
 gripper's fingers from `/piper/joint_states`, every free object from `/tf`. The samples go into
 a Meshcat animation, which the browser plays (and `save_meshcat_html` can keep as one file).
+The animation runs on the episode's axis: log times minus the recorded start date (simulated
+time, or wall-clock time since the start for an episode on the CAN station; see
+`reading.Recording.time_base_note`).
 """
 
 from __future__ import annotations
@@ -32,7 +35,8 @@ class ReplayError(ValueError):
 @dc.dataclass(frozen=True)
 class ReplayedEpisode:
     """What was replayed: the recording, its task and seed, the number of samples, the names
-    of the objects moved from recorded transforms, and the animation's length (s)."""
+    of the objects moved from recorded transforms, and the animation's length (s on the
+    episode's axis: see `recording.time_base_note`)."""
 
     recording: Recording
     task: str
@@ -106,8 +110,9 @@ def transcript_markdown(recording: Recording) -> str:
     """The recorded transcript, rendered as in transcript.md (with the task's instruction
     and, for a finished episode, its outcome)."""
     transcript = Transcript()
-    transcript.entries = [TranscriptEntry(**m.value) for m in
-                          recording.on(topics.AGENT_TRANSCRIPT)]
+    fields = {field.name for field in dc.fields(TranscriptEntry)}
+    transcript.entries = [TranscriptEntry(**{k: v for k, v in m.value.items() if k in fields})
+                          for m in recording.on(topics.AGENT_TRANSCRIPT)]
     meta = recording.metadata.get(topics.EPISODE_METADATA, {})
     task = meta.get("task", "")
     title = (f"{task}, seed {meta.get('seed')}, agent {meta.get('agent')}" if task else
