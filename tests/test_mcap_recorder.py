@@ -3,11 +3,16 @@ an MCAP file out, without a station, a simulator of the world or an agent."""
 
 from __future__ import annotations
 
+import json
 import time
 
 import numpy as np
 import pytest
+from jsonschema import Draft202012Validator
+from mcap.reader import make_reader
+from mcap.writer import Writer
 from pydrake.common.value import AbstractValue
+from pydrake.geometry import Meshcat
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.primitives import ConstantValueSource, ConstantVectorSource
@@ -18,6 +23,7 @@ from physcap_drake.recording import topics
 from physcap_drake.recording.mcap_recorder import GRIPPER_JOINT, McapRecorder
 from physcap_drake.recording.mcap_sink import McapSink
 from physcap_drake.recording.reading import read_recording
+from physcap_drake.recording.replay import replay_in_meshcat, replay_samples
 from physcap_drake.recording.time_base import (
     SIMULATED,
     START_DATE_NS,
@@ -36,6 +42,8 @@ ARM_V = np.array([0.0, 0.01, -0.02, 0.0, 0.0, 0.03])  # rad/s
 ARM_TAU = np.array([0.0, 3.2, -1.5, 0.1, 0.2, 0.0])  # N·m
 OPENING, EFFORT = 0.042, 0.35  # m, fraction of the maximum
 DURATION, STATE_PERIOD, IMAGE_PERIOD = 0.3, 0.04, 0.1  # s
+#: The episode a recording says it is (replay rebuilds this task's scene to pose it).
+REPLAYED_EPISODE = {"task": "identify_empty_can", "seed": "0"}
 
 
 def _recorder_diagram(sink, time_base=None):
@@ -71,6 +79,7 @@ def _recorder_run(tmp_path):
     (recording, model, joint names, TCP frame)."""
     path = tmp_path / "recorder.mcap"
     sink = McapSink(path)
+    sink.metadata(topics.EPISODE_METADATA, REPLAYED_EPISODE)
     diagram, _, model, joint_names, tcp = _recorder_diagram(sink)
     simulator = Simulator(diagram)
     simulator.AdvanceTo(DURATION + 1e-3)  # events at DURATION itself are taken too
@@ -178,17 +187,19 @@ class FakeClocks:
         return self.DATE_NS
 
 
-def test_on_wall_clock_time_log_times_follow_the_monotonic_clock_not_the_simulator(tmp_path):
+@pytest.fixture(scope="module")
+def wall_clock_file(tmp_path_factory):
+    """A recording on wall-clock time (fake clocks) where the simulator stands still while
+    the agent waits 40 s for a model: what is written meanwhile is logged when written."""
     clocks = FakeClocks()
-    path = tmp_path / "wall.mcap"
+    path = tmp_path_factory.mktemp("wall") / "wall.mcap"
     sink = McapSink(path)
+    sink.metadata(topics.EPISODE_METADATA, REPLAYED_EPISODE)
     diagram, recorder, *_ = _recorder_diagram(
         sink, WallClockTime(now_ns=clocks.now_ns, monotonic_ns=clocks.monotonic_ns))
     simulator = Simulator(diagram)
     simulator.Initialize()  # the episode starts: the monotonic clock's origin
     context = recorder.GetMyContextFromRoot(simulator.get_context())
-    # The simulator stands still while the agent waits 40 s for a model: what is written
-    # meanwhile is logged at the wall-clock time it is written.
     clocks.monotonic += 1_500_000_000
     recorder.record_image_now(context)
     clocks.monotonic += 38_500_000_000
@@ -197,7 +208,12 @@ def test_on_wall_clock_time_log_times_follow_the_monotonic_clock_not_the_simulat
     clocks.monotonic += 2_000_000  # the next state sample, 2 ms later
     simulator.AdvanceTo(STATE_PERIOD + 1e-6)
     sink.close()
-    recording = read_recording(path)
+    return path
+
+
+def test_on_wall_clock_time_log_times_follow_the_monotonic_clock_not_the_simulator(
+        wall_clock_file):
+    recording = read_recording(wall_clock_file)
     assert recording.time_base == WALL_CLOCK
     assert recording.episode_start_ns == FakeClocks.DATE_NS
     assert recording.metadata[TIME_METADATA][START_DATE_UTC] == (
@@ -211,6 +227,78 @@ def test_on_wall_clock_time_log_times_follow_the_monotonic_clock_not_the_simulat
     progress = recording.on(topics.AGENT_PROGRESS)[0]
     assert progress.episode_time_ns == 40_000_000_000 and progress.value["sim_time_s"] == 0.0
     assert progress.log_time_ns == FakeClocks.DATE_NS + 40_000_000_000
+
+
+def _as_an_older_recording(path, out):
+    """`path` rewritten as the recorder wrote it before the time base: log times from 0
+    (the simulated time) and no physcap.time metadata."""
+    with path.open("rb") as source, out.open("wb") as stream:
+        reader = make_reader(source)
+        start = int(dict(next(m for m in reader.iter_metadata()
+                              if m.name == TIME_METADATA).metadata)[START_DATE_NS])
+        writer = Writer(stream)
+        writer.start()
+        for record in reader.iter_metadata():
+            if record.name != TIME_METADATA:
+                writer.add_metadata(record.name, dict(record.metadata))
+        schemas, channels = {}, {}
+        for schema, channel, message in reader.iter_messages(log_time_order=False):
+            if channel.id not in channels:
+                if schema.id not in schemas:
+                    schemas[schema.id] = writer.register_schema(schema.name, schema.encoding,
+                                                                schema.data)
+                channels[channel.id] = writer.register_channel(
+                    channel.topic, channel.message_encoding, schemas[schema.id])
+            writer.add_message(channels[channel.id], message.log_time - start,
+                               message.data, message.publish_time - start)
+        writer.finish()
+    return out
+
+
+def test_replay_reads_back_the_episode_axis_whatever_the_time_base(run, wall_clock_file,
+                                                                   tmp_path):
+    """Simulated time; wall-clock time, with 40 s passed while the simulator stood still;
+    and a recording from before the start date was recorded, read from 0, saying so."""
+    simulated = read_recording(run[0].path)
+    older = read_recording(_as_an_older_recording(run[0].path, tmp_path / "older.mcap"))
+    wall = read_recording(wall_clock_file)
+    on_the_state_period = [k * STATE_PERIOD for k in range(8)]
+    for recording, times, note in (
+            (simulated, on_the_state_period, "times are simulated time since then"),
+            (older, on_the_state_period, "records no start date (an older recording)"),
+            (wall, [0.0, 40.002], "times are wall-clock time since then")):
+        samples = replay_samples(recording)
+        assert [s.time_s for s in samples] == pytest.approx(times, abs=1e-9), note
+        assert note in recording.time_base_note
+        assert samples[-1].joints["gripper"] == pytest.approx(OPENING)
+        assert topics.FINGERTIP_FRAME in {t.child_frame_id for t in samples[-1].transforms}
+    assert older.episode_start_ns == 0 and older.time_base == ""
+    assert [m.log_time_ns for m in older.messages] == [
+        m.episode_time_ns for m in simulated.messages]
+
+
+def test_the_meshcat_replay_animates_a_wall_clock_recording_on_its_own_axis(wall_clock_file):
+    replayed = replay_in_meshcat(wall_clock_file, Meshcat())
+    assert (replayed.task, replayed.seed, replayed.samples) == ("identify_empty_can", 0, 2)
+    assert replayed.duration_s == pytest.approx(40.002, abs=1e-9)  # s, the wait included
+
+
+def test_every_json_message_follows_its_schema_and_carries_its_simulated_time(run):
+    """What Foxglove and other readers are told to expect: sim_time_s is required."""
+    validated = 0
+    with run[0].path.open("rb") as stream:
+        for schema, channel, message in make_reader(stream).iter_messages():
+            if schema.encoding != "jsonschema":
+                continue
+            validator = Draft202012Validator(json.loads(schema.data))
+            value = json.loads(message.data)
+            assert not list(validator.iter_errors(value)), channel.topic
+            assert value["sim_time_s"] * 1e9 == pytest.approx(
+                message.log_time - run[0].episode_start_ns, abs=1.0)
+            del value["sim_time_s"]
+            assert "sim_time_s" in next(validator.iter_errors(value)).message
+            validated += 1
+    assert validated == len(run[0].on(topics.GRIPPER_STATE)) > 0
 
 
 def test_a_recording_holds_one_episode(tmp_path):
