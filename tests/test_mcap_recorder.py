@@ -9,7 +9,7 @@ import time
 import numpy as np
 import pytest
 from jsonschema import Draft202012Validator
-from mcap.reader import make_reader
+from mcap.reader import NonSeekingReader, make_reader
 from mcap.writer import Writer
 from pydrake.common.value import AbstractValue
 from pydrake.geometry import Meshcat
@@ -299,6 +299,24 @@ def test_every_json_message_follows_its_schema_and_carries_its_simulated_time(ru
             assert "sim_time_s" in next(validator.iter_errors(value)).message
             validated += 1
     assert validated == len(run[0].on(topics.GRIPPER_STATE)) > 0
+
+
+def test_a_recording_cut_short_still_knows_its_start_and_publish_times_are_log_times(
+        tmp_path):
+    """What a killed run leaves (flushed, never closed) is read on the episode's axis."""
+    clocks = FakeClocks()
+    sink = McapSink(tmp_path / "cut.mcap")
+    sink.start_episode(WallClockTime(now_ns=clocks.now_ns, monotonic_ns=clocks.monotonic_ns))
+    clocks.monotonic += 2_500_000_000
+    sink.gripper_state(0.0, OPENING, EFFORT)
+    sink.flush()
+    recording = read_recording(sink.path)
+    assert not recording.complete and recording.time_base == WALL_CLOCK
+    assert [m.episode_time_ns for m in recording.messages] == [2_500_000_000]
+    with sink.path.open("rb") as stream:
+        (_, _, message), = NonSeekingReader(stream).iter_messages()
+    assert message.publish_time == message.log_time == FakeClocks.DATE_NS + 2_500_000_000
+    sink.close()
 
 
 def test_a_recording_holds_one_episode(tmp_path):
