@@ -138,7 +138,7 @@ def test_a_replayed_run_gives_identical_results(tmp_path):
 
     def motion(folder):
         recording = read_recording(folder / "episode.mcap")
-        return [(m.log_time_ns, [(j.position, j.effort) for j in m.value.joints])
+        return [(m.episode_time_ns, [(j.position, j.effort) for j in m.value.joints])
                 for m in recording.on(topics.JOINT_STATES)]
 
     assert motion(tmp_path / "first") == motion(tmp_path / "again")

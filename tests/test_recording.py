@@ -25,6 +25,7 @@ from physcap_drake.app.episode_folder import record_episode
 from physcap_drake.app.replay import ReplayError, replay_in_meshcat, transcript_markdown
 from physcap_drake.recording import topics
 from physcap_drake.recording.reading import read_recording
+from physcap_drake.recording.time_base import KIND, SIMULATED, START_DATE_NS, TIME_METADATA
 
 TASK, SEED = "identify_empty_can", 0
 
@@ -47,11 +48,17 @@ EXPECTED_SCHEMAS = {
 }
 
 
+#: When the module's episode was recorded: (before, after), ns since the Unix epoch.
+_RECORDED_BETWEEN: list[int] = []
+
+
 @pytest.fixture(scope="module")
 def episode_folder(tmp_path_factory):
     folder = tmp_path_factory.mktemp("episode")
+    _RECORDED_BETWEEN.append(time.time_ns())
     run = record_episode(folder, TASK, SEED, agent="physcap", llm="reference",
                          meshcat_html=True, meshcat=Meshcat())
+    _RECORDED_BETWEEN.append(time.time_ns())
     assert run.outcome.success
     return folder
 
@@ -92,6 +99,21 @@ def test_joint_states_and_frames_carry_the_robot_signals(recording):
     assert {"red_can::red_can", "piper::link6"} <= children or any(
         c.startswith("red_can::") for c in children)
     assert all(t.parent_frame_id == topics.WORLD_FRAME for t in frames)
+
+
+def test_a_simulated_episode_starts_at_its_real_date_and_logs_simulated_time(recording):
+    """Foxglove shows the date the episode ran; log times are that date plus simulated
+    time, and the simulated time of every JSON message is in it as sim_time_s."""
+    before, after = _RECORDED_BETWEEN
+    meta = recording.metadata[TIME_METADATA]
+    assert meta[KIND] == SIMULATED
+    assert before <= recording.episode_start_ns == int(meta[START_DATE_NS]) <= after
+    states = recording.on(topics.JOINT_STATES)
+    assert states[0].log_time_ns == recording.episode_start_ns  # the first sample, t = 0
+    for message in recording.messages:
+        if isinstance(message.value, dict):
+            assert message.episode_time_ns == round(message.value["sim_time_s"] * 1e9)
+    assert min(m.log_time_ns for m in recording.messages) == recording.episode_start_ns
 
 
 def test_every_json_message_follows_its_own_schema(episode_folder):
@@ -162,8 +184,10 @@ def test_episode_folder_holds_transcript_summary_and_calls(episode_folder, recor
                 "git_dirty"):
         assert key in summary, key
     assert summary["success"] is True and summary["oi"] >= 1
-    assert summary == {**recording.on(topics.EPISODE_SUMMARY)[0].value,
-                       "git_commit": summary["git_commit"], "git_dirty": summary["git_dirty"]}
+    recorded = dict(recording.on(topics.EPISODE_SUMMARY)[0].value)
+    assert recorded.pop("sim_time_s") >= summary["robot_time_s"]
+    assert summary == {**recorded, "git_commit": summary["git_commit"],
+                       "git_dirty": summary["git_dirty"]}
     transcript = (episode_folder / "transcript.md").read_text()
     assert "# Code block 0" in transcript and "# Code block 1" in transcript
     assert "**Instruction:** Four soda cans" in transcript
@@ -339,7 +363,7 @@ def _record_a_reach(path: Path, monkeypatch=None, kinematic: bool = False):
     position = episode.api.get_object_pose("red can")
     episode.api.goto_pose(position + np.array([0.0, 0.0, 0.15]))
     sink.close()
-    return {m.log_time_ns: {t.child_frame_id: t for t in m.value.transforms}
+    return {m.episode_time_ns: {t.child_frame_id: t for t in m.value.transforms}
             for m in read_recording(path).on(topics.TRANSFORMS)}
 
 

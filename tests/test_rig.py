@@ -5,6 +5,8 @@ refuses, and the operator as judge."""
 
 from __future__ import annotations
 
+import time
+
 import numpy as np
 import pytest
 from conftest import unique_channel
@@ -23,6 +25,7 @@ from physcap_drake.recording import topics
 from physcap_drake.recording.mcap_recorder import make_mcap_recorder
 from physcap_drake.recording.mcap_sink import McapSink
 from physcap_drake.recording.reading import read_recording
+from physcap_drake.recording.time_base import WALL_CLOCK
 from physcap_drake.resources import stations_dir
 from physcap_drake.robot_stack import build_robot_stack
 from physcap_drake.scenario import load_scenario, load_scenario_text
@@ -145,8 +148,10 @@ def test_a_rig_without_a_world_records_images_and_frames_from_the_joints(tmp_pat
     try:
         station = robot.station
         assert isinstance(station.GetSubsystemByName("realsense_camera"), RealSenseCamera)
+        started = time.time_ns(), time.monotonic_ns()
         clock = robot.make_clock()
         clock.run_for(1.2)
+        ran_ns = time.monotonic_ns() - started[1]
         context = station.GetMyContextFromRoot(clock.context)
         assert station.GetOutputPort(ports.CAMERA_RGB).Eval(context).data[:, :, :3].std() > 5
         with pytest.raises(RuntimeError, match=r"camera.label is simulation-only ground truth, "
@@ -167,6 +172,10 @@ def test_a_rig_without_a_world_records_images_and_frames_from_the_joints(tmp_pat
     names = {t.child_frame_id for t in frames[-1].value.transforms}
     assert {topics.FINGERTIP_FRAME, "piper::link6"} <= names
     assert recorded.on(topics.SCENE)  # the robot's own geometry
+    # On a CAN station log times are wall-clock time since the diagram started.
+    assert recorded.time_base == WALL_CLOCK
+    assert started[0] <= recorded.episode_start_ns <= started[0] + ran_ns
+    assert 0 <= frames[0].episode_time_ns <= frames[-1].episode_time_ns <= ran_ns
 
 
 def test_an_emulated_camera_needs_a_world_to_render():

@@ -4,6 +4,9 @@ The recording's metadata names the task and seed; the scene is rebuilt from them
 only: nothing is simulated), then each recorded sample poses it: the arm's joints and the
 gripper's fingers from `/piper/joint_states`, every free object from `/tf`. The samples go into
 a Meshcat animation, which the browser plays (and `save_meshcat_html` can keep as one file).
+The animation runs on the episode's axis: log times minus the recorded start date (simulated
+time, or wall-clock time since the start for an episode on the CAN station; see
+`reading.Recording.time_base_note`).
 """
 
 from __future__ import annotations
@@ -32,7 +35,8 @@ class ReplayError(ValueError):
 @dc.dataclass(frozen=True)
 class ReplayedEpisode:
     """What was replayed: the recording, its task and seed, the number of samples, the names
-    of the objects moved from recorded transforms, and the animation's length (s)."""
+    of the objects moved from recorded transforms, and the animation's length (s on the
+    episode's axis: see `recording.time_base_note`)."""
 
     recording: Recording
     task: str
@@ -50,15 +54,36 @@ def episode_particulars(recording: Recording) -> tuple[str, int]:
     return meta["task"], int(meta["seed"])
 
 
+@dc.dataclass(frozen=True)
+class ReplaySample:
+    """One pose of the recorded scene: its time on the episode's axis (s), the joints'
+    positions by recorded name (rad; the gripper's opening, m, under GRIPPER_JOINT) and the
+    frame transforms recorded at the same moment (foxglove.FrameTransform, world frame)."""
+
+    time_s: float
+    joints: dict[str, float]
+    transforms: tuple
+
+
+def replay_samples(recording: Recording) -> list[ReplaySample]:
+    """The recording's joint states, each with the transforms of the same moment, on the
+    episode's axis (see the module docstring). Raises ReplayError without joint states."""
+    states = recording.on(topics.JOINT_STATES)
+    if not states:
+        raise ReplayError(f"{recording.path} holds no joint states ({topics.JOINT_STATES}) "
+                          "to replay")
+    transforms = {m.log_time_ns: m.value.transforms for m in recording.on(topics.TRANSFORMS)}
+    return [ReplaySample(m.time_s, {state.name: state.position for state in m.value.joints},
+                         tuple(transforms.get(m.log_time_ns, ())))
+            for m in states]
+
+
 def replay_in_meshcat(path: str | Path, meshcat: Meshcat) -> ReplayedEpisode:
     """Builds the recorded episode's scene in `meshcat` and loads its motion as an animation
     (see the module docstring). Raises ReplayError or FileNotFoundError."""
     recording = read_recording(path)
     task, seed = episode_particulars(recording)
-    states = recording.on(topics.JOINT_STATES)
-    if not states:
-        raise ReplayError(f"{path} holds no joint states ({topics.JOINT_STATES}) to replay")
-    transforms = {m.log_time_ns: m.value for m in recording.on(topics.TRANSFORMS)}
+    samples = replay_samples(recording)
     episode = make_episode(task, seed, meshcat=meshcat)
     diagram = episode.robot.diagram
     context = diagram.CreateDefaultContext()
@@ -71,16 +96,15 @@ def replay_in_meshcat(path: str | Path, meshcat: Meshcat) -> ReplayedEpisode:
                    for i in plant.GetFloatingBaseBodies()}
     moved: set[str] = set()
     meshcat.StartRecording(frames_per_second=32.0, set_visualizations_while_recording=False)
-    for message in states:
-        context.SetTime(message.time_s)
-        for state in message.value.joints:
-            if state.name == GRIPPER_JOINT:
+    for sample in samples:
+        context.SetTime(sample.time_s)
+        for name, position in sample.joints.items():
+            if name == GRIPPER_JOINT:
                 for finger in fingers:
-                    finger.set_translation(plant_context, 0.5 * state.position)
-            elif state.name in joints:
-                joints[state.name].set_angle(plant_context, state.position)
-        frame = transforms.get(message.log_time_ns)
-        for transform in (frame.transforms if frame is not None else []):
+                    finger.set_translation(plant_context, 0.5 * position)
+            elif name in joints:
+                joints[name].set_angle(plant_context, position)
+        for transform in sample.transforms:
             body = free_bodies.get(transform.child_frame_id)
             if body is not None:
                 plant.SetFreeBodyPose(plant_context, body, _rigid_transform(transform))
@@ -88,8 +112,8 @@ def replay_in_meshcat(path: str | Path, meshcat: Meshcat) -> ReplayedEpisode:
         diagram.ForcedPublish(context)
     meshcat.StopRecording()
     meshcat.PublishRecording()
-    return ReplayedEpisode(recording, task, seed, len(states), tuple(sorted(moved)),
-                           states[-1].time_s)
+    return ReplayedEpisode(recording, task, seed, len(samples), tuple(sorted(moved)),
+                           samples[-1].time_s)
 
 
 def _finger_joints(plant, scenario) -> list:
@@ -106,8 +130,9 @@ def transcript_markdown(recording: Recording) -> str:
     """The recorded transcript, rendered as in transcript.md (with the task's instruction
     and, for a finished episode, its outcome)."""
     transcript = Transcript()
-    transcript.entries = [TranscriptEntry(**m.value) for m in
-                          recording.on(topics.AGENT_TRANSCRIPT)]
+    fields = {field.name for field in dc.fields(TranscriptEntry)}
+    transcript.entries = [TranscriptEntry(**{k: v for k, v in m.value.items() if k in fields})
+                          for m in recording.on(topics.AGENT_TRANSCRIPT)]
     meta = recording.metadata.get(topics.EPISODE_METADATA, {})
     task = meta.get("task", "")
     title = (f"{task}, seed {meta.get('seed')}, agent {meta.get('agent')}" if task else

@@ -48,8 +48,9 @@ def replay(
     frame_on_table(meshcat, contact_forces=contact_forces)
     if not quiet:
         console.print(transcript_markdown(replayed.recording), markup=False, highlight=False)
+    console.print(replayed.recording.time_base_note, markup=False, highlight=False)
     console.print(f"{replayed.task}, seed {replayed.seed}: {replayed.samples} samples over "
-                  f"{replayed.duration_s:.1f} s of robot time, "
+                  f"{replayed.duration_s:.1f} s of episode time, "
                   f"{len(replayed.moved_objects)} objects moved from recorded frames")
     if html is not None:
         save_meshcat_html(meshcat, html)

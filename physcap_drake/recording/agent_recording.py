@@ -1,8 +1,9 @@
 """AgentRecording: the agent's side of a recording, fed by the episode's hooks.
 
 The McapRecorder in the diagram records what the station reports; this records what the agent
-does, at the simulated time it happens (time stands still while the agent thinks, so several
-messages can share one time): every transcript entry (to the Log panel, the transcript topic
+does, at the simulated time it happens (the sink turns it into the log time on the episode's
+time base; on the simulated station time stands still while the agent thinks, so several
+messages can share one log time): every transcript entry (to the Log panel, the transcript topic
 and its own topic), every language-model call, each change of the agent's phase, a camera image
 at every observation, the episode's particulars as metadata and, at the end, its summary.
 """

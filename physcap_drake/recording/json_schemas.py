@@ -1,7 +1,10 @@
 """JSON Schemas of the agent's recorded messages (the `physcap.*` schemas of `topics`).
 
 Every agent message is a transcript entry: its kind, the code block it belongs to, the robot
-time (s), a readable text and, under `data`, the structured content for that topic.
+time (s), a readable text and, under `data`, the structured content for that topic. Every JSON
+message of a recording also carries `sim_time_s`, the simulator's time when it was written:
+its log time is on the episode's time base (see `time_base`), which on the CAN station is
+wall-clock time, so the simulated time would otherwise be lost.
 """
 
 from __future__ import annotations
@@ -33,6 +36,22 @@ def _entry_schema(data_schema: dict[str, Any]) -> dict[str, Any]:
     if definitions:
         schema["$defs"] = definitions
     return schema
+
+
+#: The key of every JSON message's simulated time, s.
+SIM_TIME_KEY = "sim_time_s"
+
+_SIM_TIME = {"type": "number", "minimum": 0,
+             "description": "the simulator's time when the message was written, s (the log "
+                            "time is on the episode's time base: see the physcap.time "
+                            "metadata)"}
+
+
+def _with_sim_time(schema: dict[str, Any]) -> dict[str, Any]:
+    """`schema` (an object's) with the required `sim_time_s` property every recorded JSON
+    message has."""
+    return {**schema, "properties": {**schema["properties"], SIM_TIME_KEY: _SIM_TIME},
+            "required": [*schema.get("required", []), SIM_TIME_KEY]}
 
 
 #: The JSON Schema version of every schema here (pydantic writes 2020-12 schemas).
@@ -71,7 +90,7 @@ _SUMMARY = {"type": "object", "properties": {
 
 def agent_schemas() -> dict[str, tuple[str, dict[str, Any]]]:
     """topic -> (schema name, JSON Schema) for every JSON topic of a recording."""
-    return {
+    schemas = {
         topics.AGENT_TRANSCRIPT: ("physcap.TranscriptEntry", _entry_schema(_ANY_OBJECT)),
         topics.AGENT_PLANNER: ("physcap.PlannerAnswer",
                                _entry_schema(PlannerAnswer.model_json_schema())),
@@ -86,3 +105,4 @@ def agent_schemas() -> dict[str, tuple[str, dict[str, Any]]]:
         topics.AGENT_PROGRESS: ("physcap.AgentProgress", _PROGRESS),
         topics.EPISODE_SUMMARY: ("physcap.EpisodeSummary", _SUMMARY),
     }
+    return {topic: (name, _with_sim_time(schema)) for topic, (name, schema) in schemas.items()}

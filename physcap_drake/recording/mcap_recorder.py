@@ -13,7 +13,10 @@ From these it writes, by periodic publish events (so the simulation's state is u
 - every `image_period` s: the camera image as JPEG (images are rendered only then);
 - every `flush_period` s: a flush, so a killed process leaves a readable file.
 
-The scene's geometry (SceneUpdate) is written once, at the first state sample.
+The scene's geometry (SceneUpdate) is written once, when the diagram initializes; that is also
+when the recorder starts the sink's episode on its time base (see `time_base`: simulated time
+for the simulated arm, wall-clock time for a CAN station), so the recording's start date is
+the moment the episode's diagram started. All messages of one event share one log time.
 """
 
 from __future__ import annotations
@@ -29,8 +32,9 @@ from pydrake.systems.sensors import ImageRgba8U
 from physcap_drake.control.planning_model import TCP_FRAME, PlanningModel
 from physcap_drake.perception.jpeg import encode_jpeg
 from physcap_drake.recording import topics
-from physcap_drake.recording.mcap_sink import McapSink, frame_transform
+from physcap_drake.recording.mcap_sink import McapSink
 from physcap_drake.recording.scene_geometry import body_frame_name, scene_update
+from physcap_drake.recording.time_base import TimeBase, time_base_for
 from physcap_drake.station import ports
 from physcap_drake.station.robot_model import moving_joints
 
@@ -53,13 +57,15 @@ class McapRecorder(LeafSystem):
         camera_frame: frame id written with the camera images.
         state_period, image_period, flush_period: s of simulated time (image_period 0: no
             periodic images; `record_image_now` still works).
+        time_base: the episode's time base, started when the diagram initializes (default:
+            simulated time; `make_mcap_recorder` picks it from the station).
     """
 
     def __init__(self, sink: McapSink, joint_names: list[str], *,
                  plant: MultibodyPlant | None = None, scene_graph=None, kinematics=None,
                  fingertip: tuple | None = None, camera_frame: str = "camera",
                  state_period: float = 0.04, image_period: float = 2.0,
-                 flush_period: float = 1.0):
+                 flush_period: float = 1.0, time_base: TimeBase | None = None):
         super().__init__()
         if len(joint_names) != ports.NUM_ARM_JOINTS:
             raise ValueError(f"joint_names needs {ports.NUM_ARM_JOINTS} names, got "
@@ -73,6 +79,7 @@ class McapRecorder(LeafSystem):
             raise ValueError("give either plant (poses from body_poses) or kinematics "
                              "(poses from the joints), not both")
         self._sink = sink
+        self._time_base = time_base
         self._joint_names = [*joint_names, GRIPPER_JOINT]
         self._kinematics = kinematics
         if kinematics is not None:
@@ -94,7 +101,7 @@ class McapRecorder(LeafSystem):
                             for b in _body_indices(plant)]
             self._fingertip = None if fingertip is None else (int(fingertip[0].index()),
                                                               fingertip[1])
-        self.DeclareInitializationPublishEvent(self._write_scene)
+        self.DeclareInitializationPublishEvent(self._start)
         self.DeclarePeriodicPublishEvent(state_period, 0.0, self._write_state)
         if image_period > 0.0:
             self.DeclarePeriodicPublishEvent(image_period, 0.0, self._write_image)
@@ -110,31 +117,31 @@ class McapRecorder(LeafSystem):
 
     # --- events --------------------------------------------------------------------------
 
-    def _write_scene(self, context: Context) -> EventStatus:
+    def _start(self, context: Context) -> EventStatus:
+        """Starts the sink's episode, then writes the scene's geometry."""
+        self._sink.start_episode(self._time_base)
         if self._plant is not None and self._scene_graph is not None:
-            self._sink.scene(context.get_time(), scene_update(self._plant, self._scene_graph,
-                                                              context.get_time()))
+            at = self._sink.stamp(context.get_time())
+            self._sink.scene(at, scene_update(self._plant, self._scene_graph, at.timestamp))
         return EventStatus.Succeeded()
 
     def _write_state(self, context: Context) -> EventStatus:
-        time_s = context.get_time()
+        at = self._sink.stamp(context.get_time())
         value = {name: port.Eval(context) for name, port in self._vectors.items()}
         position = np.append(value[ports.ARM_POSITION_MEASURED],
                              value[ports.GRIPPER_POSITION_MEASURED])
         velocity = np.append(value[ports.ARM_VELOCITY_ESTIMATED], np.nan)
         effort = np.append(value[ports.ARM_TORQUE_MEASURED], np.nan)  # gripper: a fraction
-        self._sink.joint_states(time_s, self._joint_names, position, velocity, effort)
-        self._sink.gripper_state(time_s, value[ports.GRIPPER_POSITION_MEASURED][0],
+        self._sink.joint_states(at, self._joint_names, position, velocity, effort)
+        self._sink.gripper_state(at, value[ports.GRIPPER_POSITION_MEASURED][0],
                                  value[ports.GRIPPER_EFFORT_MEASURED][0])
         poses = self._poses(context, value)
         if poses is not None:
-            transforms = [frame_transform(time_s, name, poses[index])
-                          for index, name in self._frames]
+            frames = [(name, poses[index]) for index, name in self._frames]
             if self._fingertip is not None:
                 body, X_BF = self._fingertip
-                transforms.append(frame_transform(time_s, topics.FINGERTIP_FRAME,
-                                                  poses[body] @ X_BF))
-            self._sink.transforms(time_s, transforms)
+                frames.append((topics.FINGERTIP_FRAME, poses[body] @ X_BF))
+            self._sink.transforms(at, frames)
         return EventStatus.Succeeded()
 
     def _poses(self, context: Context, joints: dict) -> list | None:
@@ -150,8 +157,9 @@ class McapRecorder(LeafSystem):
                 for index in (BodyIndex(i) for i in range(plant.num_bodies()))]
 
     def _write_image(self, context: Context) -> EventStatus:
+        at = self._sink.stamp(context.get_time())
         rgb = self._rgb.Eval(context).data
-        self._sink.camera_image(context.get_time(), encode_jpeg(rgb), self._camera_frame)
+        self._sink.camera_image(at, encode_jpeg(rgb), self._camera_frame)
         return EventStatus.Succeeded()
 
     def _flush(self, context: Context) -> EventStatus:
@@ -168,7 +176,8 @@ def make_mcap_recorder(sink: McapSink, station, scenario, *, image_period: float
                        ) -> McapRecorder:
     """The recorder for a built station: joint names from the arm model; the bodies, geometry
     and the gripper's TCP frame (as the fingertip) of the station's simulated world
-    (subsystems "plant" and "scene_graph") when it has one, else of the robot's model."""
+    (subsystems "plant" and "scene_graph") when it has one, else of the robot's model; the
+    episode's time base chosen by the scenario's kind of station (`time_base_for`)."""
     config = scenario.station
     if station.HasSubsystemNamed("plant") and station.HasSubsystemNamed("scene_graph"):
         kinematics = None
@@ -183,6 +192,7 @@ def make_mcap_recorder(sink: McapSink, station, scenario, *, image_period: float
     fingertip = (tcp.body(), tcp.GetFixedPoseInBodyFrame())
     if kinematics is not None:
         return McapRecorder(sink, joint_names, kinematics=kinematics, fingertip=fingertip,
-                            image_period=image_period)
+                            image_period=image_period, time_base=time_base_for(config))
     return McapRecorder(sink, joint_names, plant=plant, scene_graph=scene_graph,
-                        fingertip=fingertip, image_period=image_period)
+                        fingertip=fingertip, image_period=image_period,
+                        time_base=time_base_for(config))

@@ -1,6 +1,12 @@
 """McapSink: one episode's MCAP file and its channels, written with foxglove-sdk.
 
-The sink owns the file; diagram systems and the agent loop hand it messages with their time.
+The sink owns the file; diagram systems and the agent loop hand it messages with their
+simulated time, and the sink's episode time base (see `time_base`) turns that into the log time:
+the episode's start date plus simulated time (simulated station) or plus wall-clock time since
+the start (CAN station). The recorder starts the episode when the diagram initializes
+(`start_episode`), which writes the time base's metadata record; a sink used without one
+starts a simulated-time episode at its first message. Every JSON message carries its
+simulated time as `sim_time_s`, and Foxglove's messages carry the log time as their timestamp.
 It keeps the file readable whatever happens to the process: `flush()` ends the current chunk
 and puts it on disk followed by a provisional end (see `crash_safe_file`; the recorder flushes
 every second of simulated time and after every agent message), and `close()` writes the
@@ -10,6 +16,7 @@ flush; what was flushed opens in any MCAP reader as it is.
 
 from __future__ import annotations
 
+import dataclasses as dc
 import json
 from pathlib import Path
 from typing import Any
@@ -40,7 +47,8 @@ from pydrake.math import RigidTransform
 
 from physcap_drake.recording import topics
 from physcap_drake.recording.crash_safe_file import CrashSafeFile
-from physcap_drake.recording.json_schemas import agent_schemas
+from physcap_drake.recording.json_schemas import SIM_TIME_KEY, agent_schemas
+from physcap_drake.recording.time_base import TIME_METADATA, SimulatedTime, TimeBase
 
 #: Target uncompressed size of an MCAP chunk, bytes (a flush also ends a chunk).
 CHUNK_SIZE = 256 * 1024
@@ -48,28 +56,37 @@ CHUNK_SIZE = 256 * 1024
 _LOG_LEVEL_OF_KIND = {"error": LogLevel.Error, "result": LogLevel.Warning}
 
 
-def timestamp(time_s: float) -> Timestamp:
-    """A Foxglove timestamp from a simulator time in seconds."""
-    nanoseconds = nanoseconds_of(time_s)
-    return Timestamp(sec=nanoseconds // 1_000_000_000, nsec=nanoseconds % 1_000_000_000)
+@dc.dataclass(frozen=True)
+class Stamp:
+    """When a message is written: its log time (ns since the Unix epoch, UTC, on the
+    episode's time base) and the simulator's time then (s)."""
+
+    log_time_ns: int
+    sim_time_s: float
+
+    @property
+    def timestamp(self) -> Timestamp:
+        """The log time as a Foxglove timestamp."""
+        return Timestamp(sec=self.log_time_ns // 1_000_000_000,
+                         nsec=self.log_time_ns % 1_000_000_000)
 
 
-def nanoseconds_of(time_s: float) -> int:
-    return int(round(max(time_s, 0.0) * 1e9))
-
-
-def frame_transform(time_s: float, child: str, X_WC: RigidTransform,
+def frame_transform(at: Stamp, child: str, X_WC: RigidTransform,
                     parent: str = topics.WORLD_FRAME) -> FrameTransform:
     """The pose of frame `child` in frame `parent` as a Foxglove transform."""
     p = X_WC.translation()
     q = X_WC.rotation().ToQuaternion()
-    return FrameTransform(timestamp=timestamp(time_s), parent_frame_id=parent,
+    return FrameTransform(timestamp=at.timestamp, parent_frame_id=parent,
                           child_frame_id=child, translation=Vector3(x=p[0], y=p[1], z=p[2]),
                           rotation=Quaternion(x=q.x(), y=q.y(), z=q.z(), w=q.w()))
 
 
 class McapSink:
-    """Writes one recording to `path` (which must not exist unless `overwrite`)."""
+    """Writes one recording to `path` (which must not exist unless `overwrite`).
+
+    Every method that writes a message takes `at`: the simulator's time in s (stamped now on
+    the episode's time base) or a `Stamp` from `stamp()` (so that several messages of one
+    moment share one log time)."""
 
     def __init__(self, path: str | Path, *, overwrite: bool = False):
         self.path = Path(path)
@@ -91,61 +108,99 @@ class McapSink:
                 name=name, encoding="jsonschema", data=json.dumps(schema).encode()),
                 message_encoding="json")
             for topic, (name, schema) in agent_schemas().items()}
+        self._time_base: TimeBase | None = None
         self.closed = False
+
+    # --- time ----------------------------------------------------------------------------
+
+    def start_episode(self, time_base: TimeBase | None = None) -> None:
+        """Starts the episode now on `time_base` (default: simulated time) and records the
+        start date and the kind of time base in the `time_base.TIME_METADATA` record.
+        Raises RuntimeError if the episode already started (once per recording)."""
+        if self._time_base is not None:
+            raise RuntimeError(
+                f"{self.path}: the episode already started on {self._time_base.kind} time; "
+                "a recording holds one episode")
+        time_base = time_base if time_base is not None else SimulatedTime()
+        time_base.start()
+        self._time_base = time_base
+        self.metadata(TIME_METADATA, time_base.metadata())
+
+    @property
+    def time_base(self) -> TimeBase | None:
+        """The episode's time base (None before the episode started)."""
+        return self._time_base
+
+    def stamp(self, sim_time_s: float) -> Stamp:
+        """The stamp of a message written now at simulated time `sim_time_s` (s)."""
+        if self._time_base is None:
+            self.start_episode()
+        return Stamp(self._time_base.log_time_ns(sim_time_s), float(sim_time_s))
+
+    def _stamp(self, at: float | Stamp) -> Stamp:
+        return at if isinstance(at, Stamp) else self.stamp(at)
 
     # --- robot and scene -----------------------------------------------------------------
 
-    def joint_states(self, time_s: float, names: list[str], position: np.ndarray,
+    def joint_states(self, at: float | Stamp, names: list[str], position: np.ndarray,
                      velocity: np.ndarray, effort: np.ndarray) -> None:
         """One sample of joint states (SI units; see topics.JOINT_STATES). A NaN value is
         left out of the message (e.g. the gripper's velocity, which the arm does not report)."""
+        at = self._stamp(at)
         joints = [JointState(name=n, **{key: float(x) for key, x in
                                         (("position", p), ("velocity", v), ("effort", e))
                                         if not np.isnan(x)})
                   for n, p, v, e in zip(names, position, velocity, effort, strict=True)]
-        self._joint_states.log(JointStates(timestamp=timestamp(time_s), joints=joints),
-                               log_time=nanoseconds_of(time_s))
+        self._joint_states.log(JointStates(timestamp=at.timestamp, joints=joints),
+                               log_time=at.log_time_ns)
 
-    def gripper_state(self, time_s: float, opening_m: float, effort: float) -> None:
+    def gripper_state(self, at: float | Stamp, opening_m: float, effort: float) -> None:
         """The gripper's opening (m) and measured effort (fraction 0..1 of its maximum)."""
-        self.json(topics.GRIPPER_STATE, time_s, {"opening_m": float(opening_m),
-                                                 "effort": float(effort)})
+        self.json(topics.GRIPPER_STATE, at, {"opening_m": float(opening_m),
+                                             "effort": float(effort)})
 
-    def transforms(self, time_s: float, transforms: list[FrameTransform]) -> None:
-        self._transforms.log(FrameTransforms(transforms=transforms),
-                             log_time=nanoseconds_of(time_s))
+    def transforms(self, at: float | Stamp,
+                   poses: list[tuple[str, RigidTransform]]) -> None:
+        """Frames (name, pose in the world frame) at one moment."""
+        at = self._stamp(at)
+        self._transforms.log(FrameTransforms(transforms=[
+            frame_transform(at, name, X_WC) for name, X_WC in poses]),
+            log_time=at.log_time_ns)
 
-    def scene(self, time_s: float, update: SceneUpdate) -> None:
-        self._scene.log(update, log_time=nanoseconds_of(time_s))
+    def scene(self, at: float | Stamp, update: SceneUpdate) -> None:
+        self._scene.log(update, log_time=self._stamp(at).log_time_ns)
 
-    def camera_image(self, time_s: float, jpeg: bytes, frame_id: str) -> None:
-        self._camera.log(CompressedImage(timestamp=timestamp(time_s), frame_id=frame_id,
+    def camera_image(self, at: float | Stamp, jpeg: bytes, frame_id: str) -> None:
+        at = self._stamp(at)
+        self._camera.log(CompressedImage(timestamp=at.timestamp, frame_id=frame_id,
                                          data=jpeg, format="jpeg"),
-                         log_time=nanoseconds_of(time_s))
+                         log_time=at.log_time_ns)
 
     # --- the agent -----------------------------------------------------------------------
 
-    def transcript_entry(self, time_s: float, entry: dict[str, Any]) -> None:
+    def transcript_entry(self, at: float | Stamp, entry: dict[str, Any]) -> None:
         """One transcript entry (kind, step, robot_time_s, text, data): to the Log panel,
         to the transcript topic and, for kinds that have one, to their own topic."""
-        log_time = nanoseconds_of(time_s)
-        self._log.log(Log(timestamp=timestamp(time_s),
+        at = self._stamp(at)
+        self._log.log(Log(timestamp=at.timestamp,
                           level=_LOG_LEVEL_OF_KIND.get(entry["kind"], LogLevel.Info),
                           message=entry["text"], name=f"agent.{entry['kind']}"),
-                      log_time=log_time)
-        self.json(topics.AGENT_TRANSCRIPT, time_s, entry)
+                      log_time=at.log_time_ns)
+        self.json(topics.AGENT_TRANSCRIPT, at, entry)
         topic = topics.TOPIC_OF_KIND.get(entry["kind"])
         if topic is not None:
-            self.json(topic, time_s, entry)
+            self.json(topic, at, entry)
         self.flush()
 
-    def json(self, topic: str, time_s: float, message: dict[str, Any]) -> None:
-        """A JSON message on one of the agent's topics (see json_schemas)."""
+    def json(self, topic: str, at: float | Stamp, message: dict[str, Any]) -> None:
+        """A JSON message on one of the agent's topics (see json_schemas), with its
+        simulated time added as `sim_time_s`."""
         channel = self._json.get(topic)
         if channel is None:
             raise KeyError(f"no JSON topic {topic!r} in a recording; one of "
                            f"{sorted(self._json)}")
-        channel.log(message, log_time=nanoseconds_of(time_s))
+        at = self._stamp(at)
+        channel.log({**message, SIM_TIME_KEY: at.sim_time_s}, log_time=at.log_time_ns)
 
     def metadata(self, name: str, values: dict[str, str]) -> None:
         self._writer.write_metadata(name, {k: str(v) for k, v in values.items()})

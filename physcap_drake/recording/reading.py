@@ -4,6 +4,12 @@ A finished file is read through its summary; a file whose writer never closed (t
 was killed) has no summary, so it is read front to back and reading stops cleanly where the
 data ends. Foxglove's protobuf messages are decoded with `mcap-protobuf-support`, the agent's
 JSON messages with `json`.
+
+Times: a message's log time is a date (ns since the Unix epoch, UTC) on the episode's time
+base, whose start the `time_base.TIME_METADATA` record gives; a message's `time_s` is its time
+on the episode's axis (log time minus the start: simulated time, or wall-clock time since the
+start on a CAN station). A recording from before the time base was recorded has none: its log
+times already count from 0, and `Recording.time_base_note` says so.
 """
 
 from __future__ import annotations
@@ -21,6 +27,8 @@ from mcap.records import Metadata, Schema
 from mcap.stream_reader import StreamReader
 from mcap.writer import MCAP0_MAGIC
 from mcap_protobuf.decoder import DecoderFactory as ProtobufDecoderFactory
+
+from physcap_drake.recording import time_base
 
 
 class RecordingError(ValueError):
@@ -50,17 +58,25 @@ class JsonDecoderFactory(McapDecoderFactory):
 
 @dc.dataclass(frozen=True)
 class RecordedMessage:
-    """One message: its topic, schema name, log time (ns of simulated time) and the decoded
-    value (a protobuf message for Foxglove schemas, a dict for JSON topics)."""
+    """One message: its topic, schema name, log time (ns since the Unix epoch on the
+    episode's time base), the decoded value (a protobuf message for Foxglove schemas, a dict
+    for JSON topics) and the episode's start (ns since the Unix epoch; 0 when unknown)."""
 
     topic: str
     schema: str
     log_time_ns: int
     value: Any
+    episode_start_ns: int = 0
+
+    @property
+    def episode_time_ns(self) -> int:
+        """ns since the episode's start (on its time base)."""
+        return self.log_time_ns - self.episode_start_ns
 
     @property
     def time_s(self) -> float:
-        return self.log_time_ns * 1e-9
+        """s since the episode's start (on its time base)."""
+        return self.episode_time_ns * 1e-9
 
 
 @dc.dataclass
@@ -73,6 +89,29 @@ class Recording:
     metadata: dict[str, dict[str, str]]
     complete: bool
 
+    @property
+    def episode_start_ns(self) -> int:
+        """The episode's start, ns since the Unix epoch (UTC); 0 for a recording that does
+        not say (see `time_base_note`)."""
+        return recorded_start_ns(self.metadata, self.path)
+
+    @property
+    def time_base(self) -> str:
+        """time_base.SIMULATED or time_base.WALL_CLOCK; "" for a recording that does not
+        say."""
+        return self.metadata.get(time_base.TIME_METADATA, {}).get(time_base.KIND, "")
+
+    @property
+    def time_base_note(self) -> str:
+        """One line on what the recording's times count."""
+        if time_base.TIME_METADATA not in self.metadata:
+            return (f"{self.path.name} records no start date (an older recording): its log "
+                    "times are taken as simulated time from 0")
+        what = ("wall-clock time" if self.time_base == time_base.WALL_CLOCK
+                else "simulated time")
+        return (f"episode started {time_base.utc_text(self.episode_start_ns)}; times are "
+                f"{what} since then")
+
     def on(self, topic: str) -> list[RecordedMessage]:
         return [m for m in self.messages if m.topic == topic]
 
@@ -81,8 +120,24 @@ class Recording:
         return {m.topic: m.schema for m in self.messages}
 
 
-def iter_messages(path: str | Path) -> Iterator[RecordedMessage]:
-    """The file's messages in the order they were written, decoded; stops quietly at the end
+def recorded_start_ns(metadata: dict[str, dict[str, str]], path: Path | str = "") -> int:
+    """The episode's start recorded in `metadata` (a recording's metadata records), ns since
+    the Unix epoch; 0 when there is none. Raises RecordingError for a start that is not a
+    whole number of ns."""
+    text = metadata.get(time_base.TIME_METADATA, {}).get(time_base.START_DATE_NS)
+    if text is None:
+        return 0
+    try:
+        return int(text)
+    except ValueError:
+        raise RecordingError(f"{path}: '{time_base.TIME_METADATA}' metadata has "
+                             f"{time_base.START_DATE_NS}={text!r}, not a whole number of "
+                             "ns") from None
+
+
+def iter_messages(path: str | Path, start_ns: int = 0) -> Iterator[RecordedMessage]:
+    """The file's messages in the order they were written, decoded, with the episode's
+    start `start_ns` (ns since the Unix epoch, for their `time_s`); stops quietly at the end
     of the data of a file cut short (see `read_recording` to know whether it was)."""
     with Path(path).open("rb") as stream:
         reader = NonSeekingReader(stream, decoder_factories=[ProtobufDecoderFactory(),
@@ -91,7 +146,7 @@ def iter_messages(path: str | Path) -> Iterator[RecordedMessage]:
             for schema, channel, message, value in reader.iter_decoded_messages(
                     log_time_order=False):
                 yield RecordedMessage(channel.topic, schema.name if schema else "",
-                                      message.log_time, value)
+                                      message.log_time, value, start_ns)
         except (EndOfFile, RecordLengthLimitExceeded):
             # The file was cut short: its data ends here (the writer had begun a chunk whose
             # length it writes only when the chunk is finished).
@@ -103,8 +158,8 @@ def read_recording(path: str | Path) -> Recording:
     missing file and RecordingError for a file that is not MCAP at all."""
     path = Path(path)
     check_is_mcap(path)
-    messages = list(iter_messages(path))
     metadata, complete = _summary_metadata(path)
+    messages = list(iter_messages(path, recorded_start_ns(metadata, path)))
     return Recording(path, messages, metadata, complete)
 
 

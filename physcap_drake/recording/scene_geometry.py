@@ -19,14 +19,13 @@ from foxglove.messages import (
     SceneEntity,
     SceneUpdate,
     SpherePrimitive,
+    Timestamp,
     Vector3,
 )
 from pydrake.geometry import Box, Capsule, Cylinder, Ellipsoid, Rgba, Role, Sphere
 from pydrake.math import RigidTransform
 from pydrake.multibody.plant import MultibodyPlant
 from pydrake.multibody.tree import Body, BodyIndex
-
-from physcap_drake.recording.mcap_sink import timestamp
 
 _DEFAULT_COLOR = Rgba(0.7, 0.7, 0.7, 1.0)
 
@@ -76,8 +75,11 @@ def _add_shape(primitives: dict[str, list], shape, X_BG: RigidTransform, color: 
     return True
 
 
-def scene_update(plant: MultibodyPlant, scene_graph, time_s: float = 0.0) -> SceneUpdate:
-    """One entity per body that has illustration geometry, locked to the body's frame."""
+def scene_update(plant: MultibodyPlant, scene_graph,
+                 stamp: Timestamp | None = None) -> SceneUpdate:
+    """One entity per body that has illustration geometry, locked to the body's frame, each
+    stamped `stamp` (the message's log time; default the Unix epoch)."""
+    stamp = stamp if stamp is not None else Timestamp(sec=0, nsec=0)
     inspector = scene_graph.model_inspector()
     entities = []
     for index in range(plant.num_bodies()):
@@ -97,6 +99,6 @@ def scene_update(plant: MultibodyPlant, scene_graph, time_s: float = 0.0) -> Sce
                 skipped.append(f"{inspector.GetName(geometry)} ({type(shape).__name__})")
         if any(primitives.values()):
             metadata = [KeyValuePair(key="skipped", value=", ".join(skipped))] if skipped else []
-            entities.append(SceneEntity(timestamp=timestamp(time_s), frame_id=name, id=name,
+            entities.append(SceneEntity(timestamp=stamp, frame_id=name, id=name,
                                         frame_locked=True, metadata=metadata, **primitives))
     return SceneUpdate(entities=entities)
