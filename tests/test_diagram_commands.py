@@ -60,3 +60,29 @@ def test_bench_episode_adds_up_each_tasks_seeds(tmp_path, monkeypatch):
         assert row["rtf"] == pytest.approx(33.0 / row["wall_time_s"], rel=0.02)
         assert row["successes"] == 2 and row["episodes"] == 3
     assert "rtf" in result.output and str(out) in result.output.replace("\n", "")
+
+
+def test_bench_episode_runs_only_the_tasks_and_seeds_asked_for(tmp_path, monkeypatch):
+    ran = []
+
+    def fake_episode(task, seed, *, agent, llm):
+        ran.append((task, seed))
+        return FakeRun(task, seed)
+
+    monkeypatch.setattr(episode_bench, "run_agent_episode", fake_episode)
+    out = tmp_path / "bench.json"
+    result = runner.invoke(app, ["bench", "episode", "--tasks", "empty_cup,find_blue_cube",
+                                 "--seeds", "3,5", "--json", str(out)])
+    assert result.exit_code == 0, result.output
+    assert ran == [("empty_cup", 3), ("empty_cup", 5), ("find_blue_cube", 3),
+                   ("find_blue_cube", 5)]
+    rows = json.loads(out.read_text())
+    assert [(row["task"], row["robot_time_s"]) for row in rows] == [
+        ("empty_cup", 28.0), ("find_blue_cube", 28.0)]  # 13 + 15 s
+
+
+def test_bench_episode_names_a_bad_task_or_seed_list():
+    result = runner.invoke(app, ["bench", "episode", "--tasks", "juggle"])
+    assert result.exit_code == 2 and "unknown task(s) juggle" in result.output
+    result = runner.invoke(app, ["bench", "episode", "--seeds", "x"])
+    assert result.exit_code == 2 and "expected seeds like" in result.output

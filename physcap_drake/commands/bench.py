@@ -10,8 +10,8 @@ import typer
 from rich.table import Table
 
 from physcap_drake.bench.can_loop_bench import run_can_loop
-from physcap_drake.bench.episode_bench import SEEDS, run_episode_bench
 from physcap_drake.bench.episode_bench import TASKS as EPISODE_TASKS
+from physcap_drake.bench.episode_bench import run_episode_bench
 from physcap_drake.bench.perception_bench import bench_episode
 from physcap_drake.bench.perception_bench import summarize as summarize_perception
 from physcap_drake.bench.pick_place_bench import run_trial, summarize
@@ -104,17 +104,31 @@ def can_loop(
 
 
 @app.command("episode")
-def episode(json_path: Annotated[Path | None, typer.Option(
-        "--json", help="Also write the results to this JSON file.")] = None) -> None:
+def episode(
+    json_path: Annotated[Path | None, typer.Option(
+        "--json", help="Also write the results to this JSON file.")] = None,
+    tasks: Annotated[str, typer.Option("--tasks", help="Comma-separated tasks, or all.")
+                     ] = "all",
+    seeds: Annotated[str, typer.Option("--seeds", help="Layout seeds, e.g. 0-2.")] = "0-2",
+) -> None:
     """Measure how fast agent episodes run.
 
-    Runs the physcap variant with the reference reasoner on seeds 0-2 of each task, one
-    after the other in this process, and prints robot time, wall time, robot time per
-    wall-clock second (rtf) and CPU time per task."""
-    with trial_progress("bench episode", len(EPISODE_TASKS) * len(SEEDS)) as advance:
-        results = run_episode_bench(on_episode=lambda task, seed, summary: advance(
-            summary["success"]))
-    table = Table(title="physcap bench episode (physcap, reference reasoner, seeds 0-2)")
+    Runs the physcap variant with the reference reasoner on seeds 0-2 of each task (or the
+    tasks and seeds given), one after the other in this process, and prints robot time,
+    wall time, robot time per wall-clock second (rtf) and CPU time per task."""
+    names = EPISODE_TASKS if tasks == "all" else tuple(tasks.split(","))
+    unknown = [name for name in names if name not in EPISODE_TASKS]
+    if unknown:
+        raise typer.BadParameter(f"unknown task(s) {', '.join(unknown)}; one of "
+                                 f"{', '.join(EPISODE_TASKS)}", param_hint="--tasks")
+    try:
+        seed_list = tuple(parse_seeds(seeds))
+    except ValueError as error:
+        raise typer.BadParameter(str(error), param_hint="--seeds") from None
+    with trial_progress("bench episode", len(names) * len(seed_list)) as advance:
+        results = run_episode_bench(names, seed_list, on_episode=lambda task, seed, summary:
+                                    advance(summary["success"]))
+    table = Table(title=f"physcap bench episode (physcap, reference reasoner, seeds {seeds})")
     for column in ("task", "robot time (s)", "wall time (s)", "rtf", "cpu time (s)",
                    "successes", "load"):
         table.add_column(column, justify="right")

@@ -24,8 +24,10 @@ class _ActiveSource(LeafSystem):
         super().__init__()
         self._indices = indices
         self._active = self.DeclareVectorInputPort("probe.active", 1)
+        # Only `probe.active` matters: without this the default (all sources, time among
+        # them) would run this Python at every plant step the station reads the commands.
         self.DeclareAbstractOutputPort("source", lambda: AbstractValue.Make(InputPortIndex(0)),
-                                       self._source)
+                                       self._source, {self._active.ticket()})
 
     def _source(self, context: Context, output: AbstractValue) -> None:
         source = "probe" if self._active.Eval(context)[0] > 0.5 else "executor"
