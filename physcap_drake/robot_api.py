@@ -86,10 +86,9 @@ class RobotAPI:
         """`clock` runs `robot`'s diagram. `on_skill_done(status)` is called after every
         request that ran (not after refusals), before a failure is raised. `locator` finds
         objects named by phrases in the camera images (get_object_pose); without one,
-        get_object_pose is not available."""
-        if robot.request_input is None:
-            raise ValueError("this robot stack's requests come from a system inside it (its "
-                             "agent), not from a RobotAPI")
+        get_object_pose is not available. When a system inside `robot`'s diagram is the
+        request path's client (its agent), the blocking calls refuse to run; `stepwise`
+        serves that client."""
         self._robot = robot
         self._clock = clock
         self._locator = locator
