@@ -89,6 +89,11 @@ SAFE_HOLD = 0.5
 BLOCK_RETRIES = 4
 
 
+class ThoughtAbandoned(Exception):
+    """Raised in a thought given up on (see `AgentLoop.silence`), ending it before its next
+    model call."""
+
+
 @dc.dataclass(frozen=True)
 class Decision:
     """What the next code block does: "explore" one candidate, "final" (finish the task) or
@@ -238,7 +243,7 @@ class AgentLoop:
 
     def silence(self, thread: threading.Thread) -> None:
         """Gives up on the thought running on `thread`: it writes no more transcript entries
-        or phases (the episode ended while it ran)."""
+        or phases and makes no more model calls (the episode ended while it ran)."""
         with self._writing:
             thread.agent_silenced = True
 
@@ -452,9 +457,13 @@ class AgentLoop:
         return mind
 
     def _phase(self, phase: str, mind: AgentMind) -> None:
+        """Tells `on_phase`; a thought given up on stops here (no more model calls)."""
         with self._writing:
-            if self._on_phase is not None and not self._silenced():
+            silenced = self._silenced()
+            if self._on_phase is not None and not silenced:
                 self._on_phase(phase, len(mind.steps), mind.oi)
+        if silenced:
+            raise ThoughtAbandoned(f"the episode ended while the agent was {phase}")
 
     def _note(self, mind: AgentMind, kind: str, text: str, data: dict | None = None) -> None:
         robot_time = self._robot_time()
