@@ -291,7 +291,7 @@ class AgentLoop:
         return dc.replace(mind, phase="executing",
                           pending=PendingBlock(decision, answer, failed is not None))
 
-    # --- between events ------------------------------------------------------------------
+    # --- running a code block ------------------------------------------------------------
 
     def execute(self, mind: AgentMind) -> AgentMind:
         """Runs the pending code block in the sandbox in one blocking call (this advances
