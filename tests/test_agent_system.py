@@ -13,18 +13,19 @@ import time
 import numpy as np
 import pytest
 from pydrake.common.value import AbstractValue
-from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder, LeafSystem
 from pydrake.systems.primitives import ConstantValueSource
 from pydrake.systems.sensors import ImageRgba8U
 
-from physcap_drake.agent.agent_system import CLIENT, PERIOD, PROGRESS_PORT, AgentSystem
+from physcap_drake.agent.agent_system import CLIENT, PROGRESS_PORT, AgentSystem
+from physcap_drake.agent.episode_runner import run_agent
 from physcap_drake.agent.llm.base import LLMResponse
 from physcap_drake.agent.loop import AgentLoop
 from physcap_drake.agent.sandbox import SandboxLimits
 from physcap_drake.agent.transcript import Transcript
 from physcap_drake.agent.variant import AgentVariant
 from physcap_drake.clock import Clock
+from physcap_drake.control.errors import ArmFault
 from physcap_drake.control.requests import (
     MoveToPose,
     RobotRequest,
@@ -55,10 +56,12 @@ class RobotMemory(Immutable):
 class ScriptedRobot(LeafSystem):
     """Takes a new request on `request` at its events (every 10 ms), answers it on `status`
     MOTION_S s later: REFUSED (nothing moves) for a target farther than 1 m, else SUCCEEDED
-    (a MeasureMass with a MassMeasurement of MASS_KG)."""
+    (a MeasureMass with a MassMeasurement of MASS_KG). From `fault_at` s on, its event raises
+    ArmFault, as a station does."""
 
-    def __init__(self):
+    def __init__(self, fault_at: float = math.inf):
         super().__init__()
+        self._fault_at = fault_at
         self._request = self.DeclareAbstractInputPort(REQUEST_PORT,
                                                       AbstractValue.Make(RobotRequest()))
         self._memory = self.DeclareAbstractState(AbstractValue.Make(RobotMemory()))
@@ -73,6 +76,8 @@ class ScriptedRobot(LeafSystem):
 
     def _update(self, context, state):
         memory, now = self.memory(context), context.get_time()
+        if now >= self._fault_at:
+            raise ArmFault("the arm reports: emergency stop")
         status = memory.status
         if status.state is SkillState.RUNNING and now >= status.started_at + MOTION_S - 1e-9:
             result = (MassMeasurement(True, MASS_KG, "", MOTION_S) if status.label == "get_mass"
@@ -80,7 +85,7 @@ class ScriptedRobot(LeafSystem):
             status = dc.replace(status, state=SkillState.SUCCEEDED, finished_at=now,
                                 robot_time=status.robot_time + MOTION_S, result=result)
         request = self._request.Eval(context)
-        if not status.state is SkillState.RUNNING and memory.served.is_new(request):
+        if status.state is not SkillState.RUNNING and memory.served.is_new(request):
             target = np.asarray(getattr(request.action, "position", np.zeros(3)), float)
             refused = np.linalg.norm(target) > 1.0
             status = SkillStatus(
@@ -156,6 +161,7 @@ class Rig:
     arm: PortArm
     transcript: Transcript
     coder: Coder
+    loop: AgentLoop
 
     def agent_context(self):
         return self.agent.GetMyContextFromRoot(self.clock.context)
@@ -169,10 +175,10 @@ class Rig:
         return self.agent.mind(context)
 
 
-def make_rig(blocks: list[str], delay: float = 0.0) -> Rig:
+def make_rig(blocks: list[str], delay: float = 0.0, fault_at: float = math.inf) -> Rig:
     builder = DiagramBuilder()
     agent = builder.AddSystem(AgentSystem(NoObjects()))
-    robot = builder.AddSystem(ScriptedRobot())
+    robot = builder.AddSystem(ScriptedRobot(fault_at))
     camera = builder.AddSystem(ConstantValueSource(AbstractValue.Make(ImageRgba8U(8, 6))))
     builder.Connect(camera.get_output_port(), agent.GetInputPort(ports.CAMERA_RGB))
     builder.Connect(agent.GetOutputPort(REQUEST_PORT), robot.GetInputPort(REQUEST_PORT))
@@ -185,7 +191,7 @@ def make_rig(blocks: list[str], delay: float = 0.0) -> Rig:
     loop = AgentLoop(task="Weigh the can.", variant=variant, llm=coder, api=arm, limits=LIMITS,
                      transcript=transcript)
     agent.attach(loop, lambda: arm.robot_time)
-    return Rig(clock, agent, robot, arm, transcript, coder)
+    return Rig(clock, agent, robot, arm, transcript, coder, loop)
 
 
 def outputs(transcript: Transcript) -> list[str]:
@@ -261,3 +267,21 @@ def test_code_that_breaks_inside_the_agent_never_raises_out_of_the_diagram():
     assert mind.steps[1].error.startswith("exception: ZeroDivisionError at line 1")
     assert math.isclose(rig.arm.robot_time, 2 * 0.5 + MOTION_S)  # two holds of 0.5 s, a motion
 
+
+
+def test_an_arm_fault_while_the_code_waits_for_the_robot_ends_the_episode_at_once():
+    rig = make_rig(["goto_pose([0.3, 0.0, 0.2])\n"
+                    "try:\n"
+                    "    goto_pose([0.3, 0.1, 0.2])\n"
+                    "except BaseException:\n"
+                    "    print('caught')\n", "goto_pose([0.3, 0.0, 0.25])"],
+                   fault_at=MOTION_S + 0.2)  # during the second motion
+    context = rig.agent_context()
+    mind = run_agent(rig.clock, rig.agent, context, rig.loop, timeout=10.0)
+    assert (mind.phase, mind.failure_kind) == ("failed", "arm")
+    assert mind.failure == ("arm fault: goto_pose() failed with ArmFault: the arm reports: "
+                            "emergency stop; the code was stopped at once")
+    assert "caught" not in "".join(outputs(rig.transcript)) and rig.coder.calls == 1
+    assert rig.agent.mind(context).phase == "executing"  # the Context was left as it stood
+    server = rig.agent.state(context).block.server
+    assert server.outcome is not None and server.outcome.kind == "fault"  # the child is gone

@@ -209,12 +209,14 @@ class AgentSystem(LeafSystem):
             state.thought.give_up()
         block = state.block
         if block is not None:
-            if fault is not None and block.end is None and self._policy is not None:
-                outcome = block.server.abort(fault)
-                block.server.close()
-                end = self._policy.block_stopped(mind, outcome, block.started)
-                return self._policy.block_done(mind, end)
+            end = block.end  # set once the code has ended: the arm was being held
+            if fault is not None and end is None and self._policy is not None:
+                # The code waits for the robot: it is stopped as by a fault of its call.
+                end = self._policy.block_stopped(mind, block.server.abort(fault),
+                                                 block.started)
             block.server.close()
+            if fault is not None and self._policy is not None:
+                mind = self._policy.block_done(mind, end)
         if fault is not None and not mind.over and self._policy is not None:
             return self._policy.fault(mind, fault)
         return mind

@@ -20,13 +20,13 @@ import numpy as np
 
 from physcap_drake.agent.sandbox import (
     ApiFunction,
-    then,
     FunctionSpec,
     Number,
     OrNone,
     ParameterKind,
     Text,
     Vector,
+    then,
 )
 from physcap_drake.robot_api import RobotAPI
 

@@ -14,10 +14,11 @@ kept in the AgentSystem's Context:
   failure); `execute(mind)` runs it in one blocking call (the RobotAPI advances the clock).
 
 `think` reads nothing from the diagram (the robot time is read once, when it starts: the
-robot does not move while the agent decides), so the AgentSystem may run it on a worker thread while the
-diagram runs on (the real arm); a thought it gave up on (`silence`) writes nothing more.
-On the simulated station it runs inside an event, so simulated time stands still while
-models answer (and while generated code computes between robot calls). The agent ends the episode itself: after
+robot does not move while the agent decides), so the AgentSystem may run it on a worker
+thread while the diagram runs on (the real arm); a thought it gave up on (`silence`) writes
+nothing more and makes no more model calls. On the simulated station it runs inside an
+event, so simulated time stands still while models answer (and while generated code
+computes between robot calls). The agent ends the episode itself: after
 the final code block (the planner found the information sufficient, or the coder said the
 task is complete), or at the step limit, the robot-time limit, or when an agent gives no
 usable answer: the mind is then "done" or "failed". The task's success check (ground truth)

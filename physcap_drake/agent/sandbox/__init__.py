@@ -28,7 +28,7 @@ from .signatures import (
     Vector,
 )
 
-__all__ = ["ApiFunction", "BlockBudget", "Call", "CallServer", "CodeOutcome", "CodeRejected", "FunctionSpec",
-           "Meters", "Number", "OrNone", "OutcomeKind", "ParameterKind", "PlainValue", "Refused",
-           "SandboxLimits", "SandboxSession", "Stop", "Text", "Vector", "check_code",
-           "Waiting", "run_sandboxed", "then"]
+__all__ = ["ApiFunction", "BlockBudget", "Call", "CallServer", "CodeOutcome", "CodeRejected",
+           "FunctionSpec", "Meters", "Number", "OrNone", "OutcomeKind", "ParameterKind",
+           "PlainValue", "Refused", "SandboxLimits", "SandboxSession", "Stop", "Text", "Vector",
+           "Waiting", "check_code", "run_sandboxed", "then"]
