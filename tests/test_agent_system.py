@@ -175,6 +175,18 @@ class Rig:
         return self.agent.mind(context)
 
 
+_RIGS: list[Rig] = []
+
+
+@pytest.fixture(autouse=True)
+def release_the_agents():
+    """A test that stops mid-block leaves a child waiting: released as an episode would be."""
+    yield
+    while _RIGS:
+        rig = _RIGS.pop()
+        rig.agent.release(rig.agent_context())
+
+
 def make_rig(blocks: list[str], delay: float = 0.0, fault_at: float = math.inf) -> Rig:
     builder = DiagramBuilder()
     agent = builder.AddSystem(AgentSystem(NoObjects()))
@@ -191,7 +203,8 @@ def make_rig(blocks: list[str], delay: float = 0.0, fault_at: float = math.inf) 
     loop = AgentLoop(task="Weigh the can.", variant=variant, llm=coder, api=arm, limits=LIMITS,
                      transcript=transcript)
     agent.attach(loop, lambda: arm.robot_time)
-    return Rig(clock, agent, robot, arm, transcript, coder, loop)
+    _RIGS.append(Rig(clock, agent, robot, arm, transcript, coder, loop))
+    return _RIGS[-1]
 
 
 def outputs(transcript: Transcript) -> list[str]:
