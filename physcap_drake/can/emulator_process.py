@@ -2,8 +2,10 @@
 of its own.
 
 The child builds the motion backend (the scenario's simulated station, or the kinematic
-arm), runs a PiperEmulator on its end of a socket pair (`socket_bus`) and, after every
-firmware cycle, publishes the simulated world's state (plant positions and velocities,
+arm) and runs a PiperEmulator on its end of a socket pair (`socket_bus`). A simulated
+world is stepped in a thread of its own, paced by the wall clock and resting between
+steps (`paced_world.PacedWorld`), so its physics never holds up the firmware's cycle;
+after every world step it publishes the world's state (plant positions and velocities,
 and the simulation time) to a shared block. The parent keeps a copy of the world's model
 (`station.can_scene.EmulatedScene`) and reads that block to render the camera and report
 ground truth, so rendering in the parent never holds up the arm. The few writes to the
@@ -15,6 +17,7 @@ from __future__ import annotations
 import gc
 import logging
 import socket
+import sys
 import time
 
 import numpy as np
@@ -29,6 +32,8 @@ START_TIMEOUT = 120.0
 #: How long a reader of the world waits for the emulator to finish a publication, s.
 WORLD_PATIENCE = 0.005
 REQUEST_TIMEOUT = 10.0
+#: The emulator process's GIL switch interval, s (Python's default is 5 ms).
+SWITCH_INTERVAL = 0.0005
 
 
 def world_layout(size: int) -> Layout:
@@ -95,6 +100,10 @@ class EmulatorProcess:
         """A copy of the emulated firmware's state (`arm_state.EmulatedArm`)."""
         return self._request(("snapshot",))
 
+    def timing(self):
+        """How the emulated arm kept its pace so far (`emulator.EmulatorTiming`)."""
+        return self._request(("timing",))
+
     def set_error(self, arm_status: int = 0, err_code: int = 0) -> None:
         """The arm reports this error state from now on (see PiperEmulator.set_error)."""
         self._request(("set_error", arm_status, err_code))
@@ -117,12 +126,15 @@ def serve(conn, bus_fd: int, scenario_yaml: str | None, gripper_max_effort: floa
           firmware: str, world_fd: int | None, state_size: int,
           realtime_priority: int) -> None:
     """The emulated arm's process: runs until the parent says close or goes away."""
-    from physcap_drake.can.emulator import PiperEmulator
+    from physcap_drake.can.emulator import DEFAULT_RATE, PiperEmulator
     from physcap_drake.can.motion import KinematicMotion
+    from physcap_drake.can.paced_world import PacedWorld
     from physcap_drake.can.realtime import use_realtime
     from physcap_drake.can.socket_bus import SocketBus
 
     logging.basicConfig(level=logging.WARNING, format="%(message)s")
+    # The firmware thread gets the interpreter back from the world thread within this.
+    sys.setswitchinterval(SWITCH_INTERVAL)
     world = None if world_fd is None else SharedBlock(world_layout(state_size), fd=world_fd)
     try:
         if scenario_yaml is None:
@@ -143,6 +155,13 @@ def serve(conn, bus_fd: int, scenario_yaml: str | None, gripper_max_effort: floa
         world.write({"time": [motion.context.get_time()],
                      "state": plant.GetPositionsAndVelocities(motion.plant_context)})
 
+    if scenario_yaml is not None:
+        # The world's physics never makes the firmware cycle wait (a world behind the wall
+        # clock is counted instead). Its thread keeps the process's real-time scheduling:
+        # at normal priority a busy machine would starve it, and, preempted while holding
+        # the interpreter, it would hold up the firmware's thread too.
+        motion = PacedWorld(motion, 1.0 / DEFAULT_RATE,
+                            on_step=publish if world is not None else None)
     use_realtime(realtime_priority, "the emulated PiPER")  # its firmware thread inherits it
     # What start-up allocated (the world's Drake systems, the modules) is never collected
     # again: a full collection over all of it stalls the firmware loop for about 40 ms,
@@ -150,7 +169,7 @@ def serve(conn, bus_fd: int, scenario_yaml: str | None, gripper_max_effort: floa
     gc.freeze()
     bus = SocketBus(socket.socket(fileno=bus_fd), "emulator")
     emulator = PiperEmulator(bus, firmware=firmware, motion=motion,
-                             on_cycle=publish if world is not None else None).start()
+                             rate=DEFAULT_RATE).start()
     try:
         while True:
             try:
@@ -173,13 +192,17 @@ def _answer(emulator, kind: str, args) -> tuple[str, object]:
         return "ok", None
     if kind == "snapshot":
         return "ok", emulator.snapshot()
+    if kind == "timing":
+        return "ok", emulator.timing()
     if kind == "set_error":
         emulator.set_error(*args)
         return "ok", None
     if kind == "set_world":
         parameters, state = args
         motion = emulator.motion
-        with emulator.lock:
+        if not hasattr(motion, "plant"):
+            return "error", "the kinematic emulated arm has no simulated world to set"
+        with motion.lock:
             context = motion.plant_context
             for index, values in parameters.items():
                 context.get_mutable_numeric_parameter(index).SetFromVector(values)
