@@ -11,7 +11,7 @@ import pytest
 from physcap_drake.can.emulator import PiperEmulator
 from physcap_drake.can.lateness import LagTracker
 from physcap_drake.can.motion import KinematicMotion, MotionCommand
-from physcap_drake.can.paced_world import MAX_LAG, MAX_STEP_PERIODS, PacedWorld
+from physcap_drake.can.paced_world import MAX_LAG, MAX_STEP_PERIODS, REST, PacedWorld
 from physcap_drake.can.socket_bus import SocketBus, socket_pair
 
 PERIOD = 0.005
@@ -57,6 +57,7 @@ def test_a_slow_world_does_not_hold_back_the_caller_and_catches_up_in_longer_ste
     finally:
         world.stop()
     # Stepping in the caller would cost 15 ms a call; the first call steps once itself.
+    # (The world then keeps only 1 / (1 + REST) of real time: it rests between steps.)
     assert max(took[1:]) < slow.cost
     timing = world.timing()
     assert timing.lateness.late > 0 and timing.lateness.max_lateness >= PERIOD
@@ -90,7 +91,8 @@ def test_a_stalled_world_lets_the_excess_go_and_reports_the_spell_with_its_time(
     finally:
         world.stop()
     timing = world.timing()
-    assert timing.slipped == pytest.approx(0.3 - 0.1, abs=0.1)
+    # Behind by the stall and the rest after it, it keeps 0.1 s of that and lets go the rest.
+    assert timing.slipped == pytest.approx((1 + REST) * 0.3 - 0.1, abs=0.1)
     spell = timing.lateness.covering(before, time.monotonic())
     assert spell is not None and spell.max_lateness >= 0.25
     assert spell.end - spell.start >= 0.25  # it lasted as long as the stall
@@ -128,3 +130,25 @@ def test_the_emulator_reports_its_paced_worlds_figures():
     assert timing.firmware.steps > 50
     assert timing.world is not None and timing.world.lateness.late > 0
     assert not world._thread.is_alive()  # stopping the emulator stopped the world
+
+
+class BrokenWorld(SlowWorld):
+    """Steps once, then its physics fails (as a world whose state went non-finite)."""
+
+    def step(self, command, dt):
+        if self.steps:
+            raise RuntimeError("SceneGraph encountered a non-finite value")
+        return super().step(command, dt)
+
+
+def test_a_failed_world_is_reported_to_the_firmware_naming_the_failure():
+    world = PacedWorld(BrokenWorld(cost=0.0), PERIOD)
+    try:
+        world.step(command(), PERIOD)  # steps once itself, then the thread takes over
+        with pytest.raises(RuntimeError, match="emulated world stopped: SceneGraph"):
+            deadline = time.monotonic() + 5.0
+            while time.monotonic() < deadline:
+                world.step(command(), PERIOD)
+                time.sleep(PERIOD)
+    finally:
+        world.stop()

@@ -3,8 +3,8 @@ of its own.
 
 The child builds the motion backend (the scenario's simulated station, or the kinematic
 arm) and runs a PiperEmulator on its end of a socket pair (`socket_bus`). A simulated
-world is stepped in a thread of its own, paced by the wall clock and resting between
-steps (`paced_world.PacedWorld`), so its physics never holds up the firmware's cycle;
+world is stepped in a thread of its own below the firmware's priority, paced by the wall
+clock (`paced_world.PacedWorld`), so its physics never holds up the firmware's cycle;
 after every world step it publishes the world's state (plant positions and velocities,
 and the simulation time) to a shared block. The parent keeps a copy of the world's model
 (`station.can_scene.EmulatedScene`) and reads that block to render the camera and report
@@ -157,11 +157,18 @@ def serve(conn, bus_fd: int, scenario_yaml: str | None, gripper_max_effort: floa
 
     if scenario_yaml is not None:
         # The world's physics never makes the firmware cycle wait (a world behind the wall
-        # clock is counted instead). Its thread keeps the process's real-time scheduling:
-        # at normal priority a busy machine would starve it, and, preempted while holding
-        # the interpreter, it would hold up the firmware's thread too.
-        motion = PacedWorld(motion, 1.0 / DEFAULT_RATE,
+        # clock is counted instead). It is not the arm's controller, so its thread runs one
+        # real-time priority below the firmware's: ahead of the machine's ordinary work (at
+        # normal scheduling a busy machine would starve it), never ahead of the firmware's
+        # cycle (at the same priority it would hold the CPU, and the interpreter, for a
+        # whole round-robin slice: stalls of 50 ms). It rests between steps
+        # (PacedWorld.REST), so it never makes the kernel throttle the real-time threads.
+        setup = (lambda: use_realtime(max(realtime_priority - 1, 1),
+                                      "the emulated PiPER's world")) \
+            if realtime_priority > 1 else None
+        motion = PacedWorld(motion, 1.0 / DEFAULT_RATE, world_thread_setup=setup,
                             on_step=publish if world is not None else None)
+
     use_realtime(realtime_priority, "the emulated PiPER")  # its firmware thread inherits it
     # What start-up allocated (the world's Drake systems, the modules) is never collected
     # again: a full collection over all of it stalls the firmware loop for about 40 ms,

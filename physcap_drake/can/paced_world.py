@@ -13,9 +13,9 @@ thread advances the world by the wall time that passed since its last step:
 - more than `max_lag` s behind, it lets the excess go (the world's time slips against the
   wall clock, like a simulator that cannot keep real time) instead of sprinting after it;
 - after every step it rests for at least `REST` of the step's wall time, so a world that
-  cannot keep up never takes a whole CPU (in a real-time process that would make the
-  kernel throttle the firmware's thread along with it) and never keeps the interpreter
-  from the firmware's thread.
+  cannot keep up never takes a whole CPU: at real-time priority that would starve the
+  machine and make the kernel throttle every real-time thread on that CPU (the
+  firmware's among them) for 50 ms of each second.
 
 Every step's lateness is tracked (`lateness.LagTracker`: steps a period or more late, the
 largest lateness, spells with their times), with the time let go (`WorldTiming`).
@@ -40,7 +40,7 @@ MAX_STEP_PERIODS = 4
 #: How far behind the wall clock the world may fall before it lets the excess go, s.
 MAX_LAG = 0.1
 #: The least rest after a world step, as a fraction of the step's wall time.
-REST = 0.25
+REST = 0.5
 
 
 @dc.dataclass(frozen=True)
@@ -59,10 +59,12 @@ class WorldTiming:
 class PacedWorld:
     """Wraps a motion backend (`step(command, dt)`, `initial_state()`) so that `step` never
     waits for it (see module docstring). `period`: the firmware's period (s);
-    `on_step()`: called after every world step while `lock` is held (to publish the world).
-    Hold `lock` to read or write the wrapped world."""
+    `on_step()`: called after every world step while `lock` is held (to publish the world);
+    `world_thread_setup()`: called once in the world thread before it steps (its
+    scheduling). Hold `lock` to read or write the wrapped world."""
 
     def __init__(self, motion, period: float, *, on_step: Callable[[], None] | None = None,
+                 world_thread_setup: Callable[[], None] | None = None,
                  max_step_periods: int = MAX_STEP_PERIODS, max_lag: float = MAX_LAG):
         if max_lag < max_step_periods * period:
             raise ValueError(f"max_lag {max_lag} s is shorter than the largest step "
@@ -73,9 +75,10 @@ class PacedWorld:
         self._max_step = max_step_periods * period
         self._max_lag = max_lag
         self._on_step = on_step
+        self._setup = world_thread_setup
         self._command: MotionCommand | None = None
         self._reading: MotionReading | None = None
-        self._first = threading.Event()  # the first reading exists
+        self._error: BaseException | None = None  # what stopped the world thread
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
         self._lag = LagTracker(period)
@@ -97,7 +100,9 @@ class PacedWorld:
         firmware's period: the world thread paces itself by the wall clock."""
         with self._state_lock:
             self._command = command
-            reading = self._reading
+            reading, error = self._reading, self._error
+        if error is not None:  # the arm cannot move without its world: say why, as before
+            raise RuntimeError(f"the emulated world stopped: {error}") from error
         if reading is not None:
             return reading
         with self.lock:  # the first step: the firmware has nothing to report before it
@@ -125,6 +130,16 @@ class PacedWorld:
         self._thread.start()
 
     def _run(self) -> None:
+        try:
+            self._pace()
+        except Exception as error:  # noqa: BLE001 (handed to the firmware's thread)
+            log.exception("the emulated world failed")
+            with self._state_lock:
+                self._error = error
+
+    def _pace(self) -> None:
+        if self._setup is not None:
+            self._setup()
         started = origin = time.monotonic()  # the wall time the world's time 0 stands for
         simulated = 0.0  # world time advanced since `origin`, s
         while not self._stop.is_set():
