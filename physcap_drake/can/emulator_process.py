@@ -3,13 +3,14 @@ of its own.
 
 The child builds the motion backend (the scenario's simulated station, or the kinematic
 arm) and runs a PiperEmulator on its end of a socket pair (`socket_bus`). A simulated
-world is stepped in a thread of its own below the firmware's priority, paced by the wall
-clock (`paced_world.PacedWorld`), so its physics never holds up the firmware's cycle;
-after every world step it publishes the world's state (plant positions and velocities,
-and the simulation time) to a shared block. The parent keeps a copy of the world's model
-(`station.can_scene.EmulatedScene`) and reads that block to render the camera and report
-ground truth, so rendering in the parent never holds up the arm. The few writes to the
-world (a task's hidden masses) go the other way over the pipe.
+world is stepped in the firmware's cycle (a slow step delays the feedback, and the
+emulator's own lateness figures show it), or, with `pace_world`, in a thread of its own
+below the firmware's priority, paced by the wall clock (`paced_world.PacedWorld`), so its
+physics never holds up the cycle. After every step the world's state (plant positions and
+velocities, and the simulation time) is published to a shared block. The parent keeps a
+copy of the world's model (`station.can_scene.EmulatedScene`) and reads that block to
+render the camera and report ground truth, so rendering in the parent never holds up the
+arm. The few writes to the world (a task's hidden masses) go the other way over the pipe.
 """
 
 from __future__ import annotations
@@ -47,12 +48,14 @@ class EmulatorProcess:
     arm, or None for the kinematic arm; `gripper_max_effort`: N·m at the simulated gripper's
     full force (see SimulatedMotion); `state_size`: the plant's positions + velocities (the
     world block's size, 0 without a scenario); `firmware`: the version it reports;
-    `realtime_priority`: its scheduling (see `can.realtime`, 0: normal). The process starts
+    `realtime_priority`: its scheduling (see `can.realtime`, 0: normal); `pace_world`:
+    step the world in a thread of its own (`paced_world`, see `serve`). The process starts
     at once and builds its world in the background; `wait_ready()` waits for it."""
 
     def __init__(self, bus_socket: socket.socket, scenario_yaml: str | None = None, *,
                  gripper_max_effort: float = 2.0, state_size: int = 0,
-                 firmware: str = "S-V1.8-2", realtime_priority: int = 0):
+                 firmware: str = "S-V1.8-2", realtime_priority: int = 0,
+                 pace_world: bool = False):
         self._world = SharedBlock(world_layout(state_size)) if state_size else None
         self._last_world: tuple[float, np.ndarray] | None = None
         world_fd = None if self._world is None else self._world.fd
@@ -60,7 +63,7 @@ class EmulatorProcess:
         self._child = ChildProcess(
             "physcap_drake.can.emulator_process:serve",
             (bus_socket.fileno(), scenario_yaml, gripper_max_effort, firmware, world_fd,
-             state_size, realtime_priority), fds, name="piper-emulator")
+             state_size, realtime_priority, pace_world), fds, name="piper-emulator")
         bus_socket.close()  # the child has its own copy
         self._ready = False
 
@@ -124,7 +127,7 @@ class EmulatorProcess:
 
 def serve(conn, bus_fd: int, scenario_yaml: str | None, gripper_max_effort: float,
           firmware: str, world_fd: int | None, state_size: int,
-          realtime_priority: int) -> None:
+          realtime_priority: int, pace_world: bool = False) -> None:
     """The emulated arm's process: runs until the parent says close or goes away."""
     from physcap_drake.can.emulator import DEFAULT_RATE, PiperEmulator
     from physcap_drake.can.motion import KinematicMotion
@@ -155,7 +158,7 @@ def serve(conn, bus_fd: int, scenario_yaml: str | None, gripper_max_effort: floa
         world.write({"time": [motion.context.get_time()],
                      "state": plant.GetPositionsAndVelocities(motion.plant_context)})
 
-    if scenario_yaml is not None:
+    if scenario_yaml is not None and pace_world:
         # The world's physics never makes the firmware cycle wait (a world behind the wall
         # clock is counted instead). It is not the arm's controller, so its thread runs one
         # real-time priority below the firmware's: ahead of the machine's ordinary work (at
@@ -175,8 +178,10 @@ def serve(conn, bus_fd: int, scenario_yaml: str | None, gripper_max_effort: floa
     # which the host's watchdog sees as lost feedback.
     gc.freeze()
     bus = SocketBus(socket.socket(fileno=bus_fd), "emulator")
-    emulator = PiperEmulator(bus, firmware=firmware, motion=motion,
-                             rate=DEFAULT_RATE).start()
+    # A world stepped in the firmware's cycle is published after every cycle.
+    on_cycle = publish if world is not None and not pace_world else None
+    emulator = PiperEmulator(bus, firmware=firmware, motion=motion, rate=DEFAULT_RATE,
+                             on_cycle=on_cycle).start()
     try:
         while True:
             try:
@@ -209,7 +214,7 @@ def _answer(emulator, kind: str, args) -> tuple[str, object]:
         motion = emulator.motion
         if not hasattr(motion, "plant"):
             return "error", "the kinematic emulated arm has no simulated world to set"
-        with motion.lock:
+        with getattr(motion, "lock", emulator.lock):
             context = motion.plant_context
             for index, values in parameters.items():
                 context.get_mutable_numeric_parameter(index).SetFromVector(values)

@@ -95,7 +95,8 @@ class CanSession:
         self.emulator = EmulatorProcess(
             emulator_end, self._scenario_yaml, gripper_max_effort=config.gripper_max_effort,
             state_size=self.world_size, firmware=config.firmware or EMULATED_FIRMWARE,
-            realtime_priority=max(config.realtime_priority - 1, 0))
+            realtime_priority=max(config.realtime_priority - 1, 0),
+            pace_world=config.pace_world)
         return self
 
     def wait_ready(self) -> CanSession:
