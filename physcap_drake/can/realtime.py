@@ -31,4 +31,3 @@ def use_realtime(priority: int, who: str) -> bool:
                     "physcap_drake/can/realtime.py)", who, priority, error)
         return False
     return True
-
