@@ -1,17 +1,26 @@
-"""The blocking robot API: what generated code calls to move the PiPER.
+"""The robot API: what generated code calls to move the PiPER.
 
-A thin client of the robot stack's request path: each call puts one request (a skill, or a
-whole get_mass / get_stiffness) on the stack's exported `robot.request` port and asks the
-clock to run until `robot.status` reports that request finished (succeeded, failed or
-refused), then returns or raises. Sim time does not pass between calls. The docstrings of
-the public methods are the API text shown to the language model, so they state units and
-frames exactly.
+Each call that moves the robot is written once, as steps (`robot_call`): a generator that
+yields the action of each request it needs (a skill, or a whole get_mass / get_stiffness) and
+is sent the SkillStatus that answered it; it returns the call's result or raises
+SkillRefused / SkillFailed. Two clients drive those steps:
+
+- called as a method, the RobotAPI is a thin blocking client of the robot stack's exported
+  `robot.request` port: it sets each request and asks the clock to run until `robot.status`
+  reports that request finished (succeeded, failed or refused). Sim time does not pass
+  between calls. (`physcap sim`, calibration, tests.)
+- `stepwise(name)` gives the steps themselves, for a client inside the diagram that sends
+  the requests on its own port and waits between its events (the AgentSystem).
+
+The docstrings of the public methods are the API text shown to the language model, so they
+state units and frames exactly.
 """
 
 from __future__ import annotations
 
+import functools
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Generator
 from contextlib import contextmanager
 
 import numpy as np
@@ -43,6 +52,22 @@ CLIENT = "robot_api"
 #: (the longest, a 120 s wait); running out means a system on the path does not answer.
 REQUEST_TIMEOUT = 600.0
 
+#: The steps of a robot call: yields actions, is sent their SkillStatus, returns the result.
+RobotSteps = Generator[object, SkillStatus, object]
+
+
+def robot_call(steps: Callable[..., RobotSteps]) -> Callable:
+    """Makes a RobotAPI method from its steps (see the module docstring): called, it runs
+    them on the blocking request path; `RobotAPI.stepwise(name)` hands them out instead.
+    The method keeps the steps' name, signature and docstring (the API text)."""
+
+    @functools.wraps(steps)
+    def blocking(self: RobotAPI, *args, **kwargs):
+        return self._drive(steps(self, *args, **kwargs))
+
+    blocking.steps = steps
+    return blocking
+
 
 class RobotAPI:
     """Moves the robot through its SkillExecutor, one blocking call at a time.
@@ -61,10 +86,9 @@ class RobotAPI:
         """`clock` runs `robot`'s diagram. `on_skill_done(status)` is called after every
         request that ran (not after refusals), before a failure is raised. `locator` finds
         objects named by phrases in the camera images (get_object_pose); without one,
-        get_object_pose is not available."""
-        if robot.request_input is None:
-            raise ValueError("this robot stack's requests come from a system inside it (its "
-                             "agent), not from a RobotAPI")
+        get_object_pose is not available. When a system inside `robot`'s diagram is the
+        request path's client (its agent), the blocking calls refuse to run; `stepwise`
+        serves that client."""
         self._robot = robot
         self._clock = clock
         self._locator = locator
@@ -115,6 +139,7 @@ class RobotAPI:
         simulated segmenter)."""
         self._locator = locator
 
+    @robot_call
     def goto_pose(self, position, quaternion_wxyz=None, z_approach=0.0) -> None:
         """Move the fingertip to `position` = [x, y, z] (metres, world frame).
 
@@ -130,32 +155,40 @@ class RobotAPI:
         Raises SkillRefused, without moving, if the target is outside the workspace, below
         the table, out of reach or would collide; SkillFailed if the motion did not complete.
         """
-        self._run(MoveToPose(position, quaternion_wxyz, z_approach))
+        yield from self._request(MoveToPose(position, quaternion_wxyz, z_approach))
 
+    @robot_call
     def open_gripper(self) -> None:
         """Open the gripper fully: 0.10 m between the fingers (0.07 m with the small gripper)."""
-        self._run(MoveGripper(self._robot.model.gripper_stroke,
-                              self._robot.scenario.skills.grasp_force, "open_gripper"))
+        yield from self._request(MoveGripper(self._robot.model.gripper_stroke,
+                                             self._robot.scenario.skills.grasp_force,
+                                             "open_gripper"))
 
+    @robot_call
     def close_gripper(self) -> None:
         """Close the gripper until the fingers stop, on an object or fully closed. Each finger
         squeezes with at most the configured grasp force (15 N by default)."""
-        self._run(MoveGripper(0.0, self._robot.scenario.skills.grasp_force, "close_gripper"))
+        yield from self._request(MoveGripper(0.0, self._robot.scenario.skills.grasp_force,
+                                             "close_gripper"))
 
+    @robot_call
     def home_pose(self) -> None:
         """Move the arm to its home pose, straight in joint space: folded at rest above its
         base (all joints at 0 rad by default), fingertip near (0.19, 0.0, 0.23) m."""
-        self._run(MoveToJoints(self._robot.scenario.skills.home_position, "home_pose",
-                               check_workspace=False))
+        yield from self._request(MoveToJoints(self._robot.scenario.skills.home_position,
+                                              "home_pose", check_workspace=False))
 
+    @robot_call
     def move_joints(self, positions) -> None:
         """Move the arm to joint positions [J1..J6] (radians), straight in joint space."""
-        self._run(MoveToJoints(positions))
+        yield from self._request(MoveToJoints(positions))
 
+    @robot_call
     def wait(self, seconds: float) -> None:
         """Hold still for `seconds` (simulated time)."""
-        self._run(Wait(seconds))
+        yield from self._request(Wait(seconds))
 
+    @robot_call
     def get_mass(self, position, name: str | None = None) -> float:
         """Weigh an object: grasp it at `position` = [x, y, z] (metres, world frame: the
         fingertip point for a top-down grasp, e.g. the object's centre), lift it 15 cm,
@@ -171,13 +204,15 @@ class RobotAPI:
         """
         subject = _subject(position, name)
         with self._recording_failures(subject, "mass", "kg"):
-            result = self.last_mass = self._run(MeasureMass(position)).result
+            status = yield from self._request(MeasureMass(position))
+            result = self.last_mass = status.result
         self.knowledge.add(KnowledgeEntry(subject, "mass", result.mass_kg, "kg", result.ok,
                                           result.reason, self.robot_time))
         return result.mass_kg
 
     get_weight = get_mass
 
+    @robot_call
     def get_stiffness(self, position, name: str | None = None) -> int:
         """Measure how soft an object is: place the open fingers around it at `position` =
         [x, y, z] (metres, world frame: the fingertip point, e.g. the object's centre), squeeze
@@ -194,7 +229,8 @@ class RobotAPI:
         """
         subject = _subject(position, name)
         with self._recording_failures(subject, "stiffness", "level"):
-            measurement = self.last_stiffness = self._run(MeasureStiffness(position)).result
+            status = yield from self._request(MeasureStiffness(position))
+            measurement = self.last_stiffness = status.result
         self.knowledge.add(KnowledgeEntry(subject, "stiffness", measurement.level, "level",
                                           measurement.level > 0, measurement.describe(),
                                           self.robot_time))
@@ -231,18 +267,21 @@ class RobotAPI:
         """How the last request ended (state, label, message) and the robot time then."""
         return self._robot.status_output.Eval(self._clock.context)
 
-    def _run(self, action) -> SkillStatus:
-        """Puts `action` on the request path, runs until it is answered, and returns the
-        answer; raises SkillRefused or SkillFailed with its message if it did not succeed."""
-        port, context = self._robot.request_input, self._clock.mutable_context
-        request = RobotRequest(CLIENT, port.Eval(context).sequence + 1, action)
-        port.FixValue(context, request)
-        status_port = self._robot.status_output
-        if not self._clock.run_until(lambda root: status_port.Eval(root).finished(request),
-                                     timeout=REQUEST_TIMEOUT):
-            raise SkillFailed(f"{request.label}: no answer within {REQUEST_TIMEOUT:g} s of "
-                              "simulated time")
-        status = status_port.Eval(self._clock.context)
+    def stepwise(self, name: str) -> Callable:
+        """The function `name` for a client that waits on its own: a robot call returns its
+        steps (a generator, see the module docstring), any other function (get_object_pose)
+        answers at once."""
+        method = getattr(type(self), name)
+        steps = getattr(method, "steps", None)
+        if steps is None:
+            return getattr(self, name)
+        return functools.wraps(steps)(functools.partial(steps, self))
+
+    def _request(self, action) -> RobotSteps:
+        """The steps of one request: yields `action`, takes the SkillStatus that answered
+        it, and returns it; raises SkillRefused or SkillFailed with its message if it did
+        not succeed."""
+        status = yield action
         if status.state is SkillState.REFUSED:
             raise SkillRefused(status.message)
         if self._on_skill_done is not None:
@@ -250,6 +289,31 @@ class RobotAPI:
         if status.state is SkillState.FAILED:
             raise SkillFailed(status.message)
         return status
+
+    def _drive(self, steps: RobotSteps):
+        """Runs a robot call's steps on the blocking request path; its result."""
+        try:
+            action = next(steps)
+            while True:
+                action = steps.send(self._run(action))
+        except StopIteration as stop:
+            return stop.value
+
+    def _run(self, action) -> SkillStatus:
+        """Puts `action` on the request path, runs until it is answered, and returns the
+        answer (SkillFailed if none came)."""
+        port, context = self._robot.request_input, self._clock.mutable_context
+        if port is None:
+            raise RuntimeError("this robot's requests come from its agent, a system inside "
+                               "the diagram; a blocking RobotAPI call cannot send one")
+        request = RobotRequest(CLIENT, port.Eval(context).sequence + 1, action)
+        port.FixValue(context, request)
+        status_port = self._robot.status_output
+        if not self._clock.run_until(lambda root: status_port.Eval(root).finished(request),
+                                     timeout=REQUEST_TIMEOUT):
+            raise SkillFailed(f"{request.label}: no answer within {REQUEST_TIMEOUT:g} s of "
+                              "simulated time")
+        return status_port.Eval(self._clock.context)
 
 
 def _subject(position, name: str | None) -> str:

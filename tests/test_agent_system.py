@@ -1,86 +1,300 @@
-"""The AgentSystem decides at its discrete events: the simulator's advance runs the agent,
-model calls happen inside an event (simulated time stands still while a model answers), code
-blocks run between events, and the agent's state lives in the Context."""
+"""The AgentSystem through its ports: a small scripted robot answers the requests it publishes
+on `request` through its `status` input; the agent decides at its events (simulated time
+stands still while a model answers) and runs each code block event by event, the code's
+robot calls becoming requests and their answers coming back to the code."""
 
 from __future__ import annotations
 
+import dataclasses as dc
+import json
+import math
 import time
 
+import numpy as np
 import pytest
+from pydrake.common.value import AbstractValue
+from pydrake.systems.framework import DiagramBuilder, LeafSystem
+from pydrake.systems.primitives import ConstantValueSource
+from pydrake.systems.sensors import ImageRgba8U
 
-from physcap_drake.agent.agent_system import AGENT_PERIOD, PROGRESS_PORT
-from physcap_drake.agent.llm import make_llm
-from physcap_drake.agent.loop import AgentLoop, AgentMind
+from physcap_drake.agent.agent_system import CLIENT, PROGRESS_PORT, AgentSystem
+from physcap_drake.agent.llm.base import LLMResponse
+from physcap_drake.agent.loop import AgentLoop
+from physcap_drake.agent.sandbox import SandboxLimits
 from physcap_drake.agent.transcript import Transcript
-from physcap_drake.agent.variant import load_variant
-from physcap_drake.app.episode import make_episode
+from physcap_drake.agent.variant import AgentVariant
+from physcap_drake.app.agent_episode import run_agent
+from physcap_drake.clock import Clock
+from physcap_drake.control.requests import (
+    MoveToPose,
+    RobotRequest,
+    Served,
+    SkillState,
+    SkillStatus,
+)
+from physcap_drake.control.skill_executor import REQUEST_PORT, STATUS_PORT
+from physcap_drake.immutable_state import Immutable
+from physcap_drake.knowledge import SceneKnowledge
+from physcap_drake.physx.mass_probe import MassMeasurement, MeasureMass
+from physcap_drake.robot_api import RobotAPI
+from physcap_drake.station import ports
+from physcap_drake.station.arm_fault import ArmFault
 
-TASK, SEED = "identify_empty_can", 0
-MODEL_DELAY = 0.3  # s of wall time each model call takes here
+MOTION_S = 0.5  # s of simulated time each request takes the scripted robot
+MASS_KG = 0.35
+LIMITS = SandboxLimits(cpu_s=2, compute_wall_s=5, memory_mb=512)
+OBJECT = [0.3, 0.0, 0.05]  # where get_object_pose finds every object, m
 
 
-class SlowModel:
-    """The reference reasoner, answering only after MODEL_DELAY s of wall time."""
+@dc.dataclass(frozen=True)
+class RobotMemory(Immutable):
+    taken: tuple[tuple[float, RobotRequest], ...] = ()  # (time taken, request)
+    status: SkillStatus = SkillStatus()
+    served: Served = Served()
 
-    def __init__(self):
-        self._inner = make_llm("reference", seed=SEED)
-        self.name, self.model, self.calls = "slow-reference", "slow", 0
 
-    def complete(self, request):
+class ScriptedRobot(LeafSystem):
+    """Takes a new request on `request` at its events (every 10 ms), answers it on `status`
+    MOTION_S s later: REFUSED (nothing moves) for a target farther than 1 m, else SUCCEEDED
+    (a MeasureMass with a MassMeasurement of MASS_KG). From `fault_at` s on, its event raises
+    ArmFault, as a station does."""
+
+    def __init__(self, fault_at: float = math.inf):
+        super().__init__()
+        self._fault_at = fault_at
+        self._request = self.DeclareAbstractInputPort(REQUEST_PORT,
+                                                      AbstractValue.Make(RobotRequest()))
+        self._memory = self.DeclareAbstractState(AbstractValue.Make(RobotMemory()))
+        self.DeclarePeriodicUnrestrictedUpdateEvent(0.01, 0.0, self._update)
+        self.DeclareAbstractOutputPort(
+            STATUS_PORT, lambda: AbstractValue.Make(SkillStatus()),
+            lambda context, output: output.set_value(self.memory(context).status),
+            {self.abstract_state_ticket(self._memory)})
+
+    def memory(self, context) -> RobotMemory:
+        return context.get_abstract_state(self._memory).get_value()
+
+    def _update(self, context, state):
+        memory, now = self.memory(context), context.get_time()
+        if now >= self._fault_at:
+            raise ArmFault("the arm reports: emergency stop")
+        status = memory.status
+        if status.state is SkillState.RUNNING and now >= status.started_at + MOTION_S - 1e-9:
+            result = (MassMeasurement(True, MASS_KG, "", MOTION_S) if status.label == "get_mass"
+                      else None)
+            status = dc.replace(status, state=SkillState.SUCCEEDED, finished_at=now,
+                                robot_time=status.robot_time + MOTION_S, result=result)
+        request = self._request.Eval(context)
+        if status.state is not SkillState.RUNNING and memory.served.is_new(request):
+            target = np.asarray(getattr(request.action, "position", np.zeros(3)), float)
+            refused = np.linalg.norm(target) > 1.0
+            status = SkillStatus(
+                request.client, request.sequence,
+                SkillState.REFUSED if refused else SkillState.RUNNING, request.label,
+                f"the target {target.tolist()} is out of reach" if refused else "", now, now,
+                status.robot_time)
+            memory = dc.replace(memory, taken=(*memory.taken, (now, request)),
+                                served=memory.served.add(request))
+        state.get_mutable_abstract_state(self._memory).set_value(
+            dc.replace(memory, status=status))
+
+
+class PortArm(RobotAPI):
+    """The RobotAPI's own robot calls (their steps), its knowledge and measurements, over the
+    scripted robot: robot time is what the robot's status reports."""
+
+    def __init__(self, robot: ScriptedRobot):
+        self._on_skill_done = None
+        self._locator = None
+        self.knowledge = SceneKnowledge()
+        self.last_mass = self.last_stiffness = None
+        self._status = lambda: SkillStatus()
+        self._robot_system = robot
+
+    def read_from(self, clock: Clock) -> None:
+        context = self._robot_system.GetMyContextFromRoot(clock.context)
+        self._status = lambda: self._robot_system.GetOutputPort(STATUS_PORT).Eval(context)
+
+    @property
+    def robot_time(self) -> float:
+        return self._status().robot_time
+
+    @property
+    def status(self) -> SkillStatus:
+        return self._status()
+
+    def get_object_pose(self, name: str) -> np.ndarray:
+        return np.array(OBJECT)
+
+
+class NoObjects:
+    """A perception module that reads the colour image and finds nothing in it."""
+
+    input_ports = (ports.CAMERA_RGB,)
+
+    def look(self, images):
+        return []
+
+
+class Coder:
+    """A coder model that writes the given blocks in turn (the last completes the task),
+    taking `delay` s of wall time per answer."""
+
+    name, model = "scripted", "scripted-1"
+
+    def __init__(self, blocks: list[str], delay: float = 0.0):
+        self.blocks, self.delay, self.calls = blocks, delay, 0
+
+    def complete(self, request) -> LLMResponse:
         self.calls += 1
-        time.sleep(MODEL_DELAY)
-        return self._inner.complete(request)
+        time.sleep(self.delay)
+        done = self.calls == len(self.blocks)
+        return LLMResponse(json.dumps({"thought": "t", "code": self.blocks[self.calls - 1],
+                                       "task_complete": done}), self.model)
 
 
-@pytest.fixture
-def setup():
-    episode = make_episode(TASK, SEED, with_agent=True)
-    transcript, model = Transcript(), SlowModel()
-    loop = AgentLoop(task=episode.instance.prompt, variant=load_variant("physcap"), llm=model,
-                     api=episode.api, check=episode.check, seed=SEED, transcript=transcript)
-    system = episode.robot.agent
-    context = system.GetMyMutableContextFromRoot(episode.api.clock.mutable_context)
-    system.attach(loop, lambda: episode.api.robot_time)
-    yield episode, system, context, loop, transcript, model
-    episode.close()
+@dc.dataclass
+class Rig:
+    clock: Clock
+    agent: AgentSystem
+    robot: ScriptedRobot
+    arm: PortArm
+    transcript: Transcript
+    coder: Coder
+    loop: AgentLoop
+
+    def agent_context(self):
+        return self.agent.GetMyContextFromRoot(self.clock.context)
+
+    def requests(self) -> list[tuple[float, RobotRequest]]:
+        return list(self.robot.memory(self.robot.GetMyContextFromRoot(self.clock.context)).taken)
+
+    def run_episode(self, timeout: float = 30.0):
+        context = self.agent_context()
+        assert self.clock.run_until(lambda root: self.agent.mind(context).over, timeout=timeout)
+        return self.agent.mind(context)
 
 
-def test_the_agent_decides_at_its_event_while_simulated_time_stands_still(setup):
-    episode, system, context, loop, transcript, model = setup
-    clock = episode.api.clock
-    root = clock.context
-    clock.run_for(0.1)
-    assert model.calls == 0 and system.mind(context).phase == "idle"  # not started: no-op
-    system.set_mind(context, AgentMind(phase="deciding"))
-    assert model.calls == 0  # nothing happens until the simulator reaches an event
+_RIGS: list[Rig] = []
+
+
+@pytest.fixture(autouse=True)
+def release_the_agents():
+    """A test that stops mid-block leaves a child waiting: released as an episode would be."""
+    yield
+    while _RIGS:
+        rig = _RIGS.pop()
+        rig.agent.release(rig.agent_context())
+
+
+def make_rig(blocks: list[str], delay: float = 0.0, fault_at: float = math.inf) -> Rig:
+    builder = DiagramBuilder()
+    agent = builder.AddSystem(AgentSystem(NoObjects()))
+    robot = builder.AddSystem(ScriptedRobot(fault_at))
+    camera = builder.AddSystem(ConstantValueSource(AbstractValue.Make(ImageRgba8U(8, 6))))
+    builder.Connect(camera.get_output_port(), agent.GetInputPort(ports.CAMERA_RGB))
+    builder.Connect(agent.GetOutputPort(REQUEST_PORT), robot.GetInputPort(REQUEST_PORT))
+    builder.Connect(robot.GetOutputPort(STATUS_PORT), agent.GetInputPort(STATUS_PORT))
+    clock = Clock(builder.Build())
+    arm, transcript, coder = PortArm(robot), Transcript(), Coder(blocks, delay)
+    arm.read_from(clock)
+    variant = AgentVariant(name="scripted", decider="coder", order="as_given", physx_api=True,
+                           max_steps=len(blocks) + 1)
+    loop = AgentLoop(task="Weigh the can.", variant=variant, llm=coder, api=arm, limits=LIMITS,
+                     transcript=transcript)
+    agent.attach(loop, lambda: arm.robot_time)
+    _RIGS.append(Rig(clock, agent, robot, arm, transcript, coder, loop))
+    return _RIGS[-1]
+
+
+def outputs(transcript: Transcript) -> list[str]:
+    return [e.text for e in transcript.entries if e.kind == "output"]
+
+
+def test_each_robot_call_of_the_code_is_a_request_and_its_answer_comes_back_to_the_code():
+    rig = make_rig(["position = get_object_pose('can')\n"
+                    "goto_pose([position[0], position[1], 0.2])\n"
+                    "print('weighed', get_mass(position, 'can'))\n", "goto_pose([0.3, 0.0, 0.25])"])
+    rig.clock.run_until(lambda root: len(rig.requests()) == 2, timeout=5.0)
+    taken = rig.requests()
+    assert [(r.client, r.sequence) for _, r in taken] == [(CLIENT, 1), (CLIENT, 2)]
+    first, second = taken[0][1].action, taken[1][1].action
+    assert isinstance(first, MoveToPose) and isinstance(second, MeasureMass)
+    np.testing.assert_allclose(first.position, [0.3, 0.0, 0.2])
+    np.testing.assert_allclose(second.position, OBJECT)
+    # The second call came only after the first was answered: one motion later, at the
+    # robot's next event.
+    assert taken[1][0] - taken[0][0] == pytest.approx(MOTION_S + 0.01, abs=1e-6)
+    progress = rig.agent.GetOutputPort(PROGRESS_PORT).Eval(rig.agent_context())
+    assert (progress.phase, progress.steps) == ("executing", 0)
+    rig.clock.run_until(lambda root: rig.agent.mind(rig.agent_context()).steps, timeout=5.0)
+    assert outputs(rig.transcript)[0].strip().endswith(f"weighed {MASS_KG}")
+    assert [e.value for e in rig.arm.knowledge.entries] == [MASS_KG]
+    mind = rig.agent.mind(rig.agent_context())
+    assert mind.steps[0].ok and mind.steps[0].robot_time_s == pytest.approx(2 * MOTION_S)
+    assert mind.oi == 0  # the scripted measurement held no load window: no touch
+
+
+def test_a_refused_request_reaches_the_code_as_an_error_it_can_catch():
+    rig = make_rig(["try:\n"
+                    "    goto_pose([5.0, 0.0, 0.2])\n"
+                    "except SkillRefused as error:\n"
+                    "    print('refused:', error)\n"
+                    "goto_pose([0.3, 0.0, 0.2])\n", "goto_pose([0.3, 0.0, 0.25])"])
+    mind = rig.run_episode()
+    assert mind.phase == "done" and all(step.ok for step in mind.steps)
+    assert "refused: the target [5.0, 0.0, 0.2] is out of reach" in outputs(rig.transcript)[0]
+    taken = [request for _, request in rig.requests()]
+    assert [r.sequence for r in taken] == [1, 2, 3]
+    np.testing.assert_allclose(taken[1].action.position, [0.3, 0.0, 0.2])
+
+
+def test_an_uncaught_refusal_fails_the_block_and_the_arm_is_held_before_the_agent_goes_on():
+    rig = make_rig(["goto_pose([5.0, 0.0, 0.2])\nprint('never')\n", "goto_pose([0.3, 0.0, 0.25])"])
+    mind = rig.run_episode()
+    assert not mind.steps[0].ok and "SkillRefused" in mind.steps[0].error
+    assert not mind.steps[0].moved and outputs(rig.transcript) == []
+    taken = [request.action for _, request in rig.requests()]
+    assert type(taken[1]).__name__ == "Wait" and taken[1].duration == pytest.approx(0.5)
+
+
+def test_the_agent_decides_at_its_event_while_simulated_time_stands_still():
+    delay = 0.3
+    rig = make_rig(["goto_pose([0.3, 0.0, 0.2])\n", "goto_pose([0.3, 0.0, 0.25])"], delay=delay)
     wall = time.monotonic()
-    clock.run_for(2 * AGENT_PERIOD)
+    assert rig.clock.run_until(lambda root: rig.requests(), timeout=1.0)
     wall = time.monotonic() - wall
-    mind = system.mind(context)
-    assert mind.phase == "executing" and mind.pending is not None
-    assert "get_mass" in mind.pending.answer.code
-    assert model.calls >= 3 and wall >= model.calls * MODEL_DELAY  # planner, prioritizer, coder
-    # All of that took no simulated time: the simulator only went on to the end of the advance.
-    assert root.get_time() == pytest.approx(0.1 + 2 * AGENT_PERIOD, abs=1e-9)
-    assert episode.api.robot_time == 0.0
-    assert {e.robot_time_s for e in transcript.entries} == {0.0}
-    progress = system.GetOutputPort(PROGRESS_PORT).Eval(context)
-    assert (progress.phase, progress.steps, progress.oi) == ("executing", 0, 0)
+    assert rig.coder.calls == 1 and wall >= delay
+    # The decision and the block's first request were made at the agent's first event (at
+    # 0.75 PERIOD): the robot took it at its next one. The model's time took no sim time.
+    (taken_at, request), = rig.requests()
+    assert taken_at == pytest.approx(0.01) and request.sequence == 1
+    assert {e.robot_time_s for e in rig.transcript.entries} == {0.0}
 
 
-def test_code_blocks_run_between_events_and_the_mind_comes_back_to_deciding(setup):
-    episode, system, context, loop, transcript, model = setup
-    clock = episode.api.clock
-    root = clock.context
-    system.set_mind(context, AgentMind(phase="deciding"))
-    clock.run_for(AGENT_PERIOD * 2)
-    calls = model.calls
-    mind = loop.execute(system.mind(context))  # the robot moves: the simulator advances
-    assert mind.phase == "deciding" and mind.ran is not None and mind.ran.outcome.ok
-    assert root.get_time() > 5.0 and model.calls == calls  # no decision while it ran
-    assert episode.api.knowledge.entries  # the mass was measured
-    system.set_mind(context, mind)
-    clock.run_for(2 * AGENT_PERIOD)
-    after = system.mind(context)
-    assert len(after.steps) == 1 and after.steps[0].kind == "explore" and after.oi == 1
-    assert after.phase in ("executing", "done")
+def test_code_that_breaks_inside_the_agent_never_raises_out_of_the_diagram():
+    rig = make_rig(["import os\n", "x = 1 / 0\n", "goto_pose([0.3, 0.0, 0.25])"])
+    mind = rig.run_episode()
+    assert mind.phase == "done" and [step.ok for step in mind.steps] == [False, False, True]
+    assert mind.steps[0].error.startswith("rejected: ")
+    assert mind.steps[1].error.startswith("exception: ZeroDivisionError at line 1")
+    assert math.isclose(rig.arm.robot_time, 2 * 0.5 + MOTION_S)  # two holds of 0.5 s, a motion
+
+
+
+def test_an_arm_fault_while_the_code_waits_for_the_robot_ends_the_episode_at_once():
+    rig = make_rig(["goto_pose([0.3, 0.0, 0.2])\n"
+                    "try:\n"
+                    "    goto_pose([0.3, 0.1, 0.2])\n"
+                    "except BaseException:\n"
+                    "    print('caught')\n", "goto_pose([0.3, 0.0, 0.25])"],
+                   fault_at=MOTION_S + 0.2)  # during the second motion
+    context = rig.agent_context()
+    mind = run_agent(rig.clock, rig.agent, context, rig.loop, timeout=10.0)
+    assert (mind.phase, mind.failure_kind) == ("failed", "arm")
+    assert mind.failure == ("arm fault: goto_pose() failed with ArmFault: the arm reports: "
+                            "emergency stop; the code was stopped at once")
+    assert "caught" not in "".join(outputs(rig.transcript)) and rig.coder.calls == 1
+    assert rig.agent.mind(context).phase == "executing"  # the Context was left as it stood
+    server = rig.agent.state(context).block.server
+    assert server.outcome is not None and server.outcome.kind == "fault"  # the child is gone

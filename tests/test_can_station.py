@@ -111,6 +111,11 @@ def test_stale_feedback_holds_the_outputs_then_ends_the_run(can_station):
         can_station.GetOutputPort(ports.ARM_POSITION_MEASURED).Eval(context), held)
     with pytest.raises(ArmFault, match=r"stale for 0\.\d s .*stale_limit = 0.3 s.*no feedback"):
         simulator.AdvanceTo(context.get_time() + 0.5)
+    # A silent link is a fault of the link: the emulated arm's own figures do not excuse it.
+    session = can_session(can_station)
+    session.close()
+    assert session.last_emulator_timing.firmware.steps > 50
+    assert any(trip.startswith("no feedback for") for trip in session.unexplained_trips())
 
 
 def test_the_scene_ports_show_the_emulated_world(can_station):
@@ -174,8 +179,11 @@ def test_the_agent_finds_the_empty_can_over_either_station(tmp_path, station):
         assert summary["wall_time_s"] >= summary["robot_time_s"]  # real time
         session = can_session(run.episode.robot.station)  # released: its last figures
         assert session.last_status.commands_sent > 150 * summary["robot_time_s"]
-        # The streaming process keeps its rhythm: the watchdog never stopped the arm.
-        assert session.last_status.stale_count == 0, session.last_stale_reasons
+        # The streaming process keeps its rhythm and the link is sound: the watchdog stopped
+        # the arm only when the emulated arm itself did not run (a starved machine), which
+        # its own figures show at the same time. A slow emulated world is not one of them.
+        assert session.last_status.stale_count == len(session.last_stale_events)
+        assert session.unexplained_trips() == [], session.last_emulator_timing
 
 
 def test_bench_can_loop_prints_the_period_percentiles(tmp_path):

@@ -11,6 +11,7 @@ import pytest
 
 from physcap_drake.app.episode import make_episode
 from physcap_drake.bench.perception_bench import bench_episode
+from physcap_drake.control.skill_executor import STATUS_PORT
 from physcap_drake.kinematics.piper_dh import tcp_transform
 from physcap_drake.perception import (
     colors,
@@ -56,10 +57,12 @@ def test_the_agent_is_wired_to_what_its_perception_reads():
     episode = make_episode("identify_empty_can", 0, with_agent=True, perception="rgbd")
     agent = episode.robot.agent
     names = {agent.get_input_port(i).get_name() for i in range(agent.num_input_ports())}
-    assert names == {ports.CAMERA_RGB, ports.CAMERA_DEPTH, ports.ARM_POSITION_MEASURED}
+    # What the perception reads, and the answers of the robot's request path.
+    assert names == {ports.CAMERA_RGB, ports.CAMERA_DEPTH, ports.ARM_POSITION_MEASURED,
+                     STATUS_PORT}
     label = make_episode("identify_empty_can", 0, with_agent=True).robot.agent
     assert {label.get_input_port(i).get_name() for i in range(label.num_input_ports())} == {
-        ports.CAMERA_RGB, ports.CAMERA_DEPTH, ports.CAMERA_LABEL}
+        ports.CAMERA_RGB, ports.CAMERA_DEPTH, ports.CAMERA_LABEL, STATUS_PORT}
 
 
 def test_the_table_plane_is_found_under_noise_and_objects():

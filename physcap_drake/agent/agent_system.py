@@ -1,42 +1,82 @@
-"""AgentSystem: the agent in the diagram, deciding at its discrete events.
+"""AgentSystem: the agent in the diagram, deciding and running its code at discrete events.
 
 Its input ports are the station outputs its perception module reads (`camera.rgb`,
 `camera.depth` and the arm's measured joints for RGB-D perception; `camera.label` instead of
 the joints for the simulator's segmenter), so what the agent sees is exactly what is wired
-to it: no plant, no poses, no masses. Its state is the agent's mind (`AgentMind`: phase,
-code blocks run, the code block waiting to run, ...) in the Context, published as a summary
-on `agent.progress`.
+to it: no plant, no poses, no masses; and `status` (SkillStatus), the answers of the robot's
+request path. Its `request` output (RobotRequest, client "agent", sequences 1, 2, ...) is
+the top of that path: the agent is the robot's client inside the diagram. Its state is the
+agent's mind (`AgentMind`) and the code block it runs, in the Context; `agent.progress`
+publishes a summary.
 
-Every `period` s a periodic unrestricted-update event runs; when the mind is "deciding", the
-event looks through the camera ports and lets the policy (`AgentLoop.think`) decide and write
-the next code block. Model calls happen inside the event, so simulated time stands still while
-models answer. The code block itself moves the robot, so it runs between events (the episode
-runner hands it to `AgentLoop.execute`, whose robot calls advance the simulation; events do
-nothing meanwhile), and the mind goes back to "deciding" for the next event.
+Every PERIOD s (between the SkillExecutor's events and the probes', so a request that one of
+them finished is followed by the next one at the executor's next event) an
+unrestricted-update event moves the agent on as far as it can without the robot:
+
+- "idle": once a policy is attached, the episode starts: "deciding", or "failed" when the
+  start-up check found a problem (given to `attach`);
+- "deciding": the event looks through the camera ports and the policy decides and writes the
+  next code block (`AgentLoop.think`); the mind goes to "executing";
+- "executing": the event starts the block's child process (`AgentLoop.open_block`) and
+  serves its calls (`sandbox.CallServer`): a call that needs no robot (get_object_pose, the
+  knowledge) is answered within the event; a robot call's request is published on `request`,
+  and the event that finds it finished on `status` answers the child (the result, or the
+  SkillRefused / SkillFailed the code may catch) and takes its next call. When the code
+  ends, a failed block holds the arm still (a Wait request) before the mind takes in what
+  the block did and goes back to "deciding".
+
+Model calls: with `background=False` (the simulated station) `think` runs inside the event,
+so simulated time stands still while models answer and robot time and metrics are
+reproducible. With `background=True` (the real arm, paced at real time) the event starts
+`think` on a worker thread and a later event collects the decision, while the diagram runs on:
+the arm holds, the recorder logs, and a fault ends the run while the model is still thinking.
+The child's own computing between calls is waited for inside the events on either station.
+
+Resources, not state: the running block's child process (its CallServer) and the worker
+thread of a thought are held in the Context as handles, inside the same immutable cell as
+the mind; an event replaces the cell, and only the events (and `release`, when the episode
+ends) act on the handles.
+
+An arm fault (the station raises ArmFault from inside the simulator's advance) ends the run
+where it surfaces, outside any event: the episode's owner calls `release(context, fault)`,
+which ends the child or gives up on the thought and returns the final mind ("failed", kind
+"arm"); that mind is the episode's result and is not written back into a Context the fault
+left mid-step.
 """
 
 from __future__ import annotations
 
 import dataclasses as dc
-from collections.abc import Callable
+import threading
+from collections.abc import Callable, Generator
+from concurrent.futures import Future
 
 from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import Context, LeafSystem, State
 from pydrake.systems.sensors import ImageDepth32F, ImageLabel16I, ImageRgba8U
 
-from physcap_drake.agent.loop import AgentLoop, AgentMind
+from physcap_drake.agent.loop import AgentLoop, AgentMind, BlockEnd
 from physcap_drake.agent.observation import Observation, observe
+from physcap_drake.agent.sandbox import CallServer, CodeOutcome, Waiting
+from physcap_drake.control.requests import RobotRequest, SkillStatus
+from physcap_drake.control.skill_executor import MONITOR_PERIOD, REQUEST_PORT, STATUS_PORT
 from physcap_drake.immutable_state import Immutable
 from physcap_drake.station import ports
+from physcap_drake.station.arm_fault import ArmFault
 
 #: The value type of each image input a perception module may read.
 _IMAGE_INPUTS = {ports.CAMERA_RGB: ImageRgba8U, ports.CAMERA_DEPTH: ImageDepth32F,
                  ports.CAMERA_LABEL: ImageLabel16I}
 
 PROGRESS_PORT = "agent.progress"
-#: Period of the agent's events, s of simulated time (a multiple of the plant's 4 ms step, so
-#: the events add no steps).
-AGENT_PERIOD = 0.02
+#: This system's name on the request path.
+CLIENT = "agent"
+#: Period of the agent's events, s of simulated time, and their offset (in periods) from the
+#: executor's events: between the executor's (which end skills) and the probes' (half a
+#: period after them, which end probes), so the next request follows either at the
+#: executor's next event, as when a client outside the diagram waits for each request.
+PERIOD = MONITOR_PERIOD
+OFFSET = 0.75
 
 
 @dc.dataclass(frozen=True)
@@ -50,16 +90,66 @@ class AgentProgress:
     failure: str = ""
 
 
+@dc.dataclass(frozen=True)
+class RunningBlock(Immutable):
+    """The code block being run: its server (a handle on the child process), the robot time
+    when it started (s), and, once the code ended, how (`end`) while the arm is held
+    (`hold`: the steps of that hold)."""
+
+    server: CallServer
+    started: float
+    end: BlockEnd | None = None
+    hold: Generator | None = None
+
+
+@dc.dataclass(frozen=True)
+class AgentState(Immutable):
+    """The AgentSystem's state: the mind, the latest request it published, the block it runs
+    (None between blocks) and the thought computing on a worker thread (None unless one
+    does; `background` only)."""
+
+    mind: AgentMind = AgentMind()
+    request: RobotRequest = RobotRequest()
+    block: RunningBlock | None = None
+    thought: Thought | None = None
+
+
+class Thought:
+    """`policy.think(mind, observation, robot_time)` on a daemon worker thread (a resource
+    handle: the thread is never joined, so a fault never waits for a model)."""
+
+    def __init__(self, policy: AgentLoop, mind: AgentMind, observation: Observation,
+                 robot_time: float):
+        self._policy = policy
+        self.future: Future = Future()
+        self.thread = threading.Thread(target=self._run, args=(mind, observation, robot_time),
+                                       name="agent-thought", daemon=True)
+        self.thread.start()
+
+    def _run(self, mind: AgentMind, observation: Observation, robot_time: float) -> None:
+        try:
+            self.future.set_result(self._policy.think(mind, observation, robot_time))
+        except BaseException as error:  # noqa: BLE001 - handed to the event that collects it
+            self.future.set_exception(error)
+
+    def give_up(self) -> None:
+        """The episode ended while the thought ran: it writes nothing more."""
+        self._policy.silence(self.thread)
+
+
 class AgentSystem(LeafSystem):
     """See the module docstring. `perception` finds the objects in view (an RgbdPerception
     or the simulator's LabelPerception; its `input_ports` become this system's); the policy
     is attached with `attach` before the episode starts (it needs the robot API, which
-    needs the built diagram); `on_observe()` hears each look at the scene."""
+    needs the built diagram); `on_observe()` hears each look at the scene. `background`:
+    model calls run on a worker thread while the diagram runs on (the real arm)."""
 
-    def __init__(self, perception, period: float = AGENT_PERIOD):
+    def __init__(self, perception, period: float = PERIOD, *, background: bool = False):
         super().__init__()
         self._perception = perception
+        self._background = background
         self._policy: AgentLoop | None = None
+        self._start_problem = ""
         self._robot_time: Callable[[], float] = lambda: 0.0
         self._on_observe: Callable[[], None] | None = None
         self._inputs = {}
@@ -69,15 +159,27 @@ class AgentSystem(LeafSystem):
                     name, AbstractValue.Make(_IMAGE_INPUTS[name]()))
             else:
                 self._inputs[name] = self.DeclareVectorInputPort(name, ports.VECTOR_OUTPUTS[name])
-        self._mind = self.DeclareAbstractState(AbstractValue.Make(_MindCell(AgentMind())))
+        self._status = self.DeclareAbstractInputPort(STATUS_PORT,
+                                                     AbstractValue.Make(SkillStatus()))
+        self._state = self.DeclareAbstractState(AbstractValue.Make(AgentState()))
+        ticket = {self.abstract_state_ticket(self._state)}
         self.DeclareAbstractOutputPort(PROGRESS_PORT, lambda: AbstractValue.Make(
-            AgentProgress()), self._output_progress, {self.abstract_state_ticket(self._mind)})
-        self.DeclarePeriodicUnrestrictedUpdateEvent(period, 0.0, self._decide)
+            AgentProgress()), self._output_progress, ticket)
+        self.DeclareAbstractOutputPort(REQUEST_PORT, lambda: AbstractValue.Make(
+            RobotRequest()), self._output_request, ticket)
+        self.DeclarePeriodicUnrestrictedUpdateEvent(period, OFFSET * period, self._update)
+
+    @property
+    def background(self) -> bool:
+        return self._background
 
     def attach(self, policy: AgentLoop, robot_time: Callable[[], float],
-               on_observe: Callable[[], None] | None = None) -> None:
-        """The policy the events run, and the robot's execution time (s) for observations."""
+               on_observe: Callable[[], None] | None = None, start_problem: str = "") -> None:
+        """The policy the events run, and the robot's execution time (s) for observations.
+        `start_problem`: why the episode cannot start (e.g. the model server's start-up
+        check failed): the first event then ends it with that reason."""
         self._policy, self._robot_time, self._on_observe = policy, robot_time, on_observe
+        self._start_problem = start_problem
 
     def observation(self, context: Context) -> Observation:
         """What the camera shows now (renders the images if they are stale)."""
@@ -87,36 +189,130 @@ class AgentSystem(LeafSystem):
                          else port.Eval(context)) for name, port in self._inputs.items()}
         return observe(images, self._perception, self._robot_time())
 
-    def mind(self, context: Context) -> AgentMind:
-        return context.get_abstract_state(self._mind).get_value().mind
+    def state(self, context: Context) -> AgentState:
+        return context.get_abstract_state(self._state).get_value()
 
-    def set_mind(self, context: Context, mind: AgentMind) -> None:
-        """Replaces the mind (between events: to start the episode, or after a code block
-        ran)."""
-        context.get_mutable_abstract_state(self._mind).set_value(_MindCell(mind))
+    def mind(self, context: Context) -> AgentMind:
+        return self.state(context).mind
 
     def progress(self, context: Context) -> AgentProgress:
         return _progress_of(self.mind(context))
 
+    def release(self, context: Context, fault: ArmFault | None = None) -> AgentMind:
+        """Ends what the agent has running when the episode's run stops (see the module
+        docstring): the child of a running block is stopped (as by `fault`, if given, which
+        then ends the episode the way a fault inside the block does), a thought is given up
+        on. Returns the final mind; nothing is written into `context`."""
+        state = self.state(context)
+        mind = state.mind
+        if state.thought is not None:
+            state.thought.give_up()
+        block = state.block
+        if block is not None:
+            end = block.end  # set once the code has ended: the arm was being held
+            if fault is not None and end is None and self._policy is not None:
+                # The code waits for the robot: it is stopped as by a fault of its call.
+                end = self._policy.block_stopped(mind, block.server.abort(fault),
+                                                 block.started)
+            block.server.close()
+            if fault is not None and self._policy is not None:
+                mind = self._policy.block_done(mind, end)
+        if fault is not None and not mind.over and self._policy is not None:
+            return self._policy.fault(mind, fault)
+        return mind
+
     def _output_progress(self, context: Context, output: AbstractValue) -> None:
         output.set_value(_progress_of(self.mind(context)))
 
-    def _decide(self, context: Context, state: State) -> None:
-        mind = self.mind(context)
-        if mind.phase != "deciding" or self._policy is None:
+    def _output_request(self, context: Context, output: AbstractValue) -> None:
+        output.set_value(self.state(context).request)
+
+    # --- the event -------------------------------------------------------------------------
+
+    def _update(self, context: Context, state: State) -> None:
+        current = self.state(context)
+        if self._policy is None or current.mind.over:
             return
-        mind = self._policy.think(mind, self.observation(context))
-        state.get_mutable_abstract_state(self._mind).set_value(_MindCell(mind))
+        reached = [current]  # the state as far as the event got (to clean up after)
+        try:
+            updated = self._advance(context, reached)
+        except Exception as error:  # noqa: BLE001 - nothing the agent does may end the run
+            _close(reached[0])
+            updated = AgentState(self._policy.internal_failure(reached[0].mind, error),
+                                 reached[0].request)
+        if updated is not current:
+            state.get_mutable_abstract_state(self._state).set_value(updated)
+
+    def _advance(self, context: Context, reached: list[AgentState]) -> AgentState:
+        """Moves the agent on as far as it goes without the robot (see the module
+        docstring): the state to keep (`reached[0]` follows it, step by step)."""
+        policy, s = self._policy, reached[0]
+        status = self._status.Eval(context)
+        while not s.mind.over:
+            reached[0] = s
+            mind = s.mind
+            if s.thought is not None:
+                if not s.thought.future.done():
+                    return s
+                s = dc.replace(s, mind=s.thought.future.result(), thought=None)
+            elif mind.phase == "idle":
+                s = dc.replace(s, mind=policy.stop_before_start(self._start_problem)
+                               if self._start_problem else AgentMind(phase="deciding"))
+            elif mind.phase == "deciding":
+                observation, robot_time = self.observation(context), self._robot_time()
+                if self._background:
+                    return dc.replace(s, thought=Thought(policy, mind, observation,
+                                                         robot_time))
+                s = dc.replace(s, mind=policy.think(mind, observation, robot_time))
+            elif s.block is None:
+                s = reached[0] = dc.replace(s, block=RunningBlock(policy.open_block(mind),
+                                                                  self._robot_time()))
+                s = self._after(s, s.block.server.start())
+            elif not status.finished(s.request):
+                return s
+            elif s.block.end is None:
+                s = self._after(s, s.block.server.resume(status))
+            else:
+                s = self._holding(s, _send(s.block.hold, status))
+        return s
+
+    def _after(self, s: AgentState, event: Waiting | CodeOutcome) -> AgentState:
+        """The block's server waits for a robot call (published), or the code ended."""
+        if isinstance(event, Waiting):
+            return self._publish(s, event.action)
+        block = s.block
+        block.server.close()
+        end = self._policy.block_stopped(s.mind, event, block.started)
+        if not end.hold:
+            return dc.replace(s, mind=self._policy.block_done(s.mind, end), block=None)
+        hold = self._policy.hold_steps(s.mind)
+        s = dc.replace(s, block=dc.replace(block, end=end, hold=hold))
+        return self._holding(s, _send(hold, None))
+
+    def _holding(self, s: AgentState, action) -> AgentState:
+        """The hold after a failed block sends `action`, or (None) has ended."""
+        if action is not None:
+            return self._publish(s, action)
+        return dc.replace(s, mind=self._policy.block_done(s.mind, s.block.end), block=None)
+
+    @staticmethod
+    def _publish(s: AgentState, action) -> AgentState:
+        return dc.replace(s, request=RobotRequest(CLIENT, s.request.sequence + 1, action))
 
 
-@dc.dataclass(frozen=True)
-class _MindCell(Immutable):
-    """The mind as the Context holds it. Drake copies a system's abstract state twice at
-    every unrestricted update (every 20 ms here), deep-copying Python values: for a mind with
-    a history of steps and model answers that dominated the run time. The mind is replaced
-    at each decision and never changed in place, so the copies may share it."""
+def _send(steps: Generator, value):
+    """The next action of `steps` (sent `value`), or None once they have ended."""
+    try:
+        return next(steps) if value is None else steps.send(value)
+    except StopIteration:
+        return None
 
-    mind: AgentMind
+
+def _close(state: AgentState) -> None:
+    if state.block is not None:
+        state.block.server.close()
+    if state.thought is not None:
+        state.thought.give_up()
 
 
 def _progress_of(mind: AgentMind) -> AgentProgress:

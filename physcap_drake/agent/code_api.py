@@ -26,6 +26,7 @@ from physcap_drake.agent.sandbox import (
     ParameterKind,
     Text,
     Vector,
+    then,
 )
 from physcap_drake.robot_api import RobotAPI
 
@@ -79,6 +80,13 @@ class CodeAPI:
         PARAMETER_KINDS)."""
         return dict(self._table)
 
+    def stepwise_functions(self) -> dict[str, ApiFunction]:
+        """The same table for a client that waits on its own: the robot calls return their
+        steps (see `RobotAPI.stepwise`), the other functions answer at once."""
+        return {name: ApiFunction(_plain_results(self._api.stepwise(name))
+                                  if hasattr(RobotAPI, name) else entry.function, entry.spec)
+                for name, entry in self._table.items()}
+
     def names(self) -> list[str]:
         return list(self._functions)
 
@@ -108,7 +116,10 @@ def spec_of(name: str, function: Callable) -> FunctionSpec:
 
 def _plain_results(function: Callable) -> Callable:
     def call(*args, **kwargs):
-        result = function(*args, **kwargs)
-        return result.tolist() if isinstance(result, np.ndarray) else result
+        return then(function(*args, **kwargs), _plain)
     call.__name__ = getattr(function, "__name__", "function")
     return call
+
+
+def _plain(result):
+    return result.tolist() if isinstance(result, np.ndarray) else result

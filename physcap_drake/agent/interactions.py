@@ -16,7 +16,7 @@ from __future__ import annotations
 from collections.abc import Callable, Mapping
 from typing import Any
 
-from physcap_drake.agent.sandbox import ApiFunction
+from physcap_drake.agent.sandbox import ApiFunction, then
 from physcap_drake.robot_api import RobotAPI
 
 #: The SkillExecutor's words for a closing gripper that stopped on an object.
@@ -25,7 +25,8 @@ HOLDING = "holding something"
 
 class InteractionCounter:
     """Wraps the functions a code block may call and counts its interactions (`count`;
-    `reset()` before each block)."""
+    `reset()` before each block). A function answering in steps counts when its steps
+    end."""
 
     def __init__(self, api: RobotAPI):
         self._api = api
@@ -50,11 +51,13 @@ class InteractionCounter:
                   name: str) -> Callable:
         def call(*args, **kwargs):
             before = self._last_probe(name)
-            result = function(*args, **kwargs)
-            probe = self._last_probe(name)
-            if touched(probe if probe is not before else None):
-                self.count += 1
-            return result
+
+            def count(result):
+                probe = self._last_probe(name)
+                if touched(probe if probe is not before else None):
+                    self.count += 1
+                return result
+            return then(function(*args, **kwargs), count)
         call.__name__ = name
         return call
 

@@ -3,16 +3,22 @@
 The AgentSystem calls it at its discrete events; its state between them is an `AgentMind`
 kept in the AgentSystem's Context:
 
-- at an event in phase "deciding", `think(mind, observation)` finishes the code block just
-  run (what appeared or disappeared in view), checks whether the episode is over and, if not,
-  lets the variant's decider choose between exploring one candidate and finishing the task
-  and has the coder write one code block: the mind goes to phase "executing" holding it;
-- between events, `execute(mind)` runs that block in the sandbox (its robot calls go to the
-  RobotAPI, which advances the simulation; the AgentSystem's events do nothing meanwhile) and
-  takes in what it printed and measured: the mind goes back to "deciding".
+- in phase "deciding", `think(mind, observation)` finishes the code block just run (what
+  appeared or disappeared in view), checks whether the episode is over and, if not, lets the
+  variant's decider choose between exploring one candidate and finishing the task and has
+  the coder write one code block: the mind goes to phase "executing" holding it;
+- in phase "executing" the block runs in the sandbox and the mind takes in what it printed
+  and measured, going back to "deciding". The AgentSystem runs it event by event
+  (`open_block`: each robot call becomes a request on its port; `block_stopped` and
+  `block_done` once the code ended, with the arm held for SAFE_HOLD s between them after a
+  failure); `execute(mind)` runs it in one blocking call (the RobotAPI advances the clock).
 
-Model calls happen inside an event, so simulated time stands still while models answer (and
-while generated code computes between robot calls). The agent ends the episode itself: after
+`think` reads nothing from the diagram (the robot time is read once, when it starts: the
+robot does not move while the agent decides), so the AgentSystem may run it on a worker
+thread while the diagram runs on (the real arm); a thought it gave up on (`silence`) writes
+nothing more and makes no more model calls. On the simulated station it runs inside an
+event, so simulated time stands still while models answer (and while generated code
+computes between robot calls). The agent ends the episode itself: after
 the final code block (the planner found the information sufficient, or the coder said the
 task is complete), or at the step limit, the robot-time limit, or when an agent gives no
 usable answer: the mind is then "done" or "failed". The task's success check (ground truth)
@@ -45,7 +51,8 @@ from __future__ import annotations
 
 import dataclasses as dc
 import json
-from collections.abc import Callable
+import threading
+from collections.abc import Callable, Generator
 
 import numpy as np
 
@@ -55,7 +62,14 @@ from physcap_drake.agent.interactions import InteractionCounter
 from physcap_drake.agent.llm.base import EpisodeTimeUp, LLMClient, LLMError, takes_images
 from physcap_drake.agent.observation import Observation
 from physcap_drake.agent.prompts import AgentContext, PromptBook
-from physcap_drake.agent.sandbox import CodeOutcome, Meters, SandboxLimits, run_sandboxed
+from physcap_drake.agent.sandbox import (
+    CallServer,
+    CodeOutcome,
+    Meters,
+    SandboxLimits,
+    SandboxSession,
+    run_sandboxed,
+)
 from physcap_drake.agent.schemas import (
     Candidate,
     CoderAnswer,
@@ -75,6 +89,11 @@ from physcap_drake.station.arm_fault import ArmFault
 SAFE_HOLD = 0.5
 #: How many failed code blocks one episode may send back to the coder to be written again.
 BLOCK_RETRIES = 4
+
+
+class ThoughtAbandoned(Exception):
+    """Raised in a thought given up on (see `AgentLoop.silence`), ending it before its next
+    model call."""
 
 
 @dc.dataclass(frozen=True)
@@ -108,6 +127,17 @@ class RanBlock:
     moved: bool = True
     touched: int = 0
     retry: bool = False
+
+
+@dc.dataclass(frozen=True)
+class BlockEnd:
+    """A code block that has just stopped: how (`outcome`), whether the robot moved, and
+    whether the arm must be held still (SAFE_HOLD s) before the agent goes on (after a
+    failure that was not an arm fault)."""
+
+    outcome: CodeOutcome
+    moved: bool
+    hold: bool
 
 
 @dc.dataclass(frozen=True)
@@ -192,13 +222,34 @@ class AgentLoop:
         self._code_api = CodeAPI(api, physx=variant.physx_api)
         self._interactions = InteractionCounter(api)
         self._functions = self._interactions.wrap(self._code_api.functions())
+        self._stepwise: dict | None = None
+        # Notes may come from a worker thread (a thought): one writer at a time, and none
+        # from a thought given up on (see `silence`).
+        self._writing = threading.Lock()
+        self._thinking = threading.local()
 
     # --- at an event ---------------------------------------------------------------------
 
-    def think(self, mind: AgentMind, observation: Observation) -> AgentMind:
-        """One decision (see the module docstring); `mind` must be "deciding"."""
+    def think(self, mind: AgentMind, observation: Observation,
+              robot_time: float | None = None) -> AgentMind:
+        """One decision (see the module docstring); `mind` must be "deciding". `robot_time`:
+        the robot time now, s (read from the RobotAPI if not given; the robot does not move
+        while the agent decides, so nothing else is read from the diagram meanwhile)."""
         if mind.phase != "deciding":
             raise ValueError(f"the agent thinks only while deciding, not {mind.phase!r}")
+        self._thinking.robot_time = self.api.robot_time if robot_time is None else robot_time
+        try:
+            return self._think(mind, observation)
+        finally:
+            self._thinking.robot_time = None
+
+    def silence(self, thread: threading.Thread) -> None:
+        """Gives up on the thought running on `thread`: it writes no more transcript entries
+        or phases and makes no more model calls (the episode ended while it ran)."""
+        with self._writing:
+            thread.agent_silenced = True
+
+    def _think(self, mind: AgentMind, observation: Observation) -> AgentMind:
         self._phase("observing", mind)
         self._note(mind, "observation", "objects in view:\n" + observation.as_text(),
                    {"objects": [dc.asdict(o) for o in observation.objects]})
@@ -242,12 +293,12 @@ class AgentLoop:
         return dc.replace(mind, phase="executing",
                           pending=PendingBlock(decision, answer, failed is not None))
 
-    # --- between events ------------------------------------------------------------------
+    # --- running a code block ------------------------------------------------------------
 
     def execute(self, mind: AgentMind) -> AgentMind:
-        """Runs the pending code block in the sandbox (this advances the simulation). Never
-        raises for anything the block does: the block ends with a reason the next model
-        call sees, or the episode ends with a reason in its summary."""
+        """Runs the pending code block in the sandbox in one blocking call (this advances
+        the simulation). Never raises for anything the block does: the block ends with a
+        reason the next model call sees, or the episode ends with a reason in its summary."""
         if mind.phase != "executing" or mind.pending is None:
             raise ValueError(f"no code block to run (phase {mind.phase!r})")
         try:
@@ -255,9 +306,7 @@ class AgentLoop:
         except ArmFault as fault:  # raised while the arm was brought to rest: it holds
             return self.fault(mind, fault)
         except Exception as error:  # noqa: BLE001 - the last line of defence, see above
-            return self._end(dc.replace(mind, pending=None), "the agent could not take in "
-                             f"what the code block did ({type(error).__name__}: {error})",
-                             kind="internal")
+            return self.internal_failure(mind, error)
 
     def stop_before_start(self, problem: str) -> AgentMind:
         """The mind of an episode that ends before its first decision because the model or
@@ -268,26 +317,76 @@ class AgentLoop:
         """Ends the episode on an arm fault (raised by the station while time advanced)."""
         return self._end(dc.replace(mind, pending=None), f"arm fault: {fault}", kind="arm")
 
+    def time_up(self, mind: AgentMind, seconds: float) -> AgentMind:
+        """Ends the episode that ran `seconds` s of diagram time without ending itself."""
+        return self._end(dc.replace(mind, pending=None), f"the episode ran {seconds:g} s "
+                         "without ending", kind="limit")
+
+    def internal_failure(self, mind: AgentMind, error: Exception) -> AgentMind:
+        """Ends the episode on an error of the agent's own (the last line of defence)."""
+        return self._end(dc.replace(mind, pending=None), "the agent could not take in "
+                         f"what the code block did ({type(error).__name__}: {error})",
+                         kind="internal")
+
     def _run_block(self, mind: AgentMind) -> AgentMind:
-        pending = mind.pending
         api = self.api
         started = api.robot_time
         self._interactions.reset()
-        # The block's robot-time budget is what is left of the episode's, checked before
-        # each motion; an arm fault stops the code at once (it never gets to catch it).
         outcome: CodeOutcome = run_sandboxed(
-            pending.answer.code, self._functions, self._limits,
-            meters=Meters(lambda: api.robot_time, api.knowledge.size_chars),
-            robot_time_s=max(self._robot_time_limit - api.robot_time, 0.0), fatal=(ArmFault,))
-        moved = api.robot_time > started
+            mind.pending.answer.code, self._functions, self._limits, **self._block_budget())
+        end = self.block_stopped(mind, outcome, started)
+        if end.hold:
+            self._make_safe(mind)
+        return self.block_done(mind, end)
+
+    def _block_budget(self) -> dict:
+        """The block's robot-time budget is what is left of the episode's, checked before
+        each motion; an arm fault stops the code at once (it never gets to catch it)."""
+        api = self.api
+        return {"meters": Meters(lambda: api.robot_time, api.knowledge.size_chars),
+                "robot_time_s": max(self._robot_time_limit - api.robot_time, 0.0),
+                "fatal": (ArmFault,)}
+
+    def open_block(self, mind: AgentMind) -> CallServer:
+        """The pending code block, ready to be served call by call by an owner that waits
+        for the robot on its own (`CallServer.start`): its robot calls are steps whose
+        actions are requests for the robot (see `RobotAPI.stepwise`)."""
+        if mind.phase != "executing" or mind.pending is None:
+            raise ValueError(f"no code block to run (phase {mind.phase!r})")
+        if self._stepwise is None:
+            self._stepwise = self._interactions.wrap(self._code_api.stepwise_functions())
+        self._interactions.reset()
+        budget = self._block_budget()
+        session = SandboxSession(mind.pending.answer.code, self._stepwise, self._limits,
+                                 meters=budget["meters"], robot_time_s=budget["robot_time_s"])
+        return CallServer(session, budget["fatal"])
+
+    def block_stopped(self, mind: AgentMind, outcome: CodeOutcome,
+                      started: float) -> BlockEnd:
+        """Notes how the block ended (it started at `started` s of robot time); whether the
+        arm must now be held (see BlockEnd)."""
+        moved = self.api.robot_time > started
         if outcome.stdout.strip():
             self._note(mind, "output", outcome.stdout, {"stdout": outcome.stdout})
         if not outcome.ok:
             self._note(mind, "error", f"{outcome.kind}: {outcome.error}"
                        + ("" if moved else " (before the robot moved)"),
                        {"kind": outcome.kind, "error": outcome.error, "moved": moved})
-            if outcome.kind != "fault":  # after a fault the arm holds; nothing may move it
-                self._make_safe(mind)
+        # After a fault the arm holds; nothing may move it.
+        return BlockEnd(outcome, moved, hold=not outcome.ok and outcome.kind != "fault")
+
+    def hold_steps(self, mind: AgentMind) -> Generator:
+        """The steps of holding the arm still after a failed block (see `RobotAPI.stepwise`);
+        a failure to do so is noted, not raised."""
+        try:
+            yield from self.api.stepwise("wait")(SAFE_HOLD)
+        except SkillError as error:
+            self._note(mind, "error", f"could not bring the arm to rest: {error}")
+
+    def block_done(self, mind: AgentMind, end: BlockEnd) -> AgentMind:
+        """Takes in what the block measured; the mind deciding again, or ended after an arm
+        fault."""
+        pending, outcome, api = mind.pending, end.outcome, self.api
         entries = api.knowledge.entries
         for entry in entries[mind.known:]:
             self._note(mind, "measurement", entry.describe(), dc.asdict(entry))
@@ -295,12 +394,15 @@ class AgentLoop:
         if outcome.kind == "fault":
             return self._end(mind, f"arm fault: {outcome.error}", kind="arm")
         return dc.replace(mind, phase="deciding", ran=RanBlock(
-            pending.decision, pending.answer, outcome, api.robot_time, moved,
+            pending.decision, pending.answer, outcome, api.robot_time, end.moved,
             self._interactions.count, pending.retry))
 
     def outcome(self, mind: AgentMind, wall_time_s: float) -> EpisodeOutcome:
-        """The episode's result once the mind is done or failed (or interrupted)."""
+        """The episode's result once the mind is done or failed (or interrupted): the task's
+        check runs now (noted in the transcript)."""
         check = self._check() if self._check is not None else None
+        if check is not None:
+            self._note(mind, "result", f"success: {check.success} ({check.reason})")
         return EpisodeOutcome(
             success=None if check is None else bool(check.success),
             reason="" if check is None else check.reason, oi=mind.oi,
@@ -334,8 +436,9 @@ class AgentLoop:
             last = mind.steps[-1]
             if last.kind == "final" and last.ok:
                 return "done", ""
-        if self.api.robot_time >= self._robot_time_limit:
-            return "failed", (f"robot-time limit reached ({self.api.robot_time:.0f} s >= "
+        robot_time = self._robot_time()
+        if robot_time >= self._robot_time_limit:
+            return "failed", (f"robot-time limit reached ({robot_time:.0f} s >= "
                               f"{self._robot_time_limit:.0f} s)")
         if len(mind.steps) >= self.variant.max_steps:
             return "failed", f"step limit reached ({self.variant.max_steps} code blocks)"
@@ -350,20 +453,35 @@ class AgentLoop:
             failure += f"; the last code block failed: {mind.steps[-1].error}"
         if failure:
             self._note(mind, "error", f"episode stopped: {failure}")
-        check = self._check() if self._check is not None else None
-        if check is not None:
-            self._note(mind, "result", f"success: {check.success} ({check.reason})")
         mind = dc.replace(mind, phase="failed" if failure else how, failure=failure,
                           failure_kind=kind)
         self._phase(mind.phase, mind)
         return mind
 
     def _phase(self, phase: str, mind: AgentMind) -> None:
-        if self._on_phase is not None:
-            self._on_phase(phase, len(mind.steps), mind.oi)
+        """Tells `on_phase`; a thought given up on stops here (no more model calls)."""
+        with self._writing:
+            silenced = self._silenced()
+            if self._on_phase is not None and not silenced:
+                self._on_phase(phase, len(mind.steps), mind.oi)
+        if silenced:
+            raise ThoughtAbandoned(f"the episode ended while the agent was {phase}")
 
     def _note(self, mind: AgentMind, kind: str, text: str, data: dict | None = None) -> None:
-        self.transcript.add(kind, len(mind.steps), self.api.robot_time, text, data)
+        robot_time = self._robot_time()
+        with self._writing:
+            if not self._silenced():
+                self.transcript.add(kind, len(mind.steps), robot_time, text, data)
+
+    def _robot_time(self) -> float:
+        """The robot time now: while thinking, the one it started with (see the module
+        docstring), else the RobotAPI's."""
+        during = getattr(self._thinking, "robot_time", None)
+        return self.api.robot_time if during is None else during
+
+    @staticmethod
+    def _silenced() -> bool:
+        return getattr(threading.current_thread(), "agent_silenced", False)
 
     def _decide(self, context: AgentContext, mind: AgentMind) -> tuple[Decision, AgentMind]:
         self._phase("planning", mind)

@@ -1,6 +1,9 @@
 """One agent episode in simulation: build the task's diagram with an AgentSystem, run the agent
 loop with the chosen variant and language model, and report the paper's metrics.
 
+The episode is one run of the clock until the AgentSystem's mind is over (`run_agent`): the
+system decides and runs its code blocks at its own events.
+
 Before the first decision the model's server is checked (`llm.check_client`: an
 OpenAI-compatible server must serve the model, answer, and take images unless the model is
 text-only); what it found opens the transcript (with a warning when the server does not say
@@ -17,7 +20,7 @@ import time
 from collections.abc import Callable
 from pathlib import Path
 
-from physcap_drake.agent.agent_system import AGENT_PERIOD, AgentSystem
+from physcap_drake.agent.agent_system import AgentSystem
 from physcap_drake.agent.llm import LLMError, ModelSettings, check_client, make_llm
 from physcap_drake.agent.llm.base import CallRecord, LLMClient, takes_images
 from physcap_drake.agent.llm.pointer_ask import pointer_ask
@@ -40,6 +43,10 @@ ROBOT_TIME_LIMIT = 900.0
 #: Wall-clock time after which an episode makes no more model calls, s (a slow local model
 #: takes about a minute a call; an episode makes up to about 30).
 WALL_TIME_LIMIT = 3600.0
+#: Diagram time an episode may run beyond its robot-time and wall-clock limits before it is
+#: stopped, s (the arm holds between requests, and on the real arm the diagram runs on in
+#: real time while models answer).
+EPISODE_TIME_MARGIN = 600.0
 
 
 @dc.dataclass
@@ -86,20 +93,26 @@ class AgentRun:
         return summary
 
 
-def drive_agent(clock: Clock, system: AgentSystem, context, loop: AgentLoop) -> AgentMind:
-    """Runs the episode to its end: the clock runs one agent period at a time, so the
-    AgentSystem's events decide; a code block they wrote runs between events (its robot calls
-    run the clock). An arm fault raised while time advances ends the episode."""
-    system.set_mind(context, AgentMind(phase="deciding"))
-    while not (mind := system.mind(context)).over:
-        if mind.phase == "executing":
-            system.set_mind(context, loop.execute(mind))
-            continue
-        try:
-            clock.run_for(AGENT_PERIOD)
-        except ArmFault as fault:
-            system.set_mind(context, loop.fault(system.mind(context), fault))
-    return mind
+def run_agent(clock: Clock, system: AgentSystem, context, loop: AgentLoop,
+              timeout: float) -> AgentMind:
+    """Runs the episode to its end: one run of the clock until the AgentSystem's mind is done
+    or failed (at most `timeout` s of diagram time). Returns the final mind.
+
+    An arm fault is raised by the station from inside the simulator's advance, mid-step; it
+    ends the run where it surfaces, here: the system's `release(context, fault)` stops the
+    code block's child (or gives up on a thought in flight) and returns the mind ended with
+    kind "arm". That mind is the result; nothing is written into the Context, which the
+    fault left in the middle of a step and which no event will advance again. A run that
+    reaches `timeout` ends the same way, as a limit."""
+    try:
+        finished = clock.run_until(lambda root: system.mind(context).over, timeout=timeout)
+    except ArmFault as fault:
+        return system.release(context, fault)
+    except BaseException:  # e.g. KeyboardInterrupt: no child process is left behind
+        system.release(context)
+        raise
+    mind = system.release(context)
+    return mind if finished else loop.time_up(mind, timeout)
 
 
 def judge_outcome(episode: Episode, outcome: EpisodeOutcome,
@@ -191,8 +204,7 @@ def run_agent_episode(task: str, seed: int, *, agent: str = "physcap",
                      seed=seed, limits=limits,
                      robot_time_limit=robot_time_limit, transcript=transcript,
                      on_phase=on_phase)
-    system.attach(loop, lambda: episode.api.robot_time,
-                  recording.on_observe if recording is not None else None)
+    observe = recording.on_observe if recording is not None else None
     try:
         if on_start is not None:
             on_start(episode)
@@ -200,15 +212,16 @@ def run_agent_episode(task: str, seed: int, *, agent: str = "physcap",
         if wall_time_limit is not None and hasattr(client, "stop_calls_at"):
             client.stop_calls_at(start + wall_time_limit, f"the episode's wall-clock limit "
                                  f"of {wall_time_limit:g} s has passed; no more model calls")
+        problem = ""
         try:
             found = check_client(client)
             if found:
                 transcript.add("model", -1, episode.api.robot_time, f"model server: {found}")
         except LLMError as error:
-            mind = loop.stop_before_start(str(error))
-            system.set_mind(agent_context, mind)
-        else:
-            mind = drive_agent(clock, system, agent_context, loop)
+            problem = str(error)  # the agent's first event ends the episode with it
+        system.attach(loop, lambda: episode.api.robot_time, observe, start_problem=problem)
+        mind = run_agent(clock, system, agent_context, loop, timeout=robot_time_limit + (
+            wall_time_limit or WALL_TIME_LIMIT) + EPISODE_TIME_MARGIN)
         # Judged before the station is released: a camera judge still needs its camera.
         outcome = loop.outcome(mind, time.monotonic() - start)
         outcome, truth = judge_outcome(episode, outcome, operator, transcript)

@@ -133,7 +133,9 @@ def make_episode(task_name: str, seed: int, answer: str = "", meshcat=None, *,
     """Loads stations/<task>.yaml (or `scenario_file`), lays out the objects for `seed`,
     builds and initializes the simulation with the objects' hidden masses, and wires camera
     perception (`perception`: "rgbd" or "label", see the module docstring) to the API (and,
-    `with_agent`, to an AgentSystem in the diagram). With a `sink`, an McapRecorder in the
+    `with_agent`, to an AgentSystem in the diagram: the client of the robot's request path,
+    whose model calls run in the background on the real arm's station, the diagram running
+    on in real time). With a `sink`, an McapRecorder in the
     diagram records the station's signals to it. `judge`: who decides success ("simulator",
     "perception" or "operator", see Episode.check). `perception` and `judge` left None take
     the scenario's `task.perception` / `task.judge`, else "label" and "simulator". Raises
@@ -171,8 +173,9 @@ def make_episode(task_name: str, seed: int, answer: str = "", meshcat=None, *,
 
     robot = build_robot_stack(
         scenario, meshcat,
-        make_agent=(lambda station: AgentSystem(make_perception(station))) if with_agent
-        else None,
+        make_agent=(lambda station: AgentSystem(
+            make_perception(station), background=not isinstance(scenario.station, SimPiper)))
+        if with_agent else None,
         make_recorder=None if sink is None else (
             lambda station: make_mcap_recorder(sink, station, scenario)))
     simulated = robot.station.HasSubsystemNamed("plant")

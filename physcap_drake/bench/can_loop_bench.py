@@ -16,6 +16,7 @@ from physcap_drake.resources import stations_dir
 from physcap_drake.scenario import load_scenario
 from physcap_drake.station import MakeStation, close_station, ports
 from physcap_drake.station.can_config import PiperCan
+from physcap_drake.station.can_station import can_session
 from physcap_drake.station_commands import (
     DEMO_FORCE_LIMIT,
     gripper_sweep_trajectory,
@@ -33,7 +34,10 @@ class CanLoopResult:
     """Periods between the starts of consecutive streaming cycles, ms (target 1000 /
     control_rate), over `cycles` cycles; `watchdog_trips`: how often the feedback went
     stale during the run (each stops motion until it recovers), and why; `images`: camera
-    images rendered; `realtime`: whether the streaming process got real-time scheduling."""
+    images rendered; `realtime`: whether the streaming process got real-time scheduling.
+    The emulated arm's own pace over the whole run: firmware cycles that started a period
+    or more late and the largest delay (ms); world steps that started a period or more
+    late, the world's largest lag (ms) and the wall time it let go (ms)."""
 
     control_rate_hz: float
     cycles: int
@@ -47,6 +51,11 @@ class CanLoopResult:
     images: int
     realtime: bool
     wall_time_s: float
+    emulator_late_cycles: int = 0
+    emulator_max_late_ms: float = 0.0
+    world_late_steps: int = 0
+    world_max_lag_ms: float = 0.0
+    world_slipped_ms: float = 0.0
 
 
 class CameraLoad(LeafSystem):
@@ -103,6 +112,7 @@ def run_can_loop(duration: float = 5.0, control_rate: float = 200.0, on_progress
         reasons = link.stale_reasons()
     finally:
         close_station(station)
+    emulator = can_session(station).last_emulator_timing
     periods = np.diff(starts) * 1000.0
     return CanLoopResult(
         control_rate_hz=control_rate, cycles=len(periods),
@@ -111,4 +121,17 @@ def run_can_loop(duration: float = 5.0, control_rate: float = 200.0, on_progress
         commands_sent=status.commands_sent, watchdog_trips=status.stale_count - trips,
         watchdog_reasons=sorted(set(reasons[len(reasons) - (status.stale_count - trips):])),
         images=0 if camera is None else camera.images, realtime=link.realtime,
-        wall_time_s=timing.wall_time)
+        wall_time_s=timing.wall_time, **_emulator_figures(emulator))
+
+
+def _emulator_figures(timing) -> dict:
+    if timing is None:
+        return {}
+    figures = {"emulator_late_cycles": timing.firmware.late,
+               "emulator_max_late_ms": timing.firmware.max_lateness * 1000.0}
+    if timing.world is not None:
+        world = timing.world
+        figures.update(world_late_steps=world.lateness.late,
+                       world_max_lag_ms=world.lateness.max_lateness * 1000.0,
+                       world_slipped_ms=world.slipped * 1000.0)
+    return figures

@@ -10,11 +10,18 @@ How the arm moves is up to its motion backend: `motion.KinematicMotion` puts the
 their reference and takes holding torques from an optional `gravity_torque(q)` model;
 `simulated_motion.SimulatedMotion` runs the simulated station (a MultibodyPlant scene with
 the task's objects), so joint torques and gripper effort come from its physics. Torques go
-on the bus as motor currents with the firmware's scaling.
+on the bus as motor currents with the firmware's scaling. A slow world is wrapped in a
+`paced_world.PacedWorld`, which steps it in a thread of its own so the cycle never waits
+for its physics.
+
+The loop keeps count of its own lateness (`timing()`: cycles that started late, the
+largest delay, spells with their times, and the paced world's figures): a host whose
+watchdog trips can tell the emulator's stall from a fault of the link.
 """
 
 from __future__ import annotations
 
+import dataclasses as dc
 import threading
 import time
 from collections.abc import Callable
@@ -24,14 +31,28 @@ import numpy as np
 
 from physcap_drake.can.arm_state import EmulatedArm
 from physcap_drake.can.firmware import Firmware
+from physcap_drake.can.lateness import LagTracker, Lateness
 from physcap_drake.can.motion import KinematicMotion
+from physcap_drake.can.paced_world import WorldTiming
+
+#: The firmware's cycle rate, Hz (the PiPER's feedback rate).
+DEFAULT_RATE = 200.0
+
+
+@dc.dataclass(frozen=True)
+class EmulatorTiming:
+    """How the emulated arm kept its pace: its firmware loop's lateness, and its paced
+    world's figures (None when the world is stepped in the cycle itself)."""
+
+    firmware: Lateness
+    world: WorldTiming | None
 
 
 class PiperEmulator:
     """Speaks the PiPER protocol on `bus` (see module docstring). `on_cycle()`, if given, is
     called after every cycle while the lock is held (to publish the emulated world)."""
 
-    def __init__(self, bus: can.BusABC, *, firmware: str = "S-V1.8-2", rate: float = 200.0,
+    def __init__(self, bus: can.BusABC, *, firmware: str = "S-V1.8-2", rate: float = DEFAULT_RATE,
                  gravity_torque: Callable[[np.ndarray], np.ndarray] | None = None,
                  motion=None, on_cycle: Callable[[], None] | None = None):
         """`motion`: the motion backend (default: KinematicMotion(gravity_torque))."""
@@ -47,6 +68,7 @@ class PiperEmulator:
         self.lock = threading.Lock()
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
+        self._lag = LagTracker(self._period)
 
     @property
     def bus(self) -> can.BusABC:
@@ -72,6 +94,9 @@ class PiperEmulator:
         self._stop.set()
         if self._thread is not None:
             self._thread.join(timeout=2.0)
+        stop_world = getattr(self.motion, "stop", None)
+        if stop_world is not None:
+            stop_world()
 
     def __enter__(self) -> PiperEmulator:
         return self.start()
@@ -83,6 +108,11 @@ class PiperEmulator:
         """A copy of the firmware's state (for tests and tools)."""
         with self.lock:
             return self.firmware.arm.copy()
+
+    def timing(self) -> EmulatorTiming:
+        """The loop's lateness so far (see EmulatorTiming)."""
+        world = getattr(self.motion, "timing", None)
+        return EmulatorTiming(self._lag.lateness(), None if world is None else world())
 
     def set_error(self, arm_status: int = 0, err_code: int = 0) -> None:
         """Makes the arm report an error state from now on (a fault drill): `arm_status` as in
@@ -96,6 +126,11 @@ class PiperEmulator:
     def _run(self) -> None:
         next_time = time.monotonic()
         while not self._stop.is_set():
+            now = time.monotonic()
+            late = now - next_time
+            self._lag.note(now, max(late, 0.0))
+            if late > self._period / 2:  # fell behind (a stall): start afresh, no burst
+                next_time = now
             while (message := self._bus.recv(timeout=0.0)) is not None:
                 with self.lock:
                     replies = self.firmware.handle(message.arbitration_id, bytes(message.data),
@@ -107,8 +142,6 @@ class PiperEmulator:
                     self._on_cycle()
             self._send_all(frames)
             next_time += self._period
-            if next_time < time.monotonic():  # fell behind (a stall): start afresh
-                next_time = time.monotonic()
             self._stop.wait(max(0.0, next_time - time.monotonic()))
 
     def _send_all(self, frames) -> None:

@@ -2,12 +2,15 @@
 of its own.
 
 The child builds the motion backend (the scenario's simulated station, or the kinematic
-arm), runs a PiperEmulator on its end of a socket pair (`socket_bus`) and, after every
-firmware cycle, publishes the simulated world's state (plant positions and velocities,
-and the simulation time) to a shared block. The parent keeps a copy of the world's model
-(`station.can_scene.EmulatedScene`) and reads that block to render the camera and report
-ground truth, so rendering in the parent never holds up the arm. The few writes to the
-world (a task's hidden masses) go the other way over the pipe.
+arm) and runs a PiperEmulator on its end of a socket pair (`socket_bus`). A simulated
+world is stepped in the firmware's cycle (a slow step delays the feedback, and the
+emulator's own lateness figures show it), or, with `pace_world`, in a thread of its own
+below the firmware's priority, paced by the wall clock (`paced_world.PacedWorld`), so its
+physics never holds up the cycle. After every step the world's state (plant positions and
+velocities, and the simulation time) is published to a shared block. The parent keeps a
+copy of the world's model (`station.can_scene.EmulatedScene`) and reads that block to
+render the camera and report ground truth, so rendering in the parent never holds up the
+arm. The few writes to the world (a task's hidden masses) go the other way over the pipe.
 """
 
 from __future__ import annotations
@@ -15,6 +18,7 @@ from __future__ import annotations
 import gc
 import logging
 import socket
+import sys
 import time
 
 import numpy as np
@@ -29,6 +33,8 @@ START_TIMEOUT = 120.0
 #: How long a reader of the world waits for the emulator to finish a publication, s.
 WORLD_PATIENCE = 0.005
 REQUEST_TIMEOUT = 10.0
+#: The emulator process's GIL switch interval, s (Python's default is 5 ms).
+SWITCH_INTERVAL = 0.0005
 
 
 def world_layout(size: int) -> Layout:
@@ -42,12 +48,14 @@ class EmulatorProcess:
     arm, or None for the kinematic arm; `gripper_max_effort`: N·m at the simulated gripper's
     full force (see SimulatedMotion); `state_size`: the plant's positions + velocities (the
     world block's size, 0 without a scenario); `firmware`: the version it reports;
-    `realtime_priority`: its scheduling (see `can.realtime`, 0: normal). The process starts
+    `realtime_priority`: its scheduling (see `can.realtime`, 0: normal); `pace_world`:
+    step the world in a thread of its own (`paced_world`, see `serve`). The process starts
     at once and builds its world in the background; `wait_ready()` waits for it."""
 
     def __init__(self, bus_socket: socket.socket, scenario_yaml: str | None = None, *,
                  gripper_max_effort: float = 2.0, state_size: int = 0,
-                 firmware: str = "S-V1.8-2", realtime_priority: int = 0):
+                 firmware: str = "S-V1.8-2", realtime_priority: int = 0,
+                 pace_world: bool = False):
         self._world = SharedBlock(world_layout(state_size)) if state_size else None
         self._last_world: tuple[float, np.ndarray] | None = None
         world_fd = None if self._world is None else self._world.fd
@@ -55,7 +63,7 @@ class EmulatorProcess:
         self._child = ChildProcess(
             "physcap_drake.can.emulator_process:serve",
             (bus_socket.fileno(), scenario_yaml, gripper_max_effort, firmware, world_fd,
-             state_size, realtime_priority), fds, name="piper-emulator")
+             state_size, realtime_priority, pace_world), fds, name="piper-emulator")
         bus_socket.close()  # the child has its own copy
         self._ready = False
 
@@ -95,6 +103,10 @@ class EmulatorProcess:
         """A copy of the emulated firmware's state (`arm_state.EmulatedArm`)."""
         return self._request(("snapshot",))
 
+    def timing(self):
+        """How the emulated arm kept its pace so far (`emulator.EmulatorTiming`)."""
+        return self._request(("timing",))
+
     def set_error(self, arm_status: int = 0, err_code: int = 0) -> None:
         """The arm reports this error state from now on (see PiperEmulator.set_error)."""
         self._request(("set_error", arm_status, err_code))
@@ -115,14 +127,17 @@ class EmulatorProcess:
 
 def serve(conn, bus_fd: int, scenario_yaml: str | None, gripper_max_effort: float,
           firmware: str, world_fd: int | None, state_size: int,
-          realtime_priority: int) -> None:
+          realtime_priority: int, pace_world: bool = False) -> None:
     """The emulated arm's process: runs until the parent says close or goes away."""
-    from physcap_drake.can.emulator import PiperEmulator
+    from physcap_drake.can.emulator import DEFAULT_RATE, PiperEmulator
     from physcap_drake.can.motion import KinematicMotion
+    from physcap_drake.can.paced_world import PacedWorld
     from physcap_drake.can.realtime import use_realtime
     from physcap_drake.can.socket_bus import SocketBus
 
     logging.basicConfig(level=logging.WARNING, format="%(message)s")
+    # The firmware thread gets the interpreter back from the world thread within this.
+    sys.setswitchinterval(SWITCH_INTERVAL)
     world = None if world_fd is None else SharedBlock(world_layout(state_size), fd=world_fd)
     try:
         if scenario_yaml is None:
@@ -143,14 +158,30 @@ def serve(conn, bus_fd: int, scenario_yaml: str | None, gripper_max_effort: floa
         world.write({"time": [motion.context.get_time()],
                      "state": plant.GetPositionsAndVelocities(motion.plant_context)})
 
+    if scenario_yaml is not None and pace_world:
+        # The world's physics never makes the firmware cycle wait (a world behind the wall
+        # clock is counted instead). It is not the arm's controller, so its thread runs one
+        # real-time priority below the firmware's: ahead of the machine's ordinary work (at
+        # normal scheduling a busy machine would starve it), never ahead of the firmware's
+        # cycle (at the same priority it would hold the CPU, and the interpreter, for a
+        # whole round-robin slice: stalls of 50 ms). It rests between steps
+        # (PacedWorld.REST), so it never makes the kernel throttle the real-time threads.
+        setup = (lambda: use_realtime(max(realtime_priority - 1, 1),
+                                      "the emulated PiPER's world")) \
+            if realtime_priority > 1 else None
+        motion = PacedWorld(motion, 1.0 / DEFAULT_RATE, world_thread_setup=setup,
+                            on_step=publish if world is not None else None)
+
     use_realtime(realtime_priority, "the emulated PiPER")  # its firmware thread inherits it
     # What start-up allocated (the world's Drake systems, the modules) is never collected
     # again: a full collection over all of it stalls the firmware loop for about 40 ms,
     # which the host's watchdog sees as lost feedback.
     gc.freeze()
     bus = SocketBus(socket.socket(fileno=bus_fd), "emulator")
-    emulator = PiperEmulator(bus, firmware=firmware, motion=motion,
-                             on_cycle=publish if world is not None else None).start()
+    # A world stepped in the firmware's cycle is published after every cycle.
+    on_cycle = publish if world is not None and not pace_world else None
+    emulator = PiperEmulator(bus, firmware=firmware, motion=motion, rate=DEFAULT_RATE,
+                             on_cycle=on_cycle).start()
     try:
         while True:
             try:
@@ -173,13 +204,17 @@ def _answer(emulator, kind: str, args) -> tuple[str, object]:
         return "ok", None
     if kind == "snapshot":
         return "ok", emulator.snapshot()
+    if kind == "timing":
+        return "ok", emulator.timing()
     if kind == "set_error":
         emulator.set_error(*args)
         return "ok", None
     if kind == "set_world":
         parameters, state = args
         motion = emulator.motion
-        with emulator.lock:
+        if not hasattr(motion, "plant"):
+            return "error", "the kinematic emulated arm has no simulated world to set"
+        with getattr(motion, "lock", emulator.lock):
             context = motion.plant_context
             for index, values in parameters.items():
                 context.get_mutable_numeric_parameter(index).SetFromVector(values)

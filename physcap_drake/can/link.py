@@ -119,6 +119,9 @@ class PiperLink:
         self.torque_scale = (1.0,) * 6
         #: Why the feedback went stale, each time it did (the last 100).
         self.stale_reasons: collections.deque[str] = collections.deque(maxlen=100)
+        #: The same with when it went stale: (monotonic s, reason), the last 100.
+        self.stale_events: collections.deque[tuple[float, str]] = collections.deque(
+            maxlen=100)
         #: Start times of the last streaming cycles (monotonic s), for jitter figures.
         self.cycle_starts: collections.deque[float] = collections.deque(maxlen=20000)
 
@@ -349,6 +352,7 @@ class PiperLink:
                 self._stale_since = now
                 self._stale_count += 1
                 self.stale_reasons.append(health.reason)
+                self.stale_events.append((now, health.reason))
                 log.warning("arm feedback stale (%s): motion commands stopped, the arm "
                             "holds", health.reason)
             elif not health.stale and was_stale:

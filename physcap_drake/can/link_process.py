@@ -190,6 +190,10 @@ class LinkProcess:
     def stale_reasons(self) -> list[str]:
         return self._request(("stale_reasons",))
 
+    def stale_events(self) -> list[tuple[float, str]]:
+        """When (monotonic s, the machine's clock) and why the feedback went stale."""
+        return self._request(("stale_events",))
+
     def close(self) -> None:
         """Stops streaming (the arm holds its last target) and ends the process. Safe to
         call twice."""
@@ -306,6 +310,8 @@ def _answer(link, faulty, kind: str, args, realtime: bool) -> tuple[str, object]
             return "ok", list(link.cycle_starts)
         if kind == "stale_reasons":
             return "ok", list(link.stale_reasons)
+        if kind == "stale_events":
+            return "ok", list(link.stale_events)
         return "StartupError", f"unknown request {kind!r}"
     except ConnectionError as error:
         return "ConnectionError", str(error)

@@ -19,6 +19,7 @@ from pydrake.multibody.tree import JacobianWrtVariable
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import Context
 
+from physcap_drake.can.arm_state import DEFAULT_MAX_SPEED
 from physcap_drake.can.motion import MotionCommand, MotionReading
 from physcap_drake.station import ports
 
@@ -31,6 +32,8 @@ PASS_THROUGH_ACCELERATION = 1000.0
 #: How far past a joint-loop update a period's sub-step ends, s (never on an update).
 PAST_UPDATE = 1e-7
 GRAVITY = 9.81
+#: The fastest the emulated arm's joint reference moves, rad/s (the PiPER's top joint speed).
+MAX_JOINT_SPEED = DEFAULT_MAX_SPEED
 
 
 class SimulatedMotion:
@@ -71,6 +74,7 @@ class SimulatedMotion:
         self._feedforward = (self.station.GetSubsystemByName("arm_feedforward")
                              if self.station.HasSubsystemNamed("arm_feedforward") else None)
         self._reference: np.ndarray | None = None  # the last period's joint reference
+        self._finite_before = True  # whether the last step left a finite state
         self._fix(np.asarray(config.initial_arm_position, dtype=float),
                   config.initial_gripper_opening, 0.0)
         self._applied(np.zeros(self.plant.num_velocities()))
@@ -98,6 +102,11 @@ class SimulatedMotion:
         # Joints that may not move (disabled) hold where they are.
         reference = np.where(command.powered, command.reference, q_now)
         start = self._reference if self._reference is not None else reference
+        # A world that fell behind the firmware (see paced_world) gets a reference that
+        # moved further than `dt` allows: it catches up at the arm's top joint speed, as the
+        # arm's servo would, never in a jump that would fling what the gripper holds.
+        reach = MAX_JOINT_SPEED * dt
+        reference = start + np.clip(reference - start, -reach, reach)
         opening = command.gripper_target
         effort = command.gripper_effort_limit if command.gripper_enabled else 0.0
         force = min(max(effort, 0.0), self._max_effort) / self._max_effort * self._max_force
@@ -105,16 +114,25 @@ class SimulatedMotion:
         t0 = self._context.get_time()
         period, end = self.plant.time_step(), t0 + dt
         update = (np.floor(t0 / period + 1e-9) + 1.0) * period
-        while update <= end + 1e-9:  # the joint loop's updates within this period
-            # Fixed before the update and advanced just past it: the update sees this value
-            # whichever side of a boundary Drake handles it on.
-            fraction = min((update - t0) / dt, 1.0)
-            self._fix(start + fraction * (reference - start), opening, force)
-            self._simulator.AdvanceTo(update + PAST_UPDATE)
-            update += period
-        self._fix(reference, opening, force)
-        if self._context.get_time() < end:
-            self._simulator.AdvanceTo(end)
+        try:
+            while update <= end + 1e-9:  # the joint loop's updates within this period
+                # Fixed before the update and advanced just past it: the update sees this
+                # value whichever side of a boundary Drake handles it on.
+                fraction = min((update - t0) / dt, 1.0)
+                self._fix(start + fraction * (reference - start), opening, force)
+                self._simulator.AdvanceTo(update + PAST_UPDATE)
+                update += period
+            self._fix(reference, opening, force)
+            if self._context.get_time() < end:
+                self._simulator.AdvanceTo(end)
+        except RuntimeError as error:
+            raise RuntimeError(
+                f"{error} [world step from t = {t0:.4f} s by {dt * 1000:.0f} ms: joints at "
+                f"{np.round(q_now, 4).tolist()}, reference from {np.round(start, 4).tolist()} to "
+                f"{np.round(reference, 4).tolist()}, gripper to {opening:.4f} m at {force:.1f} N; "
+                f"state finite before: {self._finite_before}]") from None
+        self._finite_before = bool(np.isfinite(
+            self.plant.GetPositionsAndVelocities(self.plant_context)).all())
         self._reference = reference
         torque = self._output(ports.ARM_TORQUE_MEASURED).copy()
         return MotionReading(

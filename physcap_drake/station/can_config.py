@@ -75,6 +75,10 @@ class PiperCan:
     realtime_priority: int = 20
     # Run a PiPER emulator on the virtual channel, backed by `emulated` (see module docstring).
     emulate: bool = False
+    # Step the emulated world in a thread of its own, paced by the wall clock, so a world
+    # step slower than real time never delays the emulator's feedback (can/paced_world.py);
+    # false: step it in the firmware's cycle (a slow step then delays the feedback).
+    pace_world: bool = True
     # The simulated arm behind the emulator (its models are the scenario's directives).
     emulated: SimPiper = dc.field(default_factory=SimPiper)
     # Faults on the emulated bus.

@@ -29,6 +29,9 @@ from physcap_drake.station.can_config import PiperCan
 
 #: The firmware version the emulated arm reports unless `station.firmware` says another.
 EMULATED_FIRMWARE = "S-V1.8-2"
+#: How far apart (s) a watchdog trip and the emulated arm's stall may be and still be the
+#: same event: the streaming and the feedback cycles tick apart, a few periods.
+TRIP_MARGIN = 0.02
 
 
 class CanSession:
@@ -50,7 +53,27 @@ class CanSession:
         #: The streaming process's last status (LinkStatus) and stale reasons when it closed.
         self.last_status = None
         self.last_stale_reasons: list[str] = []
+        #: When (monotonic s) and why the feedback went stale, as of closing.
+        self.last_stale_events: list[tuple[float, str]] = []
+        #: How the emulated arm kept its pace (`can.emulator.EmulatorTiming`) when it closed.
+        self.last_emulator_timing = None
         atexit.register(self.close)  # processes must not outlive the interpreter
+
+    def unexplained_trips(self) -> list[str]:
+        """The watchdog trips of the closed session that no stall of the emulated arm's own
+        firmware loop explains (each as "reason at t s"): the feedback went silent while
+        the emulated arm itself was not running (a starved machine) is the emulator's
+        doing; any other trip (silence, loss, garbling, lateness on the link) is not.
+        Without an emulator's figures every trip is unexplained."""
+        timing = self.last_emulator_timing
+        window = self.config.feedback_timeout + TRIP_MARGIN
+        unexplained = []
+        for since, reason in self.last_stale_events:
+            silent = reason.startswith("no feedback for")
+            if not (silent and timing is not None
+                    and timing.firmware.covering(since - window, since, TRIP_MARGIN)):
+                unexplained.append(f"{reason} at {since:.3f} s")
+        return unexplained
 
     @property
     def started(self) -> bool:
@@ -72,7 +95,8 @@ class CanSession:
         self.emulator = EmulatorProcess(
             emulator_end, self._scenario_yaml, gripper_max_effort=config.gripper_max_effort,
             state_size=self.world_size, firmware=config.firmware or EMULATED_FIRMWARE,
-            realtime_priority=max(config.realtime_priority - 1, 0))
+            realtime_priority=max(config.realtime_priority - 1, 0),
+            pace_world=config.pace_world)
         return self
 
     def wait_ready(self) -> CanSession:
@@ -110,8 +134,13 @@ class CanSession:
             if link.started:
                 self.last_status = link.status()
                 self.last_stale_reasons = link.stale_reasons()
+                self.last_stale_events = link.stale_events()
             link.close()
         if emulator is not None:
             if link is not None and link.started:
                 self.last_world = emulator.world()
+                try:
+                    self.last_emulator_timing = emulator.timing()
+                except RuntimeError:  # the emulated arm is gone: no figures to keep
+                    self.last_emulator_timing = None
             emulator.close()

@@ -1,7 +1,8 @@
 """The sandbox that runs LLM-generated code: a static check, then a locked-down child process.
 
 `run_sandboxed(code, api, limits)` is the blocking entry point (`runner`); `SandboxSession`
-(`session`) is the same run in explicit steps, for an owner that drives it event by event.
+(`session`) is the same run in explicit steps, and `CallServer` (`runner`) serves its calls
+for an owner that drives it event by event (both runners share it).
 The parent trusts nothing the child sends: `messages` checks every message, `signatures`
 every call's arguments, `budget` the block's budgets per call. `child` is the child's side,
 `ast_check` and `policy` the filters, `lockdown` and `seccomp` the process wall, `protocol`
@@ -12,7 +13,7 @@ from .ast_check import CodeRejected, check_code
 from .budget import BlockBudget, Meters, Stop
 from .limits import SandboxLimits
 from .outcome import CodeOutcome, OutcomeKind
-from .runner import run_sandboxed
+from .runner import CallServer, Waiting, run_sandboxed, then
 from .session import SandboxSession
 from .signatures import (
     ApiFunction,
@@ -27,7 +28,7 @@ from .signatures import (
     Vector,
 )
 
-__all__ = ["ApiFunction", "BlockBudget", "Call", "CodeOutcome", "CodeRejected", "FunctionSpec",
-           "Meters", "Number", "OrNone", "OutcomeKind", "ParameterKind", "PlainValue", "Refused",
-           "SandboxLimits", "SandboxSession", "Stop", "Text", "Vector", "check_code",
-           "run_sandboxed"]
+__all__ = ["ApiFunction", "BlockBudget", "Call", "CallServer", "CodeOutcome", "CodeRejected",
+           "FunctionSpec", "Meters", "Number", "OrNone", "OutcomeKind", "ParameterKind",
+           "PlainValue", "Refused", "SandboxLimits", "SandboxSession", "Stop", "Text", "Vector",
+           "Waiting", "check_code", "run_sandboxed", "then"]

@@ -1,0 +1,154 @@
+"""PacedWorld: the emulated firmware never waits for a slow world, the world keeps the wall
+clock's pace as far as it can, and it reports when and how far it fell behind."""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+import pytest
+
+from physcap_drake.can.emulator import PiperEmulator
+from physcap_drake.can.lateness import LagTracker
+from physcap_drake.can.motion import KinematicMotion, MotionCommand
+from physcap_drake.can.paced_world import MAX_LAG, MAX_STEP_PERIODS, REST, PacedWorld
+from physcap_drake.can.socket_bus import SocketBus, socket_pair
+
+PERIOD = 0.005
+
+
+class SlowWorld(KinematicMotion):
+    """A kinematic arm whose every step costs `cost` s of wall time (and `stall` s once, at
+    step `stall_at`); it records the simulated time each step covered."""
+
+    def __init__(self, cost: float, stall: float = 0.0, stall_at: int = -1):
+        super().__init__()
+        self.cost, self.stall, self.stall_at = cost, stall, stall_at
+        self.steps: list[float] = []
+
+    def step(self, command, dt):
+        time.sleep(self.stall if len(self.steps) == self.stall_at else self.cost)
+        self.steps.append(dt)
+        return super().step(command, dt)
+
+
+def command(q: float = 0.0) -> MotionCommand:
+    return MotionCommand(np.full(6, q), np.ones(6, dtype=bool), 0.05, 1.0, True)
+
+
+def run_firmware(world: PacedWorld, seconds: float) -> list[float]:
+    """Calls `step` every period for `seconds`, as the firmware cycle does; returns how long
+    each call took, s."""
+    took = []
+    end = time.monotonic() + seconds
+    while time.monotonic() < end:
+        start = time.monotonic()
+        world.step(command(), PERIOD)
+        took.append(time.monotonic() - start)
+        time.sleep(PERIOD)
+    return took
+
+
+def test_a_slow_world_does_not_hold_back_the_caller_and_catches_up_in_longer_steps():
+    slow = SlowWorld(cost=3 * PERIOD)  # three times slower than real time per period
+    world = PacedWorld(slow, PERIOD)
+    try:
+        took = run_firmware(world, 0.6)
+    finally:
+        world.stop()
+    # Stepping in the caller would cost 15 ms a call; the first call steps once itself.
+    # (The world then keeps only 1 / (1 + REST) of real time: it rests between steps.)
+    assert max(took[1:]) < slow.cost
+    timing = world.timing()
+    assert timing.lateness.late > 0 and timing.lateness.max_lateness >= PERIOD
+    # Behind, the world covers several periods per step (at most MAX_STEP_PERIODS), so its
+    # time stays within MAX_LAG of the wall clock less what it let go.
+    assert max(slow.steps) > PERIOD and max(slow.steps) <= MAX_STEP_PERIODS * PERIOD + 1e-9
+    kept = timing.wall_time - timing.slipped
+    assert kept - MAX_LAG - PERIOD <= timing.world_time <= kept + PERIOD
+
+
+def test_a_world_that_keeps_up_steps_one_period_at_a_time_in_real_time():
+    fast = SlowWorld(cost=0.0)
+    world = PacedWorld(fast, PERIOD)
+    try:
+        run_firmware(world, 0.5)
+    finally:
+        world.stop()
+    timing = world.timing()
+    assert timing.slipped == 0.0
+    assert timing.world_time == pytest.approx(timing.wall_time, abs=4 * PERIOD)
+    # On a busy machine a wake-up can come late; most steps are one period.
+    assert np.mean(np.isclose(fast.steps, PERIOD)) > 0.5
+
+
+def test_a_stalled_world_lets_the_excess_go_and_reports_the_spell_with_its_time():
+    stalled = SlowWorld(cost=0.0, stall=0.3, stall_at=20)
+    world = PacedWorld(stalled, PERIOD, max_lag=0.1)
+    before = time.monotonic()
+    try:
+        run_firmware(world, 0.8)
+    finally:
+        world.stop()
+    timing = world.timing()
+    # Behind by the stall and the rest after it, it keeps 0.1 s of that and lets go the rest.
+    assert timing.slipped == pytest.approx((1 + REST) * 0.3 - 0.1, abs=0.1)
+    spell = timing.lateness.covering(before, time.monotonic())
+    assert spell is not None and spell.max_lateness >= 0.25
+    assert spell.end - spell.start >= 0.25  # it lasted as long as the stall
+
+
+def test_the_largest_lag_must_allow_the_largest_step():
+    with pytest.raises(ValueError, match="max_lag 0.01 s is shorter than the largest step"):
+        PacedWorld(SlowWorld(0.0), PERIOD, max_lag=0.01)
+
+
+def test_lag_tracker_counts_late_steps_and_closes_spells():
+    tracker = LagTracker(PERIOD, spell_lateness=0.02)
+    for started, late in ((1.0, 0.0), (1.1, 0.03), (1.2, 0.05), (1.3, 0.001), (2.0, 0.006)):
+        tracker.note(started, late)
+    lateness = tracker.lateness()
+    assert (lateness.steps, lateness.late, lateness.max_lateness) == (5, 3, 0.05)
+    (spell,) = lateness.spells
+    assert (spell.start, spell.end, spell.max_lateness) == (pytest.approx(1.07), 1.2, 0.05)
+    assert lateness.covering(1.25, 1.4, margin=0.1) is spell
+    assert lateness.covering(1.5, 1.9) is None
+
+
+def test_the_emulator_reports_its_paced_worlds_figures():
+    host, arm = socket_pair()
+    world = PacedWorld(SlowWorld(cost=2 * PERIOD), PERIOD)
+    emulator = PiperEmulator(SocketBus(arm, "arm"), motion=world).start()
+    try:
+        time.sleep(0.5)
+    finally:
+        emulator.stop()
+        emulator.bus.shutdown()
+        host.close()
+    timing = emulator.timing()
+    # The firmware kept its 200 Hz (give or take a loaded machine); the world fell behind.
+    assert timing.firmware.steps > 50
+    assert timing.world is not None and timing.world.lateness.late > 0
+    assert not world._thread.is_alive()  # stopping the emulator stopped the world
+
+
+class BrokenWorld(SlowWorld):
+    """Steps once, then its physics fails (as a world whose state went non-finite)."""
+
+    def step(self, command, dt):
+        if self.steps:
+            raise RuntimeError("SceneGraph encountered a non-finite value")
+        return super().step(command, dt)
+
+
+def test_a_failed_world_is_reported_to_the_firmware_naming_the_failure():
+    world = PacedWorld(BrokenWorld(cost=0.0), PERIOD)
+    try:
+        world.step(command(), PERIOD)  # steps once itself, then the thread takes over
+        with pytest.raises(RuntimeError, match="emulated world stopped: SceneGraph"):
+            deadline = time.monotonic() + 5.0
+            while time.monotonic() < deadline:
+                world.step(command(), PERIOD)
+                time.sleep(PERIOD)
+    finally:
+        world.stop()
