@@ -30,7 +30,7 @@ LAYERS = (
     # A scenario file puts the configurations of the layers above together.
     ("scenario",),
     # The robot stack (station, skills, probes on one request path), perception, the API.
-    ("robot_stack", "perception"),
+    ("robot_stack", "perception", "emulated_world"),
     ("knowledge", "robot_api"),
     # What runs on the API: the tasks and the agent; then what records an agent.
     ("tasks", "agent"),
@@ -168,3 +168,13 @@ def strongly_connected(edges: dict[str, set[str]]) -> list[list[str]]:
 def test_the_cycle_finder_finds_a_cycle():
     """The check above can fail: a graph with a cycle is caught."""
     assert ["a", "b"] in strongly_connected({"a": {"b"}, "b": {"a", "c"}, "c": set()})
+
+
+def test_the_emulated_world_is_named_where_the_emulator_can_import_it():
+    """The CAN session names the emulated world's builder instead of importing it (it sits
+    above the station); the name must lead to it."""
+    from physcap_drake.can.child_process import named_function
+    from physcap_drake.emulated_world import build_world
+    from physcap_drake.station.can_session import EMULATED_WORLD_BUILDER
+
+    assert named_function(EMULATED_WORLD_BUILDER) is build_world
