@@ -313,8 +313,8 @@ def _seeds(text: str) -> list[int]:
 
 
 def main(argv: list[str] | None = None) -> int:
-    from physcap_drake.agent.episode_runner import run_agent_episode
     from physcap_drake.agent.llm import make_llm
+    from physcap_drake.app.agent_episode import run_agent_episode
 
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--task", default="identify_empty_can")

@@ -12,8 +12,8 @@ import time
 import numpy as np
 from conftest import unique_channel
 
-from physcap_drake.agent.episode_runner import run_agent_episode
 from physcap_drake.agent.llm import make_llm
+from physcap_drake.app.agent_episode import run_agent_episode
 from physcap_drake.recording import topics
 from physcap_drake.recording.mcap_sink import McapSink
 from physcap_drake.recording.reading import read_recording

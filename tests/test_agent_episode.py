@@ -8,10 +8,10 @@ import json
 import numpy as np
 import pytest
 
-from physcap_drake.agent.episode_runner import run_agent_episode
 from physcap_drake.agent.llm import RecordingClient, ReplayClient, make_llm
 from physcap_drake.agent.llm.base import LLMRequest, LLMResponse
 from physcap_drake.agent.sandbox import SandboxLimits
+from physcap_drake.app.agent_episode import run_agent_episode
 from physcap_drake.station import ports
 
 OPENED = {"red can", "green can"}
@@ -130,7 +130,7 @@ HIDDEN_FIELDS = ("mass_kg", "hides_cube", "stiffness_level", '"ripe"', '"under"'
 def test_agents_receive_nothing_that_depends_on_the_hidden_answer(task, answers, monkeypatch):
     """The first planner and prioritizer requests are the same whichever object holds the
     answer, and no request carries a hidden field or an unknown context field."""
-    from physcap_drake.agent import episode_runner
+    from physcap_drake.app import agent_episode as episode_runner
     original = episode_runner.make_episode
     firsts = []
     for answer in answers:

@@ -18,14 +18,13 @@ from pydrake.systems.primitives import ConstantValueSource
 from pydrake.systems.sensors import ImageRgba8U
 
 from physcap_drake.agent.agent_system import CLIENT, PROGRESS_PORT, AgentSystem
-from physcap_drake.agent.episode_runner import run_agent
 from physcap_drake.agent.llm.base import LLMResponse
-from physcap_drake.agent.loop import AgentLoop
+from physcap_drake.agent.loop import AgentLoop, AgentMind
 from physcap_drake.agent.sandbox import SandboxLimits
 from physcap_drake.agent.transcript import Transcript
 from physcap_drake.agent.variant import AgentVariant
+from physcap_drake.app.agent_episode import run_agent
 from physcap_drake.clock import Clock
-from physcap_drake.control.errors import ArmFault
 from physcap_drake.control.requests import (
     MoveToPose,
     RobotRequest,
@@ -39,6 +38,7 @@ from physcap_drake.knowledge import SceneKnowledge
 from physcap_drake.physx.mass_probe import MassMeasurement, MeasureMass
 from physcap_drake.robot_api import RobotAPI
 from physcap_drake.station import ports
+from physcap_drake.station.arm_fault import ArmFault
 
 MOTION_S = 0.5  # s of simulated time each request takes the scripted robot
 MASS_KG = 0.35
@@ -298,3 +298,15 @@ def test_an_arm_fault_while_the_code_waits_for_the_robot_ends_the_episode_at_onc
     assert rig.agent.mind(context).phase == "executing"  # the Context was left as it stood
     server = rig.agent.state(context).block.server
     assert server.outcome is not None and server.outcome.kind == "fault"  # the child is gone
+
+
+def test_the_agents_phases_are_enums_that_read_as_their_words():
+    """Phases and failure kinds are enums in code and plain words in summaries and logs."""
+    import json
+
+    from physcap_drake.agent.phases import FailureKind, Phase
+
+    assert [p for p in Phase if p.over] == [Phase.DONE, Phase.FAILED]
+    assert json.dumps({"phase": Phase.EXECUTING, "kind": FailureKind.ARM}) == (
+        '{"phase": "executing", "kind": "arm"}')
+    assert AgentMind().phase is Phase.IDLE and not AgentMind().over

@@ -17,8 +17,9 @@ from physcap_drake.agent.loop import AgentLoop, AgentMind
 from physcap_drake.agent.observation import ObjectInView, Observation
 from physcap_drake.agent.sandbox import SandboxLimits
 from physcap_drake.agent.variant import AgentVariant
-from physcap_drake.control.errors import ArmFault, SkillRefused
+from physcap_drake.control.errors import SkillRefused
 from physcap_drake.knowledge import KnowledgeEntry, SceneKnowledge
+from physcap_drake.station.arm_fault import ArmFault
 
 SCENE = Observation((ObjectInView("red can", "can", "red", False, "", 0.12, 100.0, 60.0),
                      ObjectInView("blue can", "can", "blue", True, "", 0.12, 200.0, 60.0)),

@@ -10,8 +10,8 @@ from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.primitives import ConstantVectorSource
 
-from physcap_drake.physx import mismatch
-from physcap_drake.physx.calibration import _scenario_with
+from physcap_drake.app import mismatch
+from physcap_drake.app.calibration import _scenario_with
 from physcap_drake.station import MakeStation, ports
 from physcap_drake.station.joint_friction import JointFriction
 from physcap_drake.station.robot_model import make_controller_plant

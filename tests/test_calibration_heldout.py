@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
+from physcap_drake.app import calibration as cal
 from physcap_drake.cli import app
 from physcap_drake.commands import calibrate
-from physcap_drake.physx import calibration as cal
 
 #: Deformation per level at the target effort, mm (about the simulated specimens').
 TYPICAL_MM = {1: 20.0, 2: 8.0, 3: 4.0, 4: 2.0, 5: 1.0}

@@ -14,14 +14,14 @@ from conftest import unique_channel
 from pydrake.systems.analysis import Simulator
 from typer.testing import CliRunner
 
-from physcap_drake.agent.episode_runner import run_agent_episode
+from physcap_drake.app.agent_episode import run_agent_episode
 from physcap_drake.can.emulator import wait_until
 from physcap_drake.can.link import StartupError
 from physcap_drake.cli import app
-from physcap_drake.control.errors import ArmFault
 from physcap_drake.resources import stations_dir
 from physcap_drake.scenario import load_scenario
 from physcap_drake.station import MakeStation, close_station, ports, scene_snapshot
+from physcap_drake.station.arm_fault import ArmFault
 from physcap_drake.station.can_config import PiperCan
 from physcap_drake.station.can_scene import NoScene
 from physcap_drake.station.can_station import can_session, start_can_station

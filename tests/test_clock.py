@@ -75,4 +75,4 @@ def test_only_the_clock_and_the_emulator_advance_time():
     package = Path(physcap_drake.__file__).parent
     callers = sorted(str(path.relative_to(package)) for path in package.rglob("*.py")
                      if ".AdvanceTo(" in path.read_text())
-    assert callers == ["can/simulated_motion.py", "clock.py"]
+    assert callers == ["clock.py", "station/simulated_motion.py"]

@@ -11,11 +11,11 @@ import sys
 import pytest
 from typer.testing import CliRunner
 
+from physcap_drake.app.episode_folder import record_episode
 from physcap_drake.cli import app
 from physcap_drake.eval.grid import EpisodeSpec, make_grid, paper_grid, parse_names
 from physcap_drake.eval.tables import make_cell, results_markdown
 from physcap_drake.recording import topics
-from physcap_drake.recording.episode_folder import record_episode
 from physcap_drake.recording.reading import read_recording
 
 

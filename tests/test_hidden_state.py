@@ -10,15 +10,15 @@ import inspect
 import pytest
 from pydrake.multibody.tree import ModelInstanceIndex
 
+from physcap_drake.app import calibration
+from physcap_drake.app.episode import make_episode
 from physcap_drake.perception import camera_geometry, object_locator, offline_pointer
 from physcap_drake.perception.visible_objects import VisibleObject
-from physcap_drake.physx import calibration
 from physcap_drake.resources import stations_dir
 from physcap_drake.robot_api import RobotAPI
 from physcap_drake.robot_stack import build_robot_stack
 from physcap_drake.scenario import load_scenario
 from physcap_drake.station import ports
-from physcap_drake.tasks.episode import make_episode
 
 REAL_ARM_OUTPUTS = set(ports.VECTOR_OUTPUTS)
 CONSUMERS = ("skill_executor", "mass_probe", "mass_estimator", "stiffness_probe",

@@ -7,8 +7,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from physcap_drake.app import calibration
 from physcap_drake.control.planning_model import TCP_FRAME
-from physcap_drake.physx import calibration
 from physcap_drake.physx.mass_estimator import (
     GRAVITY,
     MassEstimator,

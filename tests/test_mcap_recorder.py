@@ -18,12 +18,12 @@ from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.primitives import ConstantValueSource, ConstantVectorSource
 from pydrake.systems.sensors import ImageRgba8U
 
+from physcap_drake.app.replay import replay_in_meshcat, replay_samples
 from physcap_drake.control.planning_model import TCP_FRAME, PlanningModel
 from physcap_drake.recording import topics
 from physcap_drake.recording.mcap_recorder import GRIPPER_JOINT, McapRecorder
 from physcap_drake.recording.mcap_sink import McapSink
 from physcap_drake.recording.reading import read_recording
-from physcap_drake.recording.replay import replay_in_meshcat, replay_samples
 from physcap_drake.recording.time_base import (
     SIMULATED,
     START_DATE_NS,

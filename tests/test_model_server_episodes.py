@@ -10,8 +10,8 @@ import pytest
 from fake_model_server import FakeModelServer, Faults
 from typer.testing import CliRunner
 
-from physcap_drake.agent.episode_runner import run_agent_episode
 from physcap_drake.agent.llm import make_llm
+from physcap_drake.app.agent_episode import run_agent_episode
 from physcap_drake.cli import app
 
 runner = CliRunner()

@@ -11,8 +11,8 @@ from __future__ import annotations
 import numpy as np
 
 from physcap_drake.agent.reference.reasoner import SLOTS
+from physcap_drake.app.episode import make_episode
 from physcap_drake.control.ik import tilt_from_vertical
-from physcap_drake.tasks.episode import make_episode
 
 #: Most tilt of the set-down cup, rad, and least tilt of the gripper at the grasp (what
 #: makes this case hard), rad.

@@ -5,13 +5,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from physcap_drake.app.episode import make_episode
 from physcap_drake.perception.camera_geometry import CameraGeometry
 from physcap_drake.perception.grasp import grasp_point_from_points
 from physcap_drake.perception.offline_pointer import OfflinePointer, PointingError
 from physcap_drake.perception.visible_objects import VisibleObject
 from physcap_drake.resources import stations_dir
 from physcap_drake.scenario import load_scenario
-from physcap_drake.tasks.episode import make_episode
 from physcap_drake.tasks.registry import TASKS
 
 

@@ -21,10 +21,10 @@ from mcap.reader import NonSeekingReader, make_reader
 from pydrake.geometry import Meshcat
 
 from physcap_drake.agent.llm import load_jsonl
+from physcap_drake.app.episode_folder import record_episode
+from physcap_drake.app.replay import ReplayError, replay_in_meshcat, transcript_markdown
 from physcap_drake.recording import topics
-from physcap_drake.recording.episode_folder import record_episode
 from physcap_drake.recording.reading import read_recording
-from physcap_drake.recording.replay import ReplayError, replay_in_meshcat, transcript_markdown
 from physcap_drake.recording.time_base import KIND, SIMULATED, START_DATE_NS, TIME_METADATA
 
 TASK, SEED = "identify_empty_can", 0
@@ -344,10 +344,10 @@ def test_a_torn_recording_is_recovered(tmp_path, episode_folder):
 def _record_a_reach(path: Path, monkeypatch=None, kinematic: bool = False):
     """Records the arm reaching above the red can, with the recorder's frames from the
     simulator (`body_poses`) or from forward kinematics of the measured joints."""
+    from physcap_drake.app import episode as episode_module
     from physcap_drake.control.planning_model import PlanningModel
     from physcap_drake.recording import mcap_recorder
     from physcap_drake.recording.mcap_sink import McapSink
-    from physcap_drake.tasks import episode as episode_module
 
     if kinematic:
         def kinematic_recorder(sink, station, scenario):

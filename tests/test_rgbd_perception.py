@@ -9,6 +9,7 @@ import inspect
 import numpy as np
 import pytest
 
+from physcap_drake.app.episode import make_episode
 from physcap_drake.bench.perception_bench import bench_episode
 from physcap_drake.control.skill_executor import STATUS_PORT
 from physcap_drake.kinematics.piper_dh import tcp_transform
@@ -34,7 +35,6 @@ from physcap_drake.perception.shapes import classify, vocabulary_of
 from physcap_drake.perception.table_plane import fit_table_plane
 from physcap_drake.perception.visible_objects import VisibleObject
 from physcap_drake.station import ports
-from physcap_drake.tasks.episode import make_episode
 from physcap_drake.tasks.registry import TASKS, get_task
 
 RGBD_MODULES = (colors, describe, object_memory, regions, rgbd_perception, robot_mask, shapes,
@@ -219,7 +219,7 @@ def test_a_tray_with_a_can_standing_in_it_keeps_its_rectangle():
 def test_an_agent_episode_on_rgbd_perception_judged_by_the_camera():
     """The physcap agent solves identify_empty_can seed 0 seeing through the emulated
     RealSense; the camera's verdict agrees with the simulator's ground truth."""
-    from physcap_drake.agent.episode_runner import run_agent_episode
+    from physcap_drake.app.agent_episode import run_agent_episode
 
     verdicts = {}
     run = run_agent_episode("identify_empty_can", 0, perception="rgbd", judge="perception")

@@ -12,7 +12,8 @@ import pytest
 from conftest import unique_channel
 from typer.testing import CliRunner
 
-from physcap_drake.agent.episode_runner import run_agent_episode
+from physcap_drake.app.agent_episode import run_agent_episode
+from physcap_drake.app.episode import make_episode
 from physcap_drake.can.emulator_process import EmulatorProcess
 from physcap_drake.can.link import LinkSettings
 from physcap_drake.can.link_process import LinkProcess
@@ -36,7 +37,6 @@ from physcap_drake.station.realsense.camera_system import (
     RealSenseCamera,
 )
 from physcap_drake.station.realsense.config import RealSense
-from physcap_drake.tasks.episode import make_episode
 
 runner = CliRunner()
 #: A small camera (fast to render) where the station's camera is.

@@ -19,6 +19,7 @@ from fake_executor import (
 )
 from pydrake.systems.framework import BasicVector, DiagramBuilder, LeafSystem
 
+from physcap_drake.app import calibration
 from physcap_drake.clock import Clock
 from physcap_drake.control.requests import (
     MoveGripper,
@@ -27,7 +28,6 @@ from physcap_drake.control.requests import (
     Wait,
 )
 from physcap_drake.control.skill_executor import REQUEST_PORT, STATUS_PORT
-from physcap_drake.physx import calibration
 from physcap_drake.physx.physx_config import StiffnessProbeConfig
 from physcap_drake.physx.stiffness_estimator import (
     ACTIVE_PORT,

@@ -9,10 +9,10 @@ import numpy as np
 import pytest
 from pydrake.math import RigidTransform, RollPitchYaw
 
-from physcap_drake.demos.pick_place import TRAY_FLOOR
+from physcap_drake.app.episode import make_episode
 from physcap_drake.resources import models_dir
 from physcap_drake.tasks.empty_cup import BASKET_BOTTOM, BASKET_FLOOR, FULL_WITH_STRAW
-from physcap_drake.tasks.episode import make_episode
+from physcap_drake.tasks.placement import TRAY_FLOOR
 from physcap_drake.tasks.registry import TASKS, get_task
 from physcap_drake.tasks.tray_tasks import TRAY_BOTTOM
 

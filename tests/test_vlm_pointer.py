@@ -6,11 +6,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from physcap_drake.app.episode import make_episode
 from physcap_drake.perception.object_locator import ObjectLocator
 from physcap_drake.perception.offline_pointer import PointingError
 from physcap_drake.perception.vlm_pointer import VlmPointer, parse_point
 from physcap_drake.station import ports
-from physcap_drake.tasks.episode import make_episode
 
 W, H = 640, 360
 

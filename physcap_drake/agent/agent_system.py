@@ -57,12 +57,13 @@ from pydrake.systems.sensors import ImageDepth32F, ImageLabel16I, ImageRgba8U
 
 from physcap_drake.agent.loop import AgentLoop, AgentMind, BlockEnd
 from physcap_drake.agent.observation import Observation, observe
+from physcap_drake.agent.phases import Phase
 from physcap_drake.agent.sandbox import CallServer, CodeOutcome, Waiting
-from physcap_drake.control.errors import ArmFault
 from physcap_drake.control.requests import RobotRequest, SkillStatus
 from physcap_drake.control.skill_executor import MONITOR_PERIOD, REQUEST_PORT, STATUS_PORT
 from physcap_drake.immutable_state import Immutable
 from physcap_drake.station import ports
+from physcap_drake.station.arm_fault import ArmFault
 
 #: The value type of each image input a perception module may read.
 _IMAGE_INPUTS = {ports.CAMERA_RGB: ImageRgba8U, ports.CAMERA_DEPTH: ImageDepth32F,
@@ -81,10 +82,11 @@ OFFSET = 0.75
 
 @dc.dataclass(frozen=True)
 class AgentProgress:
-    """phase: "idle", "deciding", "executing", "done" or "failed". steps: code blocks run.
+    """phase: the mind's Phase (idle, deciding, executing, done or failed). steps: code
+    blocks run.
     oi: exploratory interactions. failure: why the agent stopped early ("" if it did not)."""
 
-    phase: str = "idle"
+    phase: Phase = Phase.IDLE
     steps: int = 0
     oi: int = 0
     failure: str = ""
@@ -255,10 +257,10 @@ class AgentSystem(LeafSystem):
                 if not s.thought.future.done():
                     return s
                 s = dc.replace(s, mind=s.thought.future.result(), thought=None)
-            elif mind.phase == "idle":
+            elif mind.phase == Phase.IDLE:
                 s = dc.replace(s, mind=policy.stop_before_start(self._start_problem)
-                               if self._start_problem else AgentMind(phase="deciding"))
-            elif mind.phase == "deciding":
+                               if self._start_problem else AgentMind(phase=Phase.DECIDING))
+            elif mind.phase == Phase.DECIDING:
                 observation, robot_time = self.observation(context), self._robot_time()
                 if self._background:
                     return dc.replace(s, thought=Thought(policy, mind, observation,

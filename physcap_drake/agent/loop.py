@@ -61,6 +61,7 @@ from physcap_drake.agent.history import StepRecord
 from physcap_drake.agent.interactions import InteractionCounter
 from physcap_drake.agent.llm.base import EpisodeTimeUp, LLMClient, LLMError, takes_images
 from physcap_drake.agent.observation import Observation
+from physcap_drake.agent.phases import Activity, FailureKind, Phase
 from physcap_drake.agent.prompts import AgentContext, PromptBook
 from physcap_drake.agent.sandbox import (
     CallServer,
@@ -81,8 +82,9 @@ from physcap_drake.agent.schemas import (
 from physcap_drake.agent.structured_call import AgentAnswerError, ask_structured, unfence_code
 from physcap_drake.agent.transcript import Transcript
 from physcap_drake.agent.variant import AgentVariant
-from physcap_drake.control.errors import ArmFault, SkillError
+from physcap_drake.control.errors import SkillError
 from physcap_drake.robot_api import RobotAPI
+from physcap_drake.station.arm_fault import ArmFault
 
 #: How long the arm holds still after a code block stopped with an error, s.
 SAFE_HOLD = 0.5
@@ -143,8 +145,8 @@ class BlockEnd:
 class AgentMind:
     """The agent's state between events (held in the AgentSystem's Context).
 
-    phase: "idle" (not started), "deciding" (the next event decides), "executing" (`pending`
-    waits to run), "done" or "failed". steps: the code blocks run so far. queue: the
+    phase: a `Phase` (idle: not started; deciding: the next event decides; executing:
+    `pending` waits to run; done or failed). steps: the code blocks run so far. queue: the
     enumerator's remaining candidates (None until it has listed them). known: knowledge
     entries already in the transcript. observation: the last look at the scene.
     last_decision: what the last code block was for (a failed block is written again for
@@ -152,7 +154,7 @@ class AgentMind:
     episode ended early, and what kind of reason that is (see the module docstring).
     """
 
-    phase: str = "idle"
+    phase: Phase = Phase.IDLE
     steps: tuple[StepRecord, ...] = ()
     queue: tuple[Candidate, ...] | None = None
     known: int = 0
@@ -162,7 +164,12 @@ class AgentMind:
     failure: str = ""
     last_decision: Decision | None = None
     retries: int = 0
-    failure_kind: str = ""
+    failure_kind: FailureKind = FailureKind.NONE
+
+    def __post_init__(self) -> None:
+        # A phase given as its word becomes the enum (an unknown word raises ValueError).
+        object.__setattr__(self, "phase", Phase(self.phase))
+        object.__setattr__(self, "failure_kind", FailureKind(self.failure_kind))
 
     @property
     def oi(self) -> int:
@@ -172,7 +179,7 @@ class AgentMind:
 
     @property
     def over(self) -> bool:
-        return self.phase in ("done", "failed")
+        return self.phase.over
 
 
 @dc.dataclass
@@ -189,7 +196,7 @@ class EpisodeOutcome:
     wall_time_s: float
     steps: list[StepRecord]
     failure: str = ""
-    failure_kind: str = ""
+    failure_kind: FailureKind = FailureKind.NONE
 
 
 class AgentLoop:
@@ -198,8 +205,8 @@ class AgentLoop:
 
     check(): the task's ground-truth check (an object with .success and .reason), run once
     the episode is over. robot_time_limit: s. on_phase(phase, steps, oi): hears each change
-    of phase ("observing", "planning", "prioritizing", "coding", "executing", "done",
-    "failed"). block_retries: failed code blocks the coder may write again per episode.
+    of activity (an `Activity`: observing, planning, prioritizing, coding, executing, done,
+    failed). block_retries: failed code blocks the coder may write again per episode.
     Without `prompts`, requests carry the camera image unless the model takes none.
     """
 
@@ -234,7 +241,7 @@ class AgentLoop:
         """One decision (see the module docstring); `mind` must be "deciding". `robot_time`:
         the robot time now, s (read from the RobotAPI if not given; the robot does not move
         while the agent decides, so nothing else is read from the diagram meanwhile)."""
-        if mind.phase != "deciding":
+        if mind.phase != Phase.DECIDING:
             raise ValueError(f"the agent thinks only while deciding, not {mind.phase!r}")
         self._thinking.robot_time = self.api.robot_time if robot_time is None else robot_time
         try:
@@ -249,7 +256,7 @@ class AgentLoop:
             thread.agent_silenced = True
 
     def _think(self, mind: AgentMind, observation: Observation) -> AgentMind:
-        self._phase("observing", mind)
+        self._phase(Activity.OBSERVING, mind)
         self._note(mind, "observation", "objects in view:\n" + observation.as_text(),
                    {"objects": [dc.asdict(o) for o in observation.objects]})
         if mind.ran is not None:
@@ -264,7 +271,7 @@ class AgentLoop:
         if failed is not None and mind.retries >= self._block_retries:
             return self._end(mind, f"code block {failed.index} failed and the episode's "
                              f"{self._block_retries} rewrites of failed blocks are used up: "
-                             f"{failed.error}", kind="code")
+                             f"{failed.error}", kind=FailureKind.CODE)
         try:
             context = AgentContext(self.task, observation, tuple(self.api.knowledge.entries),
                                    mind.steps)
@@ -281,15 +288,15 @@ class AgentLoop:
                 "candidate": decision.candidate.model_dump() if decision.candidate else None})
             answer = self._write_code(context, decision, mind, failed)
         except EpisodeTimeUp as error:
-            return self._end(mind, str(error), kind="limit")
+            return self._end(mind, str(error), kind=FailureKind.LIMIT)
         except (AgentAnswerError, LLMError) as error:
-            return self._end(mind, str(error), kind="model")
+            return self._end(mind, str(error), kind=FailureKind.MODEL)
         self._note(mind, "code", answer.code, {
             "thought": answer.thought, "code": answer.code, "decision": decision.kind,
             "target": decision.candidate.name if decision.candidate else "",
             "retry": failed is not None})
-        self._phase("executing", mind)
-        return dc.replace(mind, phase="executing",
+        self._phase(Activity.EXECUTING, mind)
+        return dc.replace(mind, phase=Phase.EXECUTING,
                           pending=PendingBlock(decision, answer, failed is not None))
 
     # --- running a code block ------------------------------------------------------------
@@ -298,7 +305,7 @@ class AgentLoop:
         """Runs the pending code block in the sandbox in one blocking call (this advances
         the simulation). Never raises for anything the block does: the block ends with a
         reason the next model call sees, or the episode ends with a reason in its summary."""
-        if mind.phase != "executing" or mind.pending is None:
+        if mind.phase != Phase.EXECUTING or mind.pending is None:
             raise ValueError(f"no code block to run (phase {mind.phase!r})")
         try:
             return self._run_block(mind)
@@ -310,22 +317,23 @@ class AgentLoop:
     def stop_before_start(self, problem: str) -> AgentMind:
         """The mind of an episode that ends before its first decision because the model or
         its server failed (e.g. the start-up check)."""
-        return self._end(AgentMind(phase="deciding"), problem, kind="model")
+        return self._end(AgentMind(phase=Phase.DECIDING), problem, kind=FailureKind.MODEL)
 
     def fault(self, mind: AgentMind, fault: ArmFault) -> AgentMind:
         """Ends the episode on an arm fault (raised by the station while time advanced)."""
-        return self._end(dc.replace(mind, pending=None), f"arm fault: {fault}", kind="arm")
+        return self._end(dc.replace(mind, pending=None), f"arm fault: {fault}",
+                         kind=FailureKind.ARM)
 
     def time_up(self, mind: AgentMind, seconds: float) -> AgentMind:
         """Ends the episode that ran `seconds` s of diagram time without ending itself."""
         return self._end(dc.replace(mind, pending=None), f"the episode ran {seconds:g} s "
-                         "without ending", kind="limit")
+                         "without ending", kind=FailureKind.LIMIT)
 
     def internal_failure(self, mind: AgentMind, error: Exception) -> AgentMind:
         """Ends the episode on an error of the agent's own (the last line of defence)."""
         return self._end(dc.replace(mind, pending=None), "the agent could not take in "
                          f"what the code block did ({type(error).__name__}: {error})",
-                         kind="internal")
+                         kind=FailureKind.INTERNAL)
 
     def _run_block(self, mind: AgentMind) -> AgentMind:
         api = self.api
@@ -350,7 +358,7 @@ class AgentLoop:
         """The pending code block, ready to be served call by call by an owner that waits
         for the robot on its own (`CallServer.start`): its robot calls are steps whose
         actions are requests for the robot (see `RobotAPI.stepwise`)."""
-        if mind.phase != "executing" or mind.pending is None:
+        if mind.phase != Phase.EXECUTING or mind.pending is None:
             raise ValueError(f"no code block to run (phase {mind.phase!r})")
         if self._stepwise is None:
             self._stepwise = self._interactions.wrap(self._code_api.stepwise_functions())
@@ -391,8 +399,8 @@ class AgentLoop:
             self._note(mind, "measurement", entry.describe(), dc.asdict(entry))
         mind = dc.replace(mind, pending=None, known=len(entries))
         if outcome.kind == "fault":
-            return self._end(mind, f"arm fault: {outcome.error}", kind="arm")
-        return dc.replace(mind, phase="deciding", ran=RanBlock(
+            return self._end(mind, f"arm fault: {outcome.error}", kind=FailureKind.ARM)
+        return dc.replace(mind, phase=Phase.DECIDING, ran=RanBlock(
             pending.decision, pending.answer, outcome, api.robot_time, end.moved,
             self._interactions.count, pending.retry))
 
@@ -434,30 +442,30 @@ class AgentLoop:
         if mind.steps:
             last = mind.steps[-1]
             if last.kind == "final" and last.ok:
-                return "done", ""
+                return Phase.DONE, ""
         robot_time = self._robot_time()
         if robot_time >= self._robot_time_limit:
-            return "failed", (f"robot-time limit reached ({robot_time:.0f} s >= "
+            return Phase.FAILED, (f"robot-time limit reached ({robot_time:.0f} s >= "
                               f"{self._robot_time_limit:.0f} s)")
         if len(mind.steps) >= self.variant.max_steps:
-            return "failed", f"step limit reached ({self.variant.max_steps} code blocks)"
+            return Phase.FAILED, f"step limit reached ({self.variant.max_steps} code blocks)"
         return None
 
-    def _end(self, mind: AgentMind, stop, kind: str = "") -> AgentMind:
+    def _end(self, mind: AgentMind, stop, kind: FailureKind = FailureKind.NONE) -> AgentMind:
         """Ends the episode: `stop` is (how, why) from _stop_reason (a limit) or the reason
         of a failure of `kind` (see the module docstring)."""
-        how, failure = stop if isinstance(stop, tuple) else ("failed", stop)
-        kind = (kind or "limit") if failure else ""
-        if kind == "limit" and mind.steps and not mind.steps[-1].ok:
+        how, failure = stop if isinstance(stop, tuple) else (Phase.FAILED, stop)
+        kind = (kind or FailureKind.LIMIT) if failure else FailureKind.NONE
+        if kind == FailureKind.LIMIT and mind.steps and not mind.steps[-1].ok:
             failure += f"; the last code block failed: {mind.steps[-1].error}"
         if failure:
             self._note(mind, "error", f"episode stopped: {failure}")
-        mind = dc.replace(mind, phase="failed" if failure else how, failure=failure,
+        mind = dc.replace(mind, phase=Phase.FAILED if failure else how, failure=failure,
                           failure_kind=kind)
         self._phase(mind.phase, mind)
         return mind
 
-    def _phase(self, phase: str, mind: AgentMind) -> None:
+    def _phase(self, phase: Activity | Phase, mind: AgentMind) -> None:
         """Tells `on_phase`; a thought given up on stops here (no more model calls)."""
         with self._writing:
             silenced = self._silenced()
@@ -483,7 +491,7 @@ class AgentLoop:
         return getattr(threading.current_thread(), "agent_silenced", False)
 
     def _decide(self, context: AgentContext, mind: AgentMind) -> tuple[Decision, AgentMind]:
-        self._phase("planning", mind)
+        self._phase(Activity.PLANNING, mind)
         decider = self.variant.decider
         if decider == "coder":
             return Decision("task"), mind
@@ -522,7 +530,7 @@ class AgentLoop:
         if order == "spatial":
             column = {o.name: o.image_x for o in context.observation.objects}
             return sorted(candidates, key=lambda c: column.get(c.name, float("inf")))
-        self._phase("prioritizing", mind)
+        self._phase(Activity.PRIORITIZING, mind)
         answer, ordered = ask_structured(
             self.llm, self._prompts.prioritizer(context, candidates), PrioritizerAnswer,
             repairs=self.variant.repair_attempts,
@@ -536,7 +544,7 @@ class AgentLoop:
                     failed: StepRecord | None = None) -> CoderAnswer:
         """The coder's block for `decision` (`failed`: the block for it that just failed).
         Code the model wrapped in a Markdown fence is taken out of it."""
-        self._phase("coding", mind)
+        self._phase(Activity.CODING, mind)
         request = self._prompts.coder(context, self._code_api.describe(),
                                       self._code_api.names(), decision.kind,
                                       decision.candidate, decision.reason, failed)

@@ -14,7 +14,7 @@ import os
 import time
 from collections.abc import Callable
 
-from physcap_drake.agent.episode_runner import run_agent_episode
+from physcap_drake.app.agent_episode import run_agent_episode
 
 TASKS = ("find_blue_cube", "identify_empty_can", "pick_ripe_avocado", "empty_cup")
 SEEDS = (0, 1, 2)

@@ -16,11 +16,11 @@ import dataclasses as dc
 
 import numpy as np
 
+from physcap_drake.app.episode import BASKET, TRAY, Episode, make_episode
 from physcap_drake.perception.colors import matches
 from physcap_drake.perception.grasp import grasp_point_from_points
 from physcap_drake.perception.phrases import PointingError
 from physcap_drake.station import ports, scene_snapshot
-from physcap_drake.tasks.episode import BASKET, TRAY, Episode, make_episode
 
 #: The rendering sensor inside the station behind an emulated RealSense named "camera".
 _SENSOR = "rgbd_sensor_camera"

@@ -6,9 +6,9 @@ import dataclasses as dc
 
 import numpy as np
 
+from physcap_drake.app.pick_place_demo import check_can_in_tray, pick_and_place
+from physcap_drake.app.scene_layout import object_position, set_object_position
 from physcap_drake.control.errors import SkillError
-from physcap_drake.demos.pick_place import check_can_in_tray, pick_and_place
-from physcap_drake.demos.scene_layout import object_position, set_object_position
 from physcap_drake.resources import stations_dir
 from physcap_drake.robot_api import RobotAPI
 from physcap_drake.robot_stack import build_robot_stack

@@ -84,11 +84,18 @@ class ChildProcess:
             self._process.wait()
 
 
+def named_function(name: str):
+    """The function `name` ("package.module:function") names, its module imported now."""
+    module, separator, function = name.partition(":")
+    if not separator or not module or not function:
+        raise ValueError(f"expected 'package.module:function', got {name!r}")
+    return getattr(importlib.import_module(module), function)
+
+
 def main(target: str, fd: str) -> None:
     conn = Connection(int(fd))
     args = conn.recv()
-    module, function = target.split(":")
-    getattr(importlib.import_module(module), function)(conn, *args)
+    named_function(target)(conn, *args)
 
 
 if __name__ == "__main__":

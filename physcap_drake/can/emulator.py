@@ -8,7 +8,7 @@ fifth cycle, low-speed feedback (0x261-0x266).
 
 How the arm moves is up to its motion backend: `motion.KinematicMotion` puts the joints on
 their reference and takes holding torques from an optional `gravity_torque(q)` model;
-`simulated_motion.SimulatedMotion` runs the simulated station (a MultibodyPlant scene with
+`station.simulated_motion.SimulatedMotion` runs the simulated station (a MultibodyPlant scene with
 the task's objects), so joint torques and gripper effort come from its physics. Torques go
 on the bus as motor currents with the firmware's scaling. A slow world is wrapped in a
 `paced_world.PacedWorld`, which steps it in a thread of its own so the cycle never waits

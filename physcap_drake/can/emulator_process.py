@@ -23,7 +23,7 @@ import time
 
 import numpy as np
 
-from physcap_drake.can.child_process import ChildError, ChildProcess
+from physcap_drake.can.child_process import ChildError, ChildProcess, named_function
 from physcap_drake.can.shared_block import Layout, SharedBlock
 
 log = logging.getLogger("physcap_drake.can")
@@ -45,7 +45,11 @@ def world_layout(size: int) -> Layout:
 class EmulatorProcess:
     """The parent's handle. `bus_socket`: the emulator's end of a socket pair; `scenario_yaml`:
     a scenario with a `SimPiper` station (as YAML text) whose simulated station backs the
-    arm, or None for the kinematic arm; `gripper_max_effort`: N·m at the simulated gripper's
+    arm, or None for the kinematic arm; `world_builder`: with a scenario, the function that
+    builds the world from it in the child, as "package.module:function" called with
+    (scenario_yaml, gripper_max_effort) and returning a motion backend (named, not imported:
+    the world is built from layers above this package, see `physcap_drake.emulated_world`);
+    `gripper_max_effort`: N·m at the simulated gripper's
     full force (see SimulatedMotion); `state_size`: the plant's positions + velocities (the
     world block's size, 0 without a scenario); `firmware`: the version it reports;
     `realtime_priority`: its scheduling (see `can.realtime`, 0: normal); `pace_world`:
@@ -53,17 +57,22 @@ class EmulatorProcess:
     at once and builds its world in the background; `wait_ready()` waits for it."""
 
     def __init__(self, bus_socket: socket.socket, scenario_yaml: str | None = None, *,
-                 gripper_max_effort: float = 2.0, state_size: int = 0,
+                 world_builder: str | None = None, gripper_max_effort: float = 2.0,
+                 state_size: int = 0,
                  firmware: str = "S-V1.8-2", realtime_priority: int = 0,
                  pace_world: bool = False):
+        if scenario_yaml is not None and world_builder is None:
+            bus_socket.close()
+            raise ValueError("an emulated world from a scenario needs its world_builder "
+                             "(\"package.module:function\")")
         self._world = SharedBlock(world_layout(state_size)) if state_size else None
         self._last_world: tuple[float, np.ndarray] | None = None
         world_fd = None if self._world is None else self._world.fd
         fds = (bus_socket.fileno(),) + (() if world_fd is None else (world_fd,))
         self._child = ChildProcess(
             "physcap_drake.can.emulator_process:serve",
-            (bus_socket.fileno(), scenario_yaml, gripper_max_effort, firmware, world_fd,
-             state_size, realtime_priority, pace_world), fds, name="piper-emulator")
+            (bus_socket.fileno(), scenario_yaml, world_builder, gripper_max_effort, firmware,
+             world_fd, state_size, realtime_priority, pace_world), fds, name="piper-emulator")
         bus_socket.close()  # the child has its own copy
         self._ready = False
 
@@ -125,8 +134,8 @@ class EmulatorProcess:
             self._world = None
 
 
-def serve(conn, bus_fd: int, scenario_yaml: str | None, gripper_max_effort: float,
-          firmware: str, world_fd: int | None, state_size: int,
+def serve(conn, bus_fd: int, scenario_yaml: str | None, world_builder: str | None,
+          gripper_max_effort: float, firmware: str, world_fd: int | None, state_size: int,
           realtime_priority: int, pace_world: bool = False) -> None:
     """The emulated arm's process: runs until the parent says close or goes away."""
     from physcap_drake.can.emulator import DEFAULT_RATE, PiperEmulator
@@ -143,11 +152,7 @@ def serve(conn, bus_fd: int, scenario_yaml: str | None, gripper_max_effort: floa
         if scenario_yaml is None:
             motion = KinematicMotion()
         else:
-            from physcap_drake.can.simulated_motion import SimulatedMotion
-            from physcap_drake.scenario import load_scenario_text
-
-            motion = SimulatedMotion(load_scenario_text(scenario_yaml, label="emulated arm"),
-                                     gripper_max_effort=gripper_max_effort)
+            motion = named_function(world_builder)(scenario_yaml, gripper_max_effort)
     except (RuntimeError, ValueError, OSError) as error:  # say why there is no world; end
         conn.recv()
         conn.send(("error", f"{type(error).__name__}: {error}"))

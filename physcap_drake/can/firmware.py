@@ -64,7 +64,7 @@ def _joint_bits(joints) -> int:
 
 class Firmware:
     """See module docstring. `motion`: the backend (`motion.KinematicMotion` or
-    `simulated_motion.SimulatedMotion`); `firmware`: the version it reports."""
+    `station.simulated_motion.SimulatedMotion`); `firmware`: the version it reports."""
 
     def __init__(self, motion, firmware: str = "S-V1.8-2"):
         self.version = firmware

@@ -4,7 +4,7 @@ backend, and the kinematic backend.
 Each firmware cycle hands the backend a MotionCommand (the joint reference its planner
 produced, in the joints' physical angles, and the gripper's command) and
 gets a MotionReading back. `KinematicMotion` (here) puts the joints exactly on their
-reference; `physcap_drake.can.simulated_motion.SimulatedMotion` runs the simulated station.
+reference; `physcap_drake.station.simulated_motion.SimulatedMotion` runs the simulated station.
 """
 
 from __future__ import annotations

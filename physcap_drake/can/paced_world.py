@@ -1,7 +1,7 @@
 """PacedWorld: the emulated arm's world stepped in a thread of its own, paced by the wall clock.
 
 A real arm's controller keeps its 200 Hz feedback whatever happens around the arm; the
-emulated world (a MultibodyPlant scene with contact, `simulated_motion.SimulatedMotion`)
+emulated world (a MultibodyPlant scene with contact, `station.simulated_motion.SimulatedMotion`)
 can cost more than real time per step on a busy machine, and if the firmware cycle waited
 for it, the feedback would stretch and come in bursts. So the firmware hands each cycle's
 command to this wrapper and takes the world's latest reading back at once, and a world

@@ -13,10 +13,10 @@ import typer
 from pydrake.common.yaml import yaml_dump_typed
 from rich.table import Table
 
+from physcap_drake.app import calibration as cal
+from physcap_drake.app import mismatch
 from physcap_drake.commands.calibrate_camera import calibrate_camera
 from physcap_drake.commands.common import console, fail, save_json, trial_progress
-from physcap_drake.physx import calibration as cal
-from physcap_drake.physx import mismatch
 from physcap_drake.physx.stiffness_levels import (
     StiffnessThresholds,
     level_from_deformation,
@@ -45,7 +45,7 @@ Noise = Annotated[bool, typer.Option("--noise/--no-noise",
 Mismatch = Annotated[bool, typer.Option(
     "--mismatch", help="Try the probe on arms that are not its model: per trial, link "
     "masses and centres of mass, torque-sensor gain and offset, joint friction, finger "
-    "compliance and specimen moduli are drawn from stated ranges (physx/mismatch.py).")]
+    "compliance and specimen moduli are drawn from stated ranges (app/mismatch.py).")]
 MismatchOnly = Annotated[str | None, typer.Option(
     "--mismatch-only", help="Draw only these groups (comma-separated: "
     + ", ".join(mismatch.GROUPS) + "); implies --mismatch.")]

@@ -7,15 +7,15 @@ from typing import Annotated
 
 import typer
 
+from physcap_drake.app.pick_place_demo import check_can_in_tray, pick_and_place
+from physcap_drake.app.scene_layout import check_placed, object_position
+from physcap_drake.app.sim_runner import save_meshcat_html
 from physcap_drake.commands.common import console, fail, load_scenario_or_exit, make_meshcat
 from physcap_drake.commands.live_view import hold_open, pace_in_real_time
 from physcap_drake.commands.options import ContactForces, Hold, HtmlOut, LiveMeshcat
 from physcap_drake.control.errors import SkillError
-from physcap_drake.demos.pick_place import check_can_in_tray, pick_and_place
-from physcap_drake.demos.scene_layout import check_placed, object_position
 from physcap_drake.robot_api import RobotAPI
 from physcap_drake.robot_stack import build_robot_stack
-from physcap_drake.sim_runner import save_meshcat_html
 from physcap_drake.station.view import frame_on_table
 
 app = typer.Typer(help="Scripted demonstrations of the robot skills.", no_args_is_help=True)

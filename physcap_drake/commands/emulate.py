@@ -10,9 +10,9 @@ import can
 import typer
 
 from physcap_drake.can.emulator import PiperEmulator
-from physcap_drake.can.simulated_motion import simulated_motion
 from physcap_drake.commands.common import console, fail, load_scenario_or_exit
 from physcap_drake.station.can_cameras import emulated_world
+from physcap_drake.station.simulated_motion import simulated_motion
 
 
 def emulate_piper(

@@ -7,9 +7,9 @@ from typing import Annotated
 
 import typer
 
+from physcap_drake.app.episode_folder import MCAP_FILE
 from physcap_drake.commands.common import console
 from physcap_drake.recording import recover as recovery
-from physcap_drake.recording.episode_folder import MCAP_FILE
 
 
 def recover(recording: Annotated[Path, typer.Argument(

@@ -7,15 +7,15 @@ from typing import Annotated
 
 import typer
 
+from physcap_drake.app.episode_folder import MCAP_FILE
+from physcap_drake.app.replay import ReplayError, replay_in_meshcat, transcript_markdown
+from physcap_drake.app.sim_runner import save_meshcat_html
 from physcap_drake.commands.common import console, fail, make_meshcat
 from physcap_drake.commands.live_view import hold_open
 from physcap_drake.commands.options import ContactForces, Hold, HtmlOut
 from physcap_drake.commands.recover import report_recovery
-from physcap_drake.recording.episode_folder import MCAP_FILE
 from physcap_drake.recording.reading import check_is_mcap
 from physcap_drake.recording.recover import recover
-from physcap_drake.recording.replay import ReplayError, replay_in_meshcat, transcript_markdown
-from physcap_drake.sim_runner import save_meshcat_html
 from physcap_drake.station.view import frame_on_table
 
 

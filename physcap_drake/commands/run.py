@@ -8,10 +8,12 @@ from typing import Annotated
 import typer
 from rich.markup import escape
 
-from physcap_drake.agent.episode_runner import run_agent_episode
 from physcap_drake.agent.llm import LLMError, save_jsonl
 from physcap_drake.agent.transcript import TranscriptEntry, entry_text
 from physcap_drake.agent.variant import variant_names
+from physcap_drake.app.agent_episode import run_agent_episode
+from physcap_drake.app.episode import JUDGES, PERCEPTIONS
+from physcap_drake.app.episode_folder import MCAP_FILE, record_episode
 from physcap_drake.can.link import StartupError
 from physcap_drake.commands.common import (
     BAD_INPUT,
@@ -47,10 +49,8 @@ from physcap_drake.commands.operator_judge import ask_operator, can_ask
 from physcap_drake.commands.options import ContactForces, Hold, LiveMeshcat
 from physcap_drake.commands.progress import Heartbeat
 from physcap_drake.config_checks import check_scenario_task
-from physcap_drake.recording.episode_folder import MCAP_FILE, record_episode
 from physcap_drake.scenario_errors import ScenarioError
 from physcap_drake.station.view import frame_on_table
-from physcap_drake.tasks.episode import JUDGES, PERCEPTIONS
 from physcap_drake.tasks.registry import TASKS
 
 STYLES = {"decision": "bold cyan", "error": "bold red", "measurement": "bold green",

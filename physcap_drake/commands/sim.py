@@ -7,6 +7,7 @@ from typing import Annotated
 
 import typer
 
+from physcap_drake.app.sim_runner import save_meshcat_html
 from physcap_drake.clock import Clock
 from physcap_drake.commands.common import (
     console,
@@ -16,7 +17,6 @@ from physcap_drake.commands.common import (
 )
 from physcap_drake.commands.live_view import hold_open, pace_in_real_time
 from physcap_drake.commands.options import ContactForces, Hold, HtmlOut, LiveMeshcat
-from physcap_drake.sim_runner import save_meshcat_html
 from physcap_drake.station.view import frame_on_table
 from physcap_drake.station_commands import build_commanded_station
 

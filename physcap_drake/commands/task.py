@@ -10,12 +10,12 @@ import numpy as np
 import typer
 from rich.table import Table
 
+from physcap_drake.app.episode import make_episode
 from physcap_drake.commands.common import console, fail, save_json, trial_progress
 from physcap_drake.commands.options import JsonOut
 from physcap_drake.control.errors import SkillError
 from physcap_drake.perception.offline_pointer import PointingError
 from physcap_drake.station import ports
-from physcap_drake.tasks.episode import make_episode
 from physcap_drake.tasks.registry import TASKS, get_task
 
 app = typer.Typer(help="The evaluation tasks in simulation.", no_args_is_help=True)

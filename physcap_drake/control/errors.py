@@ -14,8 +14,3 @@ class SkillFailed(SkillError):
     """The skill started but did not complete (timed out, blocked, or the station reported an
     error). The arm was stopped and holds where it is."""
 
-
-class ArmFault(RuntimeError):
-    """The arm reported an error state (emergency stop, joint communication error, collision,
-    limit) or its feedback was lost for too long. Motion commands have stopped and the arm
-    holds; the episode ends. Not a SkillError: no retry can fix it from software."""

@@ -31,16 +31,16 @@ from typing import Any
 import ray
 
 from physcap_drake.agent.llm.settings import ModelSettings
-from physcap_drake.eval.grid import EpisodeSpec
-from physcap_drake.eval.ray_models import episode_client
-from physcap_drake.eval.runner import EPISODES_PER_WORKER, pending
-from physcap_drake.recording.episode_folder import (
+from physcap_drake.app.episode_folder import (
     ERROR_FILE,
     MESHCAT_FILE,
     SUMMARY_FILE,
     read_summary,
     record_episode,
 )
+from physcap_drake.eval.grid import EpisodeSpec
+from physcap_drake.eval.ray_models import episode_client
+from physcap_drake.eval.runner import EPISODES_PER_WORKER, pending
 
 #: How often Ray reruns an episode whose worker died.
 RETRIES = 3

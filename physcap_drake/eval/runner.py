@@ -20,8 +20,8 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+from physcap_drake.app.episode_folder import is_finished, read_summary, record_episode
 from physcap_drake.eval.grid import EpisodeSpec
-from physcap_drake.recording.episode_folder import is_finished, read_summary, record_episode
 
 #: Episodes one worker process runs before it is replaced by a fresh one (see above); a new
 #: process costs a few seconds of imports, an episode's leftovers about 0.1 GB.

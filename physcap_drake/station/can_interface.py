@@ -7,8 +7,8 @@ import time
 import numpy as np
 from pydrake.systems.framework import BasicVector, Context, DiscreteValues, LeafSystem
 
-from physcap_drake.control.errors import ArmFault
 from physcap_drake.station import ports
+from physcap_drake.station.arm_fault import ArmFault
 from physcap_drake.station.can_session import CanSession
 
 # Layout of the discrete state: the latched feedback and the watchdog's verdict.

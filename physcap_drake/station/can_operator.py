@@ -20,9 +20,9 @@ from physcap_drake.can.emulator import PiperEmulator
 from physcap_drake.can.feedback import ArmParameters
 from physcap_drake.can.link import LinkSettings, PiperLink, StartupError
 from physcap_drake.can.link_process import open_bus
-from physcap_drake.can.simulated_motion import simulated_motion
 from physcap_drake.station.can_config import PiperCan
 from physcap_drake.station.can_session import EMULATED_FIRMWARE
+from physcap_drake.station.simulated_motion import simulated_motion
 
 #: Driver status bits (0x261-0x266 byte 5) that are faults, in words.
 DRIVER_FAULTS = {codec.LOW_VOLTAGE: "low voltage", codec.MOTOR_OVERHEAT: "motor over-temperature",

@@ -27,6 +27,9 @@ from physcap_drake.can.link_process import LinkProcess
 from physcap_drake.can.socket_bus import socket_pair
 from physcap_drake.station.can_config import PiperCan
 
+#: What builds the emulated arm's world in the emulator's process, by name: it is built from
+#: the scenario, a layer above the station (see `physcap_drake.emulated_world`).
+EMULATED_WORLD_BUILDER = "physcap_drake.emulated_world:build_world"
 #: The firmware version the emulated arm reports unless `station.firmware` says another.
 EMULATED_FIRMWARE = "S-V1.8-2"
 #: How far apart (s) a watchdog trip and the emulated arm's stall may be and still be the
@@ -93,7 +96,8 @@ class CanSession:
         self.link = LinkProcess(LinkSettings.of(config), link_end,
                                 FaultSettings(f.loss, f.delay, f.garble), seed=f.seed)
         self.emulator = EmulatorProcess(
-            emulator_end, self._scenario_yaml, gripper_max_effort=config.gripper_max_effort,
+            emulator_end, self._scenario_yaml, world_builder=EMULATED_WORLD_BUILDER,
+            gripper_max_effort=config.gripper_max_effort,
             state_size=self.world_size, firmware=config.firmware or EMULATED_FIRMWARE,
             realtime_priority=max(config.realtime_priority - 1, 0),
             pace_world=config.pace_world)

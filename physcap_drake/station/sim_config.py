@@ -129,7 +129,7 @@ class LinkDeviation:
 class AsBuilt:
     """How the simulated world departs from the models the robot's software uses. Empty
     (the default): exactly as modelled. No real arm matches its model; `physcap calibrate
-    --mismatch` draws these per trial (see physx/mismatch.py) to try the estimators against
+    --mismatch` draws these per trial (see app/mismatch.py) to try the estimators against
     an arm they do not know exactly. Applied when the world is built, never to the
     controller's or the estimators' own models."""
 

@@ -11,7 +11,6 @@ import dataclasses as dc
 
 import numpy as np
 
-from physcap_drake.demos.pick_place import TRAY_FLOOR, PlaceCheck, move_to_tray
 from physcap_drake.perception.offline_pointer import MIN_PIXELS
 from physcap_drake.perception.visible_objects import VisibleObject
 from physcap_drake.station import ports
@@ -22,6 +21,7 @@ from physcap_drake.tasks.ground_truth import (
     displacement,
     tilt,
 )
+from physcap_drake.tasks.placement import TRAY_FLOOR, PlaceCheck, move_to_tray
 from physcap_drake.tasks.task_instance import SceneObject, TaskInstance
 from physcap_drake.tasks.tray_tasks import TRAY_BOTTOM
 

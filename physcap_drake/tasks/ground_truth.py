@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from physcap_drake.demos.pick_place import TRAY_INNER_HALF, UPRIGHT_TILT, PlaceCheck
+from physcap_drake.tasks.placement import TRAY_INNER_HALF, UPRIGHT_TILT, PlaceCheck
 
 #: How far an object the task did not ask to move may end from where it stood, m.
 STAY_TOLERANCE = 0.02

@@ -13,9 +13,9 @@ import dataclasses as dc
 
 import numpy as np
 
-from physcap_drake.demos.pick_place import PlaceCheck, check_in_tray, move_to_tray
 from physcap_drake.perception.visible_objects import VisibleObject
 from physcap_drake.tasks.ground_truth import check_others_stayed, choose_answer, near_container
+from physcap_drake.tasks.placement import PlaceCheck, check_in_tray, move_to_tray
 from physcap_drake.tasks.task_instance import SceneObject, TaskInstance
 
 #: Row of the four objects: x and the y of each slot (world frame, m), and the jitter. The

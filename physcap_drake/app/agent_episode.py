@@ -28,15 +28,15 @@ from physcap_drake.agent.loop import AgentLoop, AgentMind, EpisodeOutcome
 from physcap_drake.agent.sandbox import SandboxLimits
 from physcap_drake.agent.transcript import Transcript, TranscriptEntry
 from physcap_drake.agent.variant import load_variant
+from physcap_drake.app.episode import Episode, make_episode
 from physcap_drake.clock import Clock
-from physcap_drake.control.errors import ArmFault
 from physcap_drake.perception.judge import Verdict
 from physcap_drake.perception.object_locator import ObjectLocator
 from physcap_drake.perception.vlm_pointer import VlmPointer
 from physcap_drake.recording.agent_recording import AgentRecording
 from physcap_drake.recording.git_state import git_state
 from physcap_drake.recording.mcap_sink import McapSink
-from physcap_drake.tasks.episode import Episode, make_episode
+from physcap_drake.station.arm_fault import ArmFault
 
 #: Robot execution time after which an episode is stopped, s (no task needs more).
 ROBOT_TIME_LIMIT = 900.0

@@ -27,12 +27,12 @@ from typing import IO, Any
 
 from pydrake.geometry import Meshcat
 
-from physcap_drake.agent.episode_runner import AgentRun, run_agent_episode
 from physcap_drake.agent.llm import CallRecord, make_llm, save_jsonl
 from physcap_drake.agent.transcript import TranscriptEntry, entry_markdown, markdown_header
+from physcap_drake.app.agent_episode import AgentRun, run_agent_episode
+from physcap_drake.app.sim_runner import save_meshcat_html
 from physcap_drake.recording.git_state import git_state
 from physcap_drake.recording.mcap_sink import McapSink
-from physcap_drake.sim_runner import save_meshcat_html
 from physcap_drake.station.view import frame_on_table
 from physcap_drake.tasks.registry import get_task
 

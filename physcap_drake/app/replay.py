@@ -19,12 +19,12 @@ from pydrake.geometry import Meshcat
 from pydrake.math import RigidTransform, RotationMatrix
 
 from physcap_drake.agent.transcript import Transcript, TranscriptEntry
+from physcap_drake.app.episode import make_episode
 from physcap_drake.recording import topics
 from physcap_drake.recording.mcap_recorder import GRIPPER_JOINT
 from physcap_drake.recording.reading import Recording, read_recording
 from physcap_drake.recording.scene_geometry import body_frame_name
 from physcap_drake.station.robot_model import moving_joints
-from physcap_drake.tasks.episode import make_episode
 from physcap_drake.tasks.registry import TASKS
 
 

@@ -50,7 +50,7 @@ from physcap_drake.tasks.tray_tasks import TRAY_NAME
 TRAY = VisibleObject(TRAY_NAME, "tray", "brown")
 BASKET = VisibleObject("basket", "basket", "brown")
 #: Who decides an episode's success: the simulator's ground truth, the final camera view, or
-#: the operator at the rig (asked when the episode ends; see agent.episode_runner).
+#: the operator at the rig (asked when the episode ends; see app.agent_episode).
 JUDGES = ("simulator", "perception", "operator")
 #: The perception modules an episode can use: RGB-D (the default path on a real rig) and the
 #: simulator's label segmenter (an ablation).
@@ -95,7 +95,7 @@ class Episode:
             return self.judge_from_camera()
         if self.judge == "operator":
             raise RuntimeError("the operator judges at the end of the episode (see "
-                               "agent.episode_runner); there is no check to call")
+                               "app.agent_episode); there is no check to call")
         return self.ground_truth()
 
     def judge_from_camera(self):

@@ -10,7 +10,7 @@ Held out: the stiffness thresholds are fitted on one set of trial seeds and scor
 another, disjoint one (`split_trials`). get_mass fits nothing from data (its model is the
 arm's file and the joint servo's stiffness), so all its trials are evaluation.
 
-Mismatch (see physx/mismatch.py): each trial's simulated arm departs from its model by
+Mismatch (see app/mismatch.py): each trial's simulated arm departs from its model by
 drawn deviations; the estimators keep the nominal model.
 """
 
@@ -24,8 +24,8 @@ import numpy as np
 from pydrake.common.schema import Transform
 from pydrake.multibody.parsing import AddModel, ModelDirective
 
+from physcap_drake.app import mismatch
 from physcap_drake.control.errors import SkillError
-from physcap_drake.physx import mismatch
 from physcap_drake.physx.stiffness_levels import (
     StiffnessThresholds,
     level_from_deformation,

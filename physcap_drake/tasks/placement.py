@@ -1,4 +1,5 @@
-"""Pick a soda can and put it on the tray, with the blocking robot API."""
+"""Moving an object into a container with the robot API, and checking from the simulator's
+ground truth that it ended there: shared by the tasks and the pick-and-place demo."""
 
 from __future__ import annotations
 
@@ -10,9 +11,6 @@ from pydrake.systems.framework import Context
 
 from physcap_drake.robot_api import RobotAPI
 
-#: Fingertip height above the can's bottom when grasping, m: the pads (4 cm long) then
-#: hold the can around its middle and the gripper housing stays clear of its top (122 mm).
-GRASP_HEIGHT = 0.065
 #: Height of the vertical approach above the grasp and place points, m.
 APPROACH = 0.12
 #: How high the can is lifted before it is carried, m.
@@ -22,18 +20,8 @@ TRAY_FLOOR = 0.008
 PLACE_CLEARANCE = 0.005
 #: Inner half-size of the tray (x, y), m: 0.30 × 0.22 m outside, walls 6 mm thick.
 TRAY_INNER_HALF = np.array([0.144, 0.104])
-#: Radius of the can, m, and the largest tilt that still counts as upright, rad.
-CAN_RADIUS = 0.033
+#: The largest tilt that still counts as upright, rad.
 UPRIGHT_TILT = np.radians(10.0)
-
-
-def pick_and_place(api: RobotAPI, can_bottom: np.ndarray, tray_bottom: np.ndarray,
-                   on_goto: Callable[[np.ndarray], None] | None = None) -> None:
-    """Grasps the can standing at `can_bottom` (centre of its base, world frame, m) from
-    above and sets it down in the tray whose floor centre is `tray_bottom`, then goes home.
-    `on_goto(target)` is called after each goto_pose with its fingertip target (m)."""
-    grasp = np.asarray(can_bottom, dtype=float) + [0.0, 0.0, GRASP_HEIGHT]
-    move_to_tray(api, grasp, GRASP_HEIGHT, tray_bottom, on_goto)
 
 
 def move_to_tray(api: RobotAPI, grasp_point: np.ndarray, grasp_height: float,
@@ -68,14 +56,6 @@ class PlaceCheck:
 
     success: bool
     reason: str
-
-
-def check_can_in_tray(plant, plant_context: Context, can_body: str = "soda_can",
-                      tray_body: str = "tray") -> PlaceCheck:
-    """Success check from the simulator's ground truth (for benchmarks, never for agents):
-    the can stands upright (tilt ≤ 10°), wholly inside the tray's inner walls, on its floor."""
-    return check_in_tray(plant, plant_context, plant.GetBodyByName(can_body),
-                         plant.GetBodyByName(tray_body), CAN_RADIUS)
 
 
 def check_in_tray(plant, plant_context: Context, body, tray, radius: float,

@@ -1,1 +1,0 @@
-"""Scripted demonstrations of the robot skills (no agent involved)."""

@@ -1,0 +1,180 @@
+"""The package's layers: each subpackage (or top-level module) of physcap_drake imports only
+from its own layer or the layers below it, no two packages import each other (directly or
+round a cycle), and no module imports another module's private names.
+
+Every import counts, also those inside functions: a deferred import is still a dependency.
+A new package must be given a layer here; that is where its place in the design is decided.
+"""
+
+from __future__ import annotations
+
+import ast
+from collections import defaultdict
+from pathlib import Path
+
+import physcap_drake
+
+ROOT = Path(physcap_drake.__file__).parent
+
+#: From the bottom up. Within a layer, packages may import each other, but not round a cycle.
+LAYERS = (
+    # Plain helpers with no robot in them.
+    ("scenario_errors", "config_checks", "resources", "immutable_state", "kinematics", "clock"),
+    # The arm's bus: protocol, link, emulated firmware.
+    ("can",),
+    # The station (simulated or over CAN) and its ports.
+    ("station",),
+    # Skills on the arm, then the physical probes on the skills.
+    ("control",),
+    ("physx",),
+    # A scenario file puts the configurations of the layers above together.
+    ("scenario",),
+    # The robot stack (station, skills, probes on one request path), perception, the API.
+    ("robot_stack", "perception", "emulated_world"),
+    ("knowledge", "robot_api"),
+    # What runs on the API: the tasks and the agent; then what records an agent.
+    ("tasks", "agent"),
+    ("recording",),
+    # Composition: episodes, episode folders, replays, calibration runs, demos.
+    ("app",),
+    # Programs: evaluation grids, benchmarks, the command line.
+    ("eval", "bench", "station_commands"),
+    ("commands",),
+    ("cli", "__init__", "__main__"),
+)
+LAYER_OF = {name: index for index, names in enumerate(LAYERS) for name in names}
+
+
+def unit_of(path: Path) -> str:
+    """The package (or top-level module) of physcap_drake a source file belongs to."""
+    parts = path.relative_to(ROOT).with_suffix("").parts
+    return parts[0]
+
+
+def module_of(path: Path) -> str:
+    parts = list(path.relative_to(ROOT.parent).with_suffix("").parts)
+    if parts[-1] == "__init__":
+        parts.pop()
+    return ".".join(parts)
+
+
+def imported_modules(path: Path) -> list[tuple[int, str, tuple[str, ...]]]:
+    """(line, absolute module, names imported from it) of every import in the file."""
+    module = module_of(path)
+    package = module if path.name == "__init__.py" else module.rpartition(".")[0]
+    found = []
+    for node in ast.walk(ast.parse(path.read_text(), str(path))):
+        if isinstance(node, ast.Import):
+            found += [(node.lineno, alias.name, ()) for alias in node.names]
+        elif isinstance(node, ast.ImportFrom):
+            if node.level:
+                base = package.split(".")[: len(package.split(".")) - node.level + 1]
+                target = ".".join(base + ([node.module] if node.module else []))
+            else:
+                target = node.module or ""
+            found.append((node.lineno, target, tuple(a.name for a in node.names)))
+    return found
+
+
+def package_edges() -> dict[str, dict[str, list[str]]]:
+    """unit -> imported unit -> where ("file:line")."""
+    edges: dict[str, dict[str, list[str]]] = defaultdict(lambda: defaultdict(list))
+    for path in sorted(ROOT.rglob("*.py")):
+        source = unit_of(path)
+        for line, target, _ in imported_modules(path):
+            parts = target.split(".")
+            if parts[0] != "physcap_drake" or len(parts) < 2:
+                continue
+            if parts[1] != source:
+                edges[source][parts[1]].append(f"{path.relative_to(ROOT)}:{line}")
+    return edges
+
+
+def test_every_package_has_a_layer():
+    units = {unit_of(path) for path in ROOT.rglob("*.py")}
+    assert units - set(LAYER_OF) == set(), "give these a layer in tests/test_layers.py"
+
+
+def test_imports_go_down_the_layers():
+    upward = [f"{source} (layer {LAYER_OF[source]}) imports {target} (layer "
+              f"{LAYER_OF[target]}) at {', '.join(where)}"
+              for source, targets in package_edges().items()
+              for target, where in targets.items()
+              if LAYER_OF.get(target, -1) > LAYER_OF.get(source, -1)]
+    assert upward == []
+
+
+def test_no_package_import_cycles():
+    edges = {source: set(targets) for source, targets in package_edges().items()}
+    cycles = [component for component in strongly_connected(edges) if len(component) > 1]
+    assert cycles == []
+
+
+def test_no_private_names_imported_across_modules():
+    """A private module or name (leading underscore) is used only inside the package that
+    holds it (e.g. agent/llm/_common.py by agent/llm's modules)."""
+    leaks = []
+    for path in sorted(ROOT.rglob("*.py")):
+        importer = module_of(path) if path.name == "__init__.py" else (
+            module_of(path).rpartition(".")[0])
+        for line, target, names in imported_modules(path):
+            if not target.startswith("physcap_drake"):
+                continue
+            for name in names or ("",):
+                parts = f"{target}.{name}".strip(".").split(".")
+                for i, part in enumerate(parts):
+                    holder = ".".join(parts[:i])
+                    if part.startswith("_") and not part.startswith("__") and not (
+                            importer == holder or importer.startswith(holder + ".")):
+                        leaks.append(f"{path.relative_to(ROOT)}:{line} imports "
+                                     f"{'.'.join(parts)}")
+    assert leaks == []
+
+
+def strongly_connected(edges: dict[str, set[str]]) -> list[list[str]]:
+    """Tarjan's strongly connected components of a directed graph."""
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    on_stack: set[str] = set()
+    components: list[list[str]] = []
+
+    def visit(node: str) -> None:
+        index[node] = low[node] = len(index)
+        stack.append(node)
+        on_stack.add(node)
+        for other in edges.get(node, ()):
+            if other not in index:
+                visit(other)
+                low[node] = min(low[node], low[other])
+            elif other in on_stack:
+                low[node] = min(low[node], index[other])
+        if low[node] == index[node]:
+            component = []
+            while True:
+                other = stack.pop()
+                on_stack.discard(other)
+                component.append(other)
+                if other == node:
+                    break
+            components.append(sorted(component))
+
+    for node in sorted(edges):
+        if node not in index:
+            visit(node)
+    return components
+
+
+def test_the_cycle_finder_finds_a_cycle():
+    """The check above can fail: a graph with a cycle is caught."""
+    assert ["a", "b"] in strongly_connected({"a": {"b"}, "b": {"a", "c"}, "c": set()})
+
+
+def test_the_emulated_world_is_named_where_the_emulator_can_import_it():
+    """The CAN session names the emulated world's builder instead of importing it (it sits
+    above the station); the name must lead to it."""
+    from physcap_drake.can.child_process import named_function
+    from physcap_drake.emulated_world import build_world
+    from physcap_drake.station.can_session import EMULATED_WORLD_BUILDER
+
+    assert named_function(EMULATED_WORLD_BUILDER) is build_world
