@@ -34,6 +34,8 @@ PAST_UPDATE = 1e-7
 GRAVITY = 9.81
 #: The fastest the emulated arm's joint reference moves, rad/s (the PiPER's top joint speed).
 MAX_JOINT_SPEED = DEFAULT_MAX_SPEED
+#: How many non-finite state entries a failed step names.
+NAMED_NON_FINITE = 6
 
 
 class SimulatedMotion:
@@ -74,7 +76,6 @@ class SimulatedMotion:
         self._feedforward = (self.station.GetSubsystemByName("arm_feedforward")
                              if self.station.HasSubsystemNamed("arm_feedforward") else None)
         self._reference: np.ndarray | None = None  # the last period's joint reference
-        self._finite_before = True  # whether the last step left a finite state
         self._fix(np.asarray(config.initial_arm_position, dtype=float),
                   config.initial_gripper_opening, 0.0)
         self._applied(np.zeros(self.plant.num_velocities()))
@@ -114,6 +115,13 @@ class SimulatedMotion:
         t0 = self._context.get_time()
         period, end = self.plant.time_step(), t0 + dt
         update = (np.floor(t0 / period + 1e-9) + 1.0) * period
+
+        def what() -> str:
+            return (f"world step from t = {t0:.4f} s by {dt * 1000:.0f} ms: joints at "
+                    f"{np.round(q_now, 4).tolist()}, reference from {np.round(start, 4).tolist()} "
+                    f"to {np.round(reference, 4).tolist()}, gripper to {opening:.4f} m at "
+                    f"{force:.1f} N")
+
         try:
             while update <= end + 1e-9:  # the joint loop's updates within this period
                 # Fixed before the update and advanced just past it: the update sees this
@@ -126,13 +134,18 @@ class SimulatedMotion:
             if self._context.get_time() < end:
                 self._simulator.AdvanceTo(end)
         except RuntimeError as error:
-            raise RuntimeError(
-                f"{error} [world step from t = {t0:.4f} s by {dt * 1000:.0f} ms: joints at "
-                f"{np.round(q_now, 4).tolist()}, reference from {np.round(start, 4).tolist()} to "
-                f"{np.round(reference, 4).tolist()}, gripper to {opening:.4f} m at {force:.1f} N; "
-                f"state finite before: {self._finite_before}]") from None
-        self._finite_before = bool(np.isfinite(
-            self.plant.GetPositionsAndVelocities(self.plant_context)).all())
+            raise RuntimeError(f"{error} [{what()}]") from None
+        # A step whose physics left a non-finite state fails here, naming itself and what
+        # went non-finite (the next step's geometry query would only see the result).
+        state = self.plant.GetPositionsAndVelocities(self.plant_context)
+        if not np.isfinite(state).all():
+            all_names = self.plant.GetStateNames(False)
+            names = [all_names[i] for i in np.flatnonzero(~np.isfinite(state))]
+            shown = ", ".join(names[:NAMED_NON_FINITE])
+            extra = len(names) - NAMED_NON_FINITE
+            more = f" and {extra} more" if extra > 0 else ""
+            raise RuntimeError(f"the simulated world's state went non-finite ({shown}{more}) "
+                               f"[{what()}]")
         self._reference = reference
         torque = self._output(ports.ARM_TORQUE_MEASURED).copy()
         return MotionReading(
