@@ -6,9 +6,9 @@ import pytest
 from pydrake.math import RigidTransform
 
 from physcap_drake.can.motion import MotionCommand
-from physcap_drake.can.simulated_motion import simulated_motion
 from physcap_drake.resources import stations_dir
 from physcap_drake.scenario import load_scenario
+from physcap_drake.station.simulated_motion import simulated_motion
 
 
 @pytest.fixture(scope="module")
