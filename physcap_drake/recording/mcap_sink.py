@@ -12,12 +12,20 @@ and puts it on disk followed by a provisional end (see `crash_safe_file`; the re
 every second of simulated time and after every agent message), and `close()` writes the
 summary section. A process killed between flushes loses at most what came after the last
 flush; what was flushed opens in any MCAP reader as it is.
+
+A sink may be written from more than one thread (on the CAN station the agent's model calls
+run on a thread of their own while the diagram's recorder keeps logging). foxglove-sdk holds
+its own lock while it writes to the file, and writing to a Python file needs the interpreter:
+a thread holding the interpreter and waiting for that lock, while the other holds the lock
+and waits for the interpreter, would wait forever. So every call into foxglove-sdk goes
+through the sink's own lock, whose waiters let go of the interpreter.
 """
 
 from __future__ import annotations
 
 import dataclasses as dc
 import json
+import threading
 from pathlib import Path
 from typing import Any
 
@@ -109,6 +117,7 @@ class McapSink:
                 message_encoding="json")
             for topic, (name, schema) in agent_schemas().items()}
         self._time_base: TimeBase | None = None
+        self._lock = threading.Lock()  # see the module docstring
         self.closed = False
 
     # --- time ----------------------------------------------------------------------------
@@ -151,8 +160,8 @@ class McapSink:
                                         (("position", p), ("velocity", v), ("effort", e))
                                         if not np.isnan(x)})
                   for n, p, v, e in zip(names, position, velocity, effort, strict=True)]
-        self._joint_states.log(JointStates(timestamp=at.timestamp, joints=joints),
-                               log_time=at.log_time_ns)
+        self._log_to(self._joint_states, JointStates(timestamp=at.timestamp, joints=joints),
+                     at)
 
     def gripper_state(self, at: float | Stamp, opening_m: float, effort: float) -> None:
         """The gripper's opening (m) and measured effort (fraction 0..1 of its maximum)."""
@@ -163,18 +172,16 @@ class McapSink:
                    poses: list[tuple[str, RigidTransform]]) -> None:
         """Frames (name, pose in the world frame) at one moment."""
         at = self._stamp(at)
-        self._transforms.log(FrameTransforms(transforms=[
-            frame_transform(at, name, X_WC) for name, X_WC in poses]),
-            log_time=at.log_time_ns)
+        self._log_to(self._transforms, FrameTransforms(transforms=[
+            frame_transform(at, name, X_WC) for name, X_WC in poses]), at)
 
     def scene(self, at: float | Stamp, update: SceneUpdate) -> None:
-        self._scene.log(update, log_time=self._stamp(at).log_time_ns)
+        self._log_to(self._scene, update, self._stamp(at))
 
     def camera_image(self, at: float | Stamp, jpeg: bytes, frame_id: str) -> None:
         at = self._stamp(at)
-        self._camera.log(CompressedImage(timestamp=at.timestamp, frame_id=frame_id,
-                                         data=jpeg, format="jpeg"),
-                         log_time=at.log_time_ns)
+        self._log_to(self._camera, CompressedImage(timestamp=at.timestamp, frame_id=frame_id,
+                                                   data=jpeg, format="jpeg"), at)
 
     # --- the agent -----------------------------------------------------------------------
 
@@ -182,10 +189,9 @@ class McapSink:
         """One transcript entry (kind, step, robot_time_s, text, data): to the Log panel,
         to the transcript topic and, for kinds that have one, to their own topic."""
         at = self._stamp(at)
-        self._log.log(Log(timestamp=at.timestamp,
-                          level=_LOG_LEVEL_OF_KIND.get(entry["kind"], LogLevel.Info),
-                          message=entry["text"], name=f"agent.{entry['kind']}"),
-                      log_time=at.log_time_ns)
+        self._log_to(self._log, Log(timestamp=at.timestamp,
+                                    level=_LOG_LEVEL_OF_KIND.get(entry["kind"], LogLevel.Info),
+                                    message=entry["text"], name=f"agent.{entry['kind']}"), at)
         self.json(topics.AGENT_TRANSCRIPT, at, entry)
         topic = topics.TOPIC_OF_KIND.get(entry["kind"])
         if topic is not None:
@@ -200,22 +206,29 @@ class McapSink:
             raise KeyError(f"no JSON topic {topic!r} in a recording; one of "
                            f"{sorted(self._json)}")
         at = self._stamp(at)
-        channel.log({**message, SIM_TIME_KEY: at.sim_time_s}, log_time=at.log_time_ns)
+        self._log_to(channel, {**message, SIM_TIME_KEY: at.sim_time_s}, at)
 
     def metadata(self, name: str, values: dict[str, str]) -> None:
-        self._writer.write_metadata(name, {k: str(v) for k, v in values.items()})
+        with self._lock:
+            self._writer.write_metadata(name, {k: str(v) for k, v in values.items()})
+
+    def _log_to(self, channel, message, at: Stamp) -> None:
+        with self._lock:
+            channel.log(message, log_time=at.log_time_ns)
 
     # --- the file ------------------------------------------------------------------------
 
     def flush(self) -> None:
         """Ends the current chunk and writes it to disk."""
-        if not self.closed:
-            self._writer.flush()
+        with self._lock:
+            if not self.closed:
+                self._writer.flush()
 
     def close(self) -> None:
         """Writes the summary section; the file is complete. Safe to call twice."""
-        if not self.closed:
-            self.closed = True
-            self._file.finishing()
-            self._writer.close()
-            self._file.close()
+        with self._lock:
+            if not self.closed:
+                self.closed = True
+                self._file.finishing()
+                self._writer.close()
+                self._file.close()
