@@ -157,6 +157,13 @@ class PiperLink:
         self.open()
         return self._wait_for(lambda: self.listener.snapshot().status, "the arm status (0x2A1)")
 
+    def read_joint_angles(self) -> np.ndarray:
+        """The joint angles J1..J6 (rad) last reported (0x2A5-0x2A7), once all have arrived."""
+        self.open()
+        return self._wait_for(
+            lambda: self.listener.snapshot().q if self.listener.complete() else None,
+            "the joint angles (0x2A5-0x2A7)")
+
     def read_parameters(self) -> ArmParameters:
         """Asks for every parameter the arm reports (see ArmParameters) and waits for all."""
         self.open()

@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
+import dataclasses as dc
 from pathlib import Path
 from typing import Annotated
 
 import typer
+from pydrake.math import RigidTransform
 
 from physcap_drake.commands.common import (
     console,
@@ -19,14 +21,27 @@ from physcap_drake.perception.camera_calibration import (
     calibrate_in_simulation,
     calibrate_live,
 )
+from physcap_drake.perception.camera_geometry import CameraGeometry
 from physcap_drake.perception.charuco import BoardNotSeen
+from physcap_drake.perception.hand_eye_calibration import (
+    POSES,
+    calibrate_hand_eye_in_simulation,
+    calibrate_hand_eye_live,
+)
 from physcap_drake.resources import stations_dir
+from physcap_drake.station.can_operator import (
+    StartupError,
+    operator_link,
+    steady_joint_angles,
+)
 from physcap_drake.station.realsense.calibration_file import CalibrationMismatch, save_calibration
 from physcap_drake.station.realsense.config import RealSense
-from physcap_drake.station.realsense.pipeline_camera import CameraUnavailable
+from physcap_drake.station.realsense.pipeline_camera import CameraUnavailable, PipelineRealSense
 
 #: The station calibrated by default: the PiPER and its table, nothing else on it.
 DEFAULT_SCENARIO = stations_dir() / "calibration.yaml"
+#: How the board is presented: laid on the table at known places, or held by the gripper.
+METHODS = ("table", "gripper")
 
 
 def _placement(text: str) -> tuple[float, float, float]:
@@ -43,6 +58,13 @@ def calibrate_camera(
                            "calibrated in simulation, a live !RealSense with the printed "
                            "board at the --board-at places.")] = DEFAULT_SCENARIO,
     camera: Annotated[str, typer.Option("--camera", help="Which camera.")] = "camera",
+    method: Annotated[str, typer.Option(
+        "--method", help="table: the board laid at the --board-at places; gripper: the "
+                         "board held by the gripper, shown at several arm poses (hand-eye; "
+                         "on a rig, move the arm between views).")] = "table",
+    views: Annotated[int, typer.Option(
+        "--views", min=3, help="Views for --method gripper on a rig (in simulation: the "
+                               f"{len(POSES)} shipped poses).")] = 12,
     board_at: Annotated[list[str] | None, typer.Option(
         "--board-at", help="Where the board lies for one view: X,Y,YAW of its centre (m, m, "
                            "degrees, robot base frame); repeat per view. Default: "
@@ -55,8 +77,11 @@ def calibrate_camera(
 ) -> None:
     """Find the camera's pose from a ChArUco board.
 
-    The board is laid at known places on the table; prints the reprojection error (and, in
-    simulation, the error against the true pose) and writes the calibration file."""
+    The board is laid at known places on the table, or held by the gripper at several arm
+    poses; prints the reprojection error (and, in simulation, the error against the true
+    pose) and writes the calibration file."""
+    if method not in METHODS:
+        fail(f"--method {method!r}: expected one of {', '.join(METHODS)}")
     loaded = load_scenario_or_exit(scenario)
     entry = next((c for c in loaded.cameras if c.name == camera), None)
     if entry is None:
@@ -64,7 +89,13 @@ def calibrate_camera(
     placements = [_placement(p) for p in board_at] if board_at else list(PLACEMENTS)
     live = isinstance(entry, RealSense) and not entry.emulate
     try:
-        if live:
+        if method == "gripper" and live:
+            run = _hand_eye_on_rig(loaded, entry, views)
+        elif method == "gripper":
+            with trial_progress("arm poses", len(POSES)) as advance:
+                run = calibrate_hand_eye_in_simulation(loaded, camera,
+                                                       on_view=lambda _: advance(True))
+        elif live:
             def ready(index: int, place: tuple[float, float, float]) -> None:
                 typer.prompt(f"view {index + 1}/{len(placements)}: put the board's centre at "
                              f"x {place[0]:.3f} m, y {place[1]:.3f} m, turned {place[2]:g}°, "
@@ -75,7 +106,8 @@ def calibrate_camera(
             with trial_progress("board views", len(placements)) as advance:
                 run = calibrate_in_simulation(loaded, camera, placements,
                                               on_view=lambda _: advance(True))
-    except (CameraUnavailable, CalibrationMismatch, BoardNotSeen, ImportError) as error:
+    except (CameraUnavailable, CalibrationMismatch, BoardNotSeen, StartupError,
+            ConnectionError, ImportError, ValueError) as error:
         fail(str(error))
     save_calibration(run.calibration, output)
     X_WC = run.fit.X_WC
@@ -89,6 +121,10 @@ def calibrate_camera(
                   f"views, reprojection error {run.fit.reprojection_error_px:.3f} px; "
                   f"position {figures['translation_m']} m, roll-pitch-yaw "
                   f"{figures['rpy_deg']} deg")
+    if getattr(run, "mount_error_mm", None) is not None:
+        figures["mount_error_mm"] = round(run.mount_error_mm, 3)
+    if hasattr(run.fit, "X_GB"):
+        figures["board_on_flange_m"] = [round(float(v), 5) for v in run.fit.X_GB.translation()]
     if run.true_X_WC is not None:
         figures["position_error_mm"] = round(run.position_error_mm, 3)
         figures["rotation_error_deg"] = round(run.rotation_error_deg, 4)
@@ -98,3 +134,26 @@ def calibrate_camera(
     console.print(f"calibration written to {output}")
     if json_path is not None:
         save_json(json_path, figures)
+
+
+def _hand_eye_on_rig(scenario, entry: RealSense, views: int):
+    """Hand-eye calibration of a live (or recorded) RealSense with the scenario's arm: the
+    operator poses the arm holding the board for each view; the joint angles come from the
+    arm's feedback, read only once it holds still."""
+    source = PipelineRealSense(dc.replace(entry, calibration=""))
+    try:
+        fx, fy, cx, cy = source.intrinsics
+        geometry = CameraGeometry(entry.width, entry.height, fx, fy, cx, cy, RigidTransform())
+        with operator_link(scenario) as link:
+            def ready(index: int) -> None:
+                typer.prompt(f"view {index + 1}/{views}: move the arm (holding the board) to "
+                             "a new pose where the camera sees the board, turning the wrist "
+                             "differently each time, then press Enter", default="",
+                             show_default=False)
+
+            return calibrate_hand_eye_live(
+                geometry, views, name=entry.name, serial=source.serial, ready=ready,
+                joint_angles=lambda: steady_joint_angles(link),
+                colour_image=lambda: source.next_frame().rgb)
+    finally:
+        source.close()

@@ -53,7 +53,7 @@ class CalibrationRun:
     """A calibration: the views, the fitted pose and the file content; in simulation also
     the true camera pose and the errors against it."""
 
-    views: list[BoardView]
+    views: list
     fit: charuco.PoseFit
     calibration: CameraCalibration
     true_X_WC: RigidTransform | None = None
@@ -96,15 +96,20 @@ def solve(views: Sequence[BoardView], camera: CameraGeometry) -> charuco.PoseFit
                                    (camera.fx, camera.fy, camera.cx, camera.cy))
 
 
-def calibration_of(fit: charuco.PoseFit, camera: CameraGeometry, views: int, *,
-                   name: str, serial: str) -> CameraCalibration:
-    """The calibration file's content for the fitted pose."""
+#: How the table method's calibration file says it was made.
+METHOD = (f"ChArUco board on the table ({charuco.SQUARES[0]} x {charuco.SQUARES[1]} "
+          f"squares of {1000 * charuco.SQUARE:g} mm), PnP over all views")
+
+
+def calibration_of(fit, camera: CameraGeometry, views: int, *, name: str, serial: str,
+                   method: str = METHOD) -> CameraCalibration:
+    """The calibration file's content for a fit with the camera pose X_WC and its RMS
+    reprojection error (a `charuco.PoseFit` or a `hand_eye.HandEyeFit`)."""
     return CameraCalibration(
         camera=name, serial=serial, width=camera.width, height=camera.height,
         intrinsics=Intrinsics(camera.fx, camera.fy, camera.cx, camera.cy),
         X_WC=Transform(fit.X_WC),
-        method=f"ChArUco board on the table ({charuco.SQUARES[0]} x {charuco.SQUARES[1]} "
-               f"squares of {1000 * charuco.SQUARE:g} mm), PnP over all views",
+        method=method,
         views=views, reprojection_error_px=round(fit.reprojection_error_px, 4),
         date=datetime.now(UTC).isoformat(timespec="seconds"))
 

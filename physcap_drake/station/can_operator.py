@@ -10,6 +10,7 @@ on the same virtual channel. `ArmReport` is what `physcap arm status` prints.
 from __future__ import annotations
 
 import dataclasses as dc
+import time
 from contextlib import contextmanager
 
 import can
@@ -91,4 +92,25 @@ def arm_report(link: PiperLink) -> ArmReport:
                      feedback.gripper_opening, parameters, "; ".join(problems))
 
 
-__all__ = ["ArmReport", "StartupError", "arm_report", "operator_link"]
+#: `steady_joint_angles`: the two readings it compares are this far apart (s), and differ by
+#: at most this much on every joint for the arm to count as still (rad, about 0.06°).
+STEADY_INTERVAL = 0.2
+STEADY_TOLERANCE = 1e-3
+
+
+def steady_joint_angles(link: PiperLink) -> np.ndarray:
+    """The joint angles J1..J6 (rad) the arm reports, read twice STEADY_INTERVAL apart;
+    raises ValueError naming the joint if the arm moved in between (a view taken while the
+    operator still moves the arm would pair an image with the wrong pose)."""
+    first = link.read_joint_angles()
+    time.sleep(STEADY_INTERVAL)
+    second = link.read_joint_angles()
+    moved = np.abs(second - first)
+    if moved.max() > STEADY_TOLERANCE:
+        joint = int(np.argmax(moved))
+        raise ValueError(f"the arm moved while the view was taken (J{joint + 1} by "
+                         f"{np.degrees(moved[joint]):.2f}°): hold it still and try again")
+    return second
+
+
+__all__ = ["ArmReport", "StartupError", "arm_report", "operator_link", "steady_joint_angles"]
