@@ -1,9 +1,11 @@
 """SimulatedMotion (the emulated arm's world): a step that leaves the world non-finite fails
-at once, naming itself and the coordinates that went non-finite."""
+at once, naming itself and the coordinates that went non-finite; what falls off the table
+lands on the floor."""
 
 import numpy as np
 import pytest
-from pydrake.math import RigidTransform
+from pydrake.math import RigidTransform, RollPitchYaw
+from pydrake.multibody.math import SpatialVelocity
 
 from physcap_drake.can.motion import MotionCommand
 from physcap_drake.resources import stations_dir
@@ -36,3 +38,38 @@ def test_a_step_that_leaves_a_non_finite_world_names_itself_and_the_coordinates(
             r"world's state went non-finite \(tray_.*\) \[world step from "
             r"t = 0\.0050 s by 5 ms: .*gripper to 0\.0500 m at 15\.0 N\]")):
         motion.step(command, 0.005)
+
+
+#: The floor under the table (models/scene/table.sdf: the legs reach down to it), m.
+FLOOR_Z = -0.75
+
+
+def test_a_can_rolling_off_the_table_lands_on_the_floor_and_stays_finite():
+    """A can knocked over rolls off the table's far edge (x = 0.55 m), as one did in an agent
+    episode over CAN. Without a floor it fell for as long as the episode ran (reported as
+    "flung" 35 m or 302 m), its spin growing in every step until the world's state went
+    non-finite and the emulated arm stopped. The table stands on the floor: the can lands
+    there, in finite state, and the arm goes on."""
+    motion = simulated_motion(load_scenario(stations_dir() / "piper_table.yaml"))
+    plant, context = motion.plant, motion.plant_context
+    can = plant.GetBodyByName("soda_can")
+    radius = 0.033
+    # On its side (axis along y), 2 cm from the edge, rolling towards it at 0.12 m/s.
+    lying = RigidTransform(RollPitchYaw(np.pi / 2, 0.0, 0.0), [0.53 - radius, 0.0, radius])
+    plant.SetFreeBodyPose(context, can, lying)
+    plant.SetFreeBodySpatialVelocity(context, can, SpatialVelocity(
+        w=[0.0, 0.12 / radius, 0.0], v=[0.12, 0.0, 0.0]))
+    q0, _ = motion.initial_state()
+    command = MotionCommand(q0, np.ones(6, bool), 0.05, 1.2, True)
+    for _ in range(400):  # 2 s of world time
+        reading = motion.step(command, 0.005)
+    assert np.isfinite(reading.q).all()
+    assert np.isfinite(plant.GetPositionsAndVelocities(context)).all()
+    X_WC = plant.EvalBodyPoseInWorld(context, can)
+    V_WC = plant.EvalBodySpatialVelocityInWorld(context, can)
+    assert X_WC.translation()[0] > 0.55  # past the table's edge
+    # Lying on the floor: the body frame (the bottom face's centre) a radius above it, less
+    # the few mm a lying can sinks in with point contact (on the table top as well).
+    assert FLOOR_Z + radius - 0.01 < X_WC.translation()[2] < FLOOR_Z + radius + 0.002
+    assert abs(V_WC.translational()[2]) < 0.05
+    np.testing.assert_allclose(reading.q, q0, atol=2e-3)  # the arm held where it was
