@@ -22,9 +22,9 @@ ROOT = Path(physcap_drake.__file__).parent
 
 #: Calls that change a context from outside its systems' events: fixing an input port's
 #: value, a body's mass parameter, the time, or taking the simulator's (or the clock's)
-#: root context to write into.
+#: root context, or a subsystem's part of a root context, to write into.
 WRITES = frozenset({"FixValue", "SetMass", "get_mutable_context", "SetTime",
-                    "mutable_context"})
+                    "mutable_context", "GetMyMutableContextFromRoot"})
 
 #: file (relative to physcap_drake/) -> {call: why this module may make it}.
 ALLOWED = {
@@ -50,10 +50,30 @@ ALLOWED = {
                     "the inputs of the world it steps (its simulator, its context)",
         "get_mutable_context": "the emulated world owns its simulator (it stands for the "
                                "real world behind the CAN bus)",
+        "GetMyMutableContextFromRoot": "the emulated world's plant context, in the context "
+                                       "of the simulator it owns",
+    },
+    "station/__init__.py": {
+        "GetMyMutableContextFromRoot": "scene_ground_truth on the sim station: the plant's "
+                                       "part of a root context its caller owns and no "
+                                       "simulator runs yet (a task's initial masses, the "
+                                       "calibration run's own station)",
+    },
+    "station/can_scene.py": {
+        "GetMyMutableContextFromRoot": "the scene's private scratch copy of the emulated "
+                                       "world, set from its own state before each use",
+    },
+    "control/planning_model.py": {
+        "GetMyMutableContextFromRoot": "the planning model's own scratch context",
+    },
+    "control/ik.py": {
+        "GetMyMutableContextFromRoot": "a fresh scratch context of the planning model for "
+                                       "each solve",
     },
     "app/replay.py": {
         "SetTime": "the replay viewer's own scratch context of a rebuilt diagram, never "
                    "simulated: each recorded sample is drawn from it",
+        "GetMyMutableContextFromRoot": "the plant's part of that scratch context",
     },
     "app/episode.py": {
         "mutable_context": "the emulated world's hidden masses are written through the "
@@ -63,6 +83,7 @@ ALLOWED = {
     "app/agent_episode.py": {
         "mutable_context": "reads the agent's context (AgentSystem.release writes nothing); "
                            "the clock's read-only `context` would do",
+        "GetMyMutableContextFromRoot": "the same: GetMyContextFromRoot would do",
     },
 }
 
