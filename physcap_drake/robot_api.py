@@ -6,9 +6,11 @@ is sent the SkillStatus that answered it; it returns the call's result or raises
 SkillRefused / SkillFailed. Two clients drive those steps:
 
 - called as a method, the RobotAPI is a thin blocking client of the robot stack's exported
-  `robot.request` port: it sets each request and asks the clock to run until `robot.status`
-  reports that request finished (succeeded, failed or refused). Sim time does not pass
-  between calls. (`physcap sim`, calibration, tests.)
+  `robot.request` port: it puts each request on it (`RobotStack.put_request`: the value of
+  that exported input, Drake's way for a caller outside a diagram to feed it; the systems on
+  the request path take it in through their own events) and asks the clock to run until
+  `robot.status` reports that request finished (succeeded, failed or refused). Sim time
+  does not pass between calls. (`physcap sim`, calibration, tests.)
 - `stepwise(name)` gives the steps themselves, for a client inside the diagram that sends
   the requests on its own port and waits between its events (the AgentSystem).
 
@@ -302,12 +304,12 @@ class RobotAPI:
     def _run(self, action) -> SkillStatus:
         """Puts `action` on the request path, runs until it is answered, and returns the
         answer (SkillFailed if none came)."""
-        port, context = self._robot.request_input, self._clock.mutable_context
-        if port is None:
+        if self._robot.request_input is None:
             raise RuntimeError("this robot's requests come from its agent, a system inside "
                                "the diagram; a blocking RobotAPI call cannot send one")
-        request = RobotRequest(CLIENT, port.Eval(context).sequence + 1, action)
-        port.FixValue(context, request)
+        root = self._clock.mutable_context
+        request = RobotRequest(CLIENT, self._robot.last_request(root).sequence + 1, action)
+        self._robot.put_request(root, request)  # the outside client's contract
         status_port = self._robot.status_output
         if not self._clock.run_until(lambda root: status_port.Eval(root).finished(request),
                                      timeout=REQUEST_TIMEOUT):

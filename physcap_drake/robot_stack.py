@@ -7,9 +7,16 @@ one request path.
                               MassEstimator      StiffnessEstimator --> GripperCommandSelector
 
 Every request (a skill, MeasureMass, MeasureStiffness) enters at the top and is answered on
-the status port (see `physcap_drake.control.requests`). The client is either outside the
-diagram (the exported `robot.request` input, fixed by the RobotAPI) or a system inside it
-(an AgentSystem with `request` output and `status` input ports).
+the status port (see `physcap_drake.control.requests`). The client is either a system inside
+the diagram (an AgentSystem with `request` output and `status` input ports) or a caller
+outside it, through the exported `robot.request` input.
+
+The outside client's contract (`RobotStack.put_request`): a caller outside the diagram feeds
+it the way Drake feeds any diagram from outside, by fixing the value of an exported input
+port in the root context, between two runs of the clock. That value is the caller's say at
+the diagram's boundary, not any system's state: the probes and the SkillExecutor read it in
+their own update events and change their own state only there. Nothing else in the package
+fixes an input or writes a state of the running diagram (tests/test_context_writes.py).
 """
 
 from __future__ import annotations
@@ -84,14 +91,33 @@ class RobotStack:
     def make_clock(self, set_up: Callable[[Context], None] | None = None) -> Clock:
         """The diagram's clock: an initialized simulator configured by the scenario, with
         no request on `robot.request` yet. `set_up(root context)` sets initial conditions
-        (e.g. a task's hidden masses) before the simulator initializes, so nothing changes
-        the diagram's state from outside once it runs."""
+        (e.g. a task's hidden masses) on the root context, created here once, before any
+        simulator holds it: nothing changes the diagram's state from outside once it runs."""
         context = self.diagram.CreateDefaultContext()
         if self.request_input is not None:
-            self.request_input.FixValue(context, RobotRequest())
+            self.put_request(context, RobotRequest())
         if set_up is not None:
             set_up(context)
         return Clock(self.diagram, self.scenario.simulator_config, context)
+
+    def put_request(self, root: Context, request: RobotRequest) -> None:
+        """The outside client's only way in (see the module docstring): `request` becomes
+        the value of the exported `robot.request` input in the root context `root` (the
+        clock's `mutable_context`, between two runs). The first system on the request path
+        takes it in at its next update event; `status_output` answers it there, with the
+        request's sequence number. Raises RuntimeError when a system inside the diagram is
+        the client (there is no such input then)."""
+        if self.request_input is None:
+            raise RuntimeError("this robot's requests come from its agent, a system inside "
+                               "the diagram; a caller outside it cannot send one")
+        self.request_input.FixValue(root, request)
+
+    def last_request(self, root: Context) -> RobotRequest:
+        """The request the outside client last put on `robot.request` in `root`."""
+        if self.request_input is None:
+            raise RuntimeError("this robot's requests come from its agent, a system inside "
+                               "the diagram: it has no robot.request input")
+        return self.request_input.Eval(root)
 
 
 def build_robot_stack(scenario: Scenario, meshcat: Meshcat | None = None, *,

@@ -86,3 +86,30 @@ def test_a_client_inside_the_diagram_drives_the_robot_through_the_request_path(
     assert answers[1].finished_at - answers[1].started_at == pytest.approx(0.2)
     assert answers[-1].robot_time == pytest.approx(
         sum(a.finished_at - a.started_at for a in answers))
+
+
+def test_an_outside_client_puts_its_request_on_the_exported_input(table_scenario):
+    """The outside client's contract: its request is the exported input's value; the
+    request path takes it in through its own events and answers it on robot.status."""
+    robot = build_robot_stack(table_scenario)
+    clock = robot.make_clock()
+    root = clock.mutable_context
+    assert robot.last_request(root) == RobotRequest()  # nothing asked yet
+    request = RobotRequest("outside", 1, Wait(0.1))
+    robot.put_request(root, request)
+    assert robot.last_request(root) == request
+    assert clock.run_until(lambda root: robot.status_output.Eval(root).finished(request),
+                           timeout=5.0)
+    status = robot.status_output.Eval(clock.context)
+    assert (status.state, status.client, status.sequence) == (SkillState.SUCCEEDED,
+                                                              "outside", 1)
+    assert status.finished_at - status.started_at == pytest.approx(0.1)
+
+
+def test_with_a_client_inside_the_diagram_an_outside_request_is_refused(table_scenario):
+    robot = build_robot_stack(table_scenario, make_agent=lambda station: ScriptedClient([]))
+    clock = robot.make_clock()
+    with pytest.raises(RuntimeError, match="requests come from its agent"):
+        robot.put_request(clock.mutable_context, RobotRequest("outside", 1, Wait(0.1)))
+    with pytest.raises(RuntimeError, match="it has no robot.request input"):
+        robot.last_request(clock.context)

@@ -58,6 +58,18 @@ def test_hidden_masses_are_in_the_simulation():
         assert body.get_mass(episode.plant_context) == pytest.approx(obj.hidden["mass_kg"])
 
 
+def test_hidden_masses_name_the_bodies_they_weigh():
+    """What the world is built with: each hidden mass under its body's scoped name."""
+    episode = make_episode("identify_empty_can", 2)
+    instance, plant = episode.instance, episode.plant
+    masses = instance.hidden_masses()
+    assert len(masses) == len(instance.objects)
+    for obj in instance.objects:
+        body = instance.body_of(plant, obj.visible.name)
+        name = f"{plant.GetModelInstanceName(body.model_instance())}::{body.name()}"
+        assert masses[name] == obj.hidden["mass_kg"]
+
+
 def test_the_hidden_cube_is_always_under_a_large_cup():
     task = get_task("find_blue_cube")
     for seed in range(20):

@@ -86,6 +86,8 @@ def replay_in_meshcat(path: str | Path, meshcat: Meshcat) -> ReplayedEpisode:
     samples = replay_samples(recording)
     episode = make_episode(task, seed, meshcat=meshcat)
     diagram = episode.robot.diagram
+    # The viewer's own scratch context of the rebuilt diagram, never simulated: each
+    # recorded sample is set into it and drawn (ForcedPublish).
     context = diagram.CreateDefaultContext()
     plant = episode.plant
     plant_context = plant.GetMyMutableContextFromRoot(context)

@@ -10,7 +10,9 @@ physics never holds up the cycle. After every step the world's state (plant posi
 velocities, and the simulation time) is published to a shared block. The parent keeps a
 copy of the world's model (`station.can_scene.EmulatedScene`) and reads that block to
 render the camera and report ground truth, so rendering in the parent never holds up the
-arm. The few writes to the world (a task's hidden masses) go the other way over the pipe.
+arm. The world's hidden parameters (a task's object masses) come with the start-up message
+and are the world's from its first step; moving things in it later (`set_world`: an
+operator placing a calibration board) goes the other way over the pipe.
 """
 
 from __future__ import annotations
@@ -20,6 +22,7 @@ import logging
 import socket
 import sys
 import time
+from collections.abc import Mapping
 
 import numpy as np
 
@@ -50,7 +53,10 @@ class EmulatorProcess:
     (scenario_yaml, gripper_max_effort) and returning a motion backend (named, not imported:
     the world is built from layers above this package, see `physcap_drake.emulated_world`);
     `gripper_max_effort`: N·m at the simulated gripper's
-    full force (see SimulatedMotion); `state_size`: the plant's positions + velocities (the
+    full force (see SimulatedMotion); `body_masses`: the world's hidden masses, kg by scoped
+    body name ("model_instance::body", e.g. a task's `TaskInstance.hidden_masses()`), handed
+    to the world builder as its `body_masses` keyword (only when there are some), which
+    builds the world with them; `state_size`: the plant's positions + velocities (the
     world block's size, 0 without a scenario); `firmware`: the version it reports;
     `realtime_priority`: its scheduling (see `can.realtime`, 0: normal); `pace_world`:
     step the world in a thread of its own (`paced_world`, see `serve`). The process starts
@@ -58,13 +64,18 @@ class EmulatorProcess:
 
     def __init__(self, bus_socket: socket.socket, scenario_yaml: str | None = None, *,
                  world_builder: str | None = None, gripper_max_effort: float = 2.0,
-                 state_size: int = 0,
+                 body_masses: Mapping[str, float] | None = None, state_size: int = 0,
                  firmware: str = "S-V1.8-2", realtime_priority: int = 0,
                  pace_world: bool = False):
         if scenario_yaml is not None and world_builder is None:
             bus_socket.close()
             raise ValueError("an emulated world from a scenario needs its world_builder "
                              "(\"package.module:function\")")
+        if body_masses and scenario_yaml is None:
+            bus_socket.close()
+            raise ValueError("body_masses are the emulated world's, and the kinematic "
+                             "emulated arm (no scenario_yaml) has no world")
+        masses = {str(name): float(kg) for name, kg in (body_masses or {}).items()}
         self._world = SharedBlock(world_layout(state_size)) if state_size else None
         self._last_world: tuple[float, np.ndarray] | None = None
         world_fd = None if self._world is None else self._world.fd
@@ -72,7 +83,8 @@ class EmulatorProcess:
         self._child = ChildProcess(
             "physcap_drake.can.emulator_process:serve",
             (bus_socket.fileno(), scenario_yaml, world_builder, gripper_max_effort, firmware,
-             world_fd, state_size, realtime_priority, pace_world), fds, name="piper-emulator")
+             world_fd, state_size, realtime_priority, pace_world, masses), fds,
+            name="piper-emulator")
         bus_socket.close()  # the child has its own copy
         self._ready = False
 
@@ -121,8 +133,10 @@ class EmulatorProcess:
         self._request(("set_error", arm_status, err_code))
 
     def set_world(self, parameters: dict[int, np.ndarray], state: np.ndarray | None) -> None:
-        """Writes the simulated world: numeric parameter groups of the plant context (by
-        index) and, if given, its positions and velocities; returns once applied."""
+        """Writes the simulated world while it runs, as something outside the arm would
+        change it (an operator moving an object): numeric parameter groups of the plant
+        context (by index) and, if given, its positions and velocities; returns once
+        applied. The world's hidden parameters belong in `body_masses` at start instead."""
         self._request(("set_world", parameters, state))
 
     def close(self) -> None:
@@ -136,7 +150,8 @@ class EmulatorProcess:
 
 def serve(conn, bus_fd: int, scenario_yaml: str | None, world_builder: str | None,
           gripper_max_effort: float, firmware: str, world_fd: int | None, state_size: int,
-          realtime_priority: int, pace_world: bool = False) -> None:
+          realtime_priority: int, pace_world: bool = False,
+          body_masses: dict[str, float] | None = None) -> None:
     """The emulated arm's process: runs until the parent says close or goes away."""
     from physcap_drake.can.emulator import DEFAULT_RATE, PiperEmulator
     from physcap_drake.can.motion import KinematicMotion
@@ -152,7 +167,9 @@ def serve(conn, bus_fd: int, scenario_yaml: str | None, world_builder: str | Non
         if scenario_yaml is None:
             motion = KinematicMotion()
         else:
-            motion = named_function(world_builder)(scenario_yaml, gripper_max_effort)
+            # The hidden masses are the world's parameters from its first step on.
+            extra = {"body_masses": body_masses} if body_masses else {}
+            motion = named_function(world_builder)(scenario_yaml, gripper_max_effort, **extra)
     except (RuntimeError, ValueError, OSError) as error:  # say why there is no world; end
         conn.recv()
         conn.send(("error", f"{type(error).__name__}: {error}"))

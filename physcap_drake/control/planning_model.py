@@ -50,7 +50,9 @@ class PlanningModel:
         self.tcp_frame = plant.GetFrameByName(TCP_FRAME, gripper)
         self.lower = plant.GetPositionLowerLimits()[self.arm_position_indices]
         self.upper = plant.GetPositionUpperLimits()[self.arm_position_indices]
-        # A scratch context for queries; every query sets all positions it depends on.
+        # A scratch context for queries; every query sets all positions it depends on. It
+        # is this object's own (Drake's usual way to evaluate a model), never a running
+        # diagram's.
         self._context = self.diagram.CreateDefaultContext()
         self._plant_context = plant.GetMyMutableContextFromRoot(self._context)
 

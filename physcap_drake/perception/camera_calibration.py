@@ -126,6 +126,8 @@ def calibrate_in_simulation(scenario, camera_name: str = "camera",
                                                                  file=BOARD_MODEL)))
     station = MakeStation(scenario)
     try:
+        # The run's own context of a station it built, never simulated (scratch use): the
+        # board is placed in the station's simulated world and rendered from it.
         context = station.CreateDefaultContext()
         views = []
         for index, placement in enumerate(placements):

@@ -138,7 +138,8 @@ class MassEstimator(LeafSystem):
         super().__init__()
         self._plant = controller_plant
         self._rate = float(sample_rate)
-        # Scratch context of our model: set from the arguments of each computation.
+        # Scratch context of our model, this object's own and never a running diagram's:
+        # set from the arguments of each computation (a pure function of them).
         self._scratch = controller_plant.CreateDefaultContext()
         self._tcp = controller_plant.GetFrameByName(tcp_frame_name)
         self._q_index = [j.position_start() for j in arm_joints]

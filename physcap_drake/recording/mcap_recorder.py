@@ -84,7 +84,8 @@ class McapRecorder(LeafSystem):
         self._kinematics = kinematics
         if kinematics is not None:
             plant, scene_graph = kinematics.plant, kinematics.scene_graph
-            # A workspace for forward kinematics (set fully before every use), not state.
+            # A workspace for forward kinematics (set fully before every use), not state:
+            # the recorder's own scratch context, never a running diagram's.
             self._fk_context = plant.CreateDefaultContext()
         self._plant, self._scene_graph = plant, scene_graph
         self._camera_frame = camera_frame

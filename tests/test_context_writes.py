@@ -1,0 +1,133 @@
+"""Who writes into a Drake Context from outside a system's own events.
+
+The project's rule: state lives in Contexts and is changed only by the owning system's own
+events. A few modules must still write into a context from outside: the clock that owns the
+running diagram's simulator, the robot stack's outside-client contract (an exported input
+port's value, Drake's way to feed a diagram from outside), initial conditions set on a fresh
+context before any simulator holds it, and scratch contexts that one object owns for its own
+kinematics or rendering. Each such module is listed here with its reason; any other module
+that calls one of WRITES fails this test, naming the file, line and call.
+
+Like tests/test_layers.py, this reads the source (every call counts, also inside functions).
+"""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+import physcap_drake
+
+ROOT = Path(physcap_drake.__file__).parent
+
+#: Calls that change a context from outside its systems' events: fixing an input port's
+#: value, a body's mass parameter, the time, or taking the simulator's (or the clock's)
+#: root context, or a subsystem's part of a root context, to write into.
+WRITES = frozenset({"FixValue", "SetMass", "get_mutable_context", "SetTime",
+                    "mutable_context", "GetMyMutableContextFromRoot"})
+
+#: file (relative to physcap_drake/) -> {call: why this module may make it}.
+ALLOWED = {
+    "clock.py": {
+        "get_mutable_context": "the Clock owns the simulator; it hands the root context "
+                               "out only for the outside client's exported input",
+        "mutable_context": "defines the Clock's door for the outside client's exported input",
+    },
+    "robot_stack.py": {
+        "FixValue": "the outside client's contract: the value of the exported robot.request "
+                    "input (RobotStack.put_request), and its initial empty request",
+    },
+    "robot_api.py": {
+        "mutable_context": "the blocking client puts its request through "
+                           "RobotStack.put_request on the clock's root context",
+    },
+    "tasks/task_instance.py": {
+        "SetMass": "a task's hidden masses are initial parameters, set on the fresh root "
+                   "context before any simulator holds it (RobotStack.make_clock's set_up)",
+    },
+    "station/simulated_motion.py": {
+        "FixValue": "the emulated world's own driver: the emulated firmware's commands are "
+                    "the inputs of the world it steps (its simulator, its context)",
+        "get_mutable_context": "the emulated world owns its simulator (it stands for the "
+                               "real world behind the CAN bus)",
+        "GetMyMutableContextFromRoot": "the emulated world's plant context, in the context "
+                                       "of the simulator it owns",
+    },
+    "station/__init__.py": {
+        "GetMyMutableContextFromRoot": "scene_ground_truth on the sim station: the plant's "
+                                       "part of a root context its caller owns and no "
+                                       "simulator runs yet (a task's initial masses, the "
+                                       "calibration run's own station)",
+    },
+    "station/can_scene.py": {
+        "GetMyMutableContextFromRoot": "the scene's private scratch copy of the emulated "
+                                       "world, set from its own state before each use",
+    },
+    "control/planning_model.py": {
+        "GetMyMutableContextFromRoot": "the planning model's own scratch context",
+    },
+    "control/ik.py": {
+        "GetMyMutableContextFromRoot": "a fresh scratch context of the planning model for "
+                                       "each solve",
+    },
+    "app/replay.py": {
+        "SetTime": "the replay viewer's own scratch context of a rebuilt diagram, never "
+                   "simulated: each recorded sample is drawn from it",
+        "GetMyMutableContextFromRoot": "the plant's part of that scratch context",
+    },
+    "app/episode.py": {
+        "mutable_context": "the emulated world's hidden masses are written through the "
+                           "scene's ground truth once the emulator runs (to move to the "
+                           "emulator's start-up message, EmulatorProcess(body_masses=...))",
+    },
+    "app/agent_episode.py": {
+        "mutable_context": "reads the agent's context (AgentSystem.release writes nothing); "
+                           "the clock's read-only `context` would do",
+        "GetMyMutableContextFromRoot": "the same: GetMyContextFromRoot would do",
+    },
+}
+
+
+def _calls(path: Path) -> list[tuple[int, str]]:
+    """(line, name) of every call or attribute named in WRITES in `path`."""
+    tree = ast.parse(path.read_text(), filename=str(path))
+    found = []
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Attribute) and node.attr in WRITES:
+            found.append((node.lineno, node.attr))
+        elif isinstance(node, ast.FunctionDef) and node.name in WRITES:
+            found.append((node.lineno, node.name))
+    return sorted(found)
+
+
+def _writes() -> dict[str, list[tuple[int, str]]]:
+    writes = {}
+    for path in sorted(ROOT.rglob("*.py")):
+        calls = _calls(path)
+        if calls:
+            writes[path.relative_to(ROOT).as_posix()] = calls
+    return writes
+
+
+def test_only_the_listed_modules_write_into_a_context_from_outside():
+    unexpected = [f"physcap_drake/{file}:{line}: {name}"
+                  for file, calls in _writes().items() for line, name in calls
+                  if name not in ALLOWED.get(file, {})]
+    assert not unexpected, ("these write into a Drake Context from outside a system's own "
+                            "events (use an input port, an event of the owning system, or a "
+                            "scratch context; or list the file in ALLOWED with its reason):\n"
+                            + "\n".join(unexpected))
+
+
+def test_every_allowance_is_still_needed():
+    writes = _writes()
+    stale = [f"{file}: {name}" for file, names in ALLOWED.items() for name in names
+             if name not in {n for _, n in writes.get(file, [])}]
+    assert not stale, f"ALLOWED lists calls these files no longer make: {stale}"
+
+
+def test_the_check_sees_calls_inside_functions(tmp_path):
+    source = tmp_path / "module.py"
+    source.write_text("def f(port, ctx):\n    def g():\n        port.FixValue(ctx, 1)\n"
+                      "    ctx.SetTime(2.0)\n    return g\n")
+    assert _calls(source) == [(3, "FixValue"), (4, "SetTime")]
