@@ -37,10 +37,11 @@ class SyntheticArm(LeafSystem):
     `stuck`), and a gripper whose opening moves at GRIPPER_SPEED towards the command and
     stops at `object_width` (m) when closing on an object, or at `widest` (m) when something
     keeps it from opening further. With a `delay` (s) the gripper follows the command of
-    `delay` earlier, as over a station whose commands show late in its feedback (CAN)."""
+    `delay` earlier, as over a station whose commands show late in its feedback (CAN); with
+    a `burst` (s) its opening is reported only that often (feedback that comes in bursts)."""
 
     def __init__(self, stuck: bool = False, object_width: float = 0.0, widest: float = 1.0,
-                 step: float = 0.004, delay: float = 0.0):
+                 step: float = 0.004, delay: float = 0.0, burst: float = 0.0):
         super().__init__()
         self._stuck, self._width, self._widest = stuck, object_width, widest
         n = ports.NUM_ARM_JOINTS
@@ -52,6 +53,10 @@ class SyntheticArm(LeafSystem):
         self._opening = self.DeclareDiscreteState(np.full(1 + self._delayed, 0.05))
         self.DeclarePeriodicDiscreteUpdateEvent(step, 0.0, self._move_gripper)
         self._dt = step
+        self._burst = burst
+        if burst:  # group 1: the opening last reported
+            self.DeclareDiscreteState([0.05])
+            self.DeclarePeriodicDiscreteUpdateEvent(burst, 0.0, self._report)
         if stuck:
             self.DeclareVectorOutputPort(ports.ARM_POSITION_MEASURED, n,
                                          lambda context, out: out.SetFromVector(np.zeros(n)),
@@ -64,15 +69,18 @@ class SyntheticArm(LeafSystem):
                                      {self.xd_ticket()})
 
     def _move_gripper(self, context, state):
-        opening, *commands = context.get_discrete_state_vector().get_value()
+        opening, *commands = context.get_discrete_state(0).get_value()
         commands.append(self._gripper.Eval(context)[0])
         step = np.clip(commands[0] - opening, -GRIPPER_SPEED * self._dt,
                        GRIPPER_SPEED * self._dt)
-        state.get_mutable_vector().SetFromVector(
+        state.get_mutable_vector(0).SetFromVector(
             [np.clip(opening + step, self._width, self._widest), *commands[1:]])
 
+    def _report(self, context, state):
+        state.get_mutable_vector(1).SetAtIndex(0, context.get_discrete_state(0).GetAtIndex(0))
+
     def _output_opening(self, context, output: BasicVector):
-        output.SetAtIndex(0, context.get_discrete_state_vector().GetAtIndex(0))
+        output.SetAtIndex(0, context.get_discrete_state(1 if self._burst else 0).GetAtIndex(0))
 
 
 class Rig:
@@ -256,6 +264,19 @@ def test_a_gripper_whose_command_shows_late_is_judged_after_the_station_latency(
     unaware.send(request)
     status = unaware.finish(request)
     assert status.state is SkillState.FAILED and "blocked at 50.0 mm" in status.message
+
+
+def test_feedback_that_pauses_for_less_than_the_latency_is_not_a_stalled_gripper():
+    # The opening is reported every 0.3 s: held between reports, as feedback through a late
+    # pipeline can be. Told the latency, the executor waits that much longer for motion.
+    request = RobotRequest("test", 1, MoveGripper(0.1, 10.0, "open_gripper"))
+    rig = Rig(latency=LATE, burst=0.3)
+    rig.send(request)
+    assert rig.finish(request).state is SkillState.SUCCEEDED
+    unaware = Rig(latency=0.0, burst=0.3)
+    unaware.send(request)
+    status = unaware.finish(request)
+    assert status.state is SkillState.FAILED and "blocked" in status.message
 
 
 def test_over_a_late_station_a_blocked_gripper_is_still_blocked_and_a_holding_one_holds():

@@ -27,7 +27,9 @@ from physcap_drake.station import ports
 
 #: Period of the executor's event: it takes new requests and checks the running skill, s.
 MONITOR_PERIOD = 0.01
-#: A gripper counts as stopped when its opening changed less than this over STALL_WINDOW, m.
+#: A gripper counts as stopped when its opening changed less than this over STALL_WINDOW, m
+#: (s), lengthened by the station's command latency: feedback that comes through a pipeline
+#: that late also comes in bursts up to about that long (a stale spell holds it too).
 STALL_MOTION = 1e-4
 STALL_WINDOW = 0.1
 #: ... but not before it had this long to start moving once the command shows in the
@@ -73,8 +75,10 @@ class SkillExecutor(LeafSystem):
 
     `command_latency` (s) is the station's: how long after a command its effect can first
     show in the measured outputs (the station config's `command_latency`, e.g. about 0.1 s
-    over CAN). A gripper is judged stopped only from GRIPPER_MIN_TIME after that: until then
-    the feedback still shows the fingers before the command reached them. A gripper opened
+    over CAN). A gripper is judged stopped only from GRIPPER_MIN_TIME after that (until then
+    the feedback still shows the fingers before the command reached them), and only when it
+    did not move over STALL_WINDOW plus that latency (such feedback pauses that long). A
+    gripper opened
     towards its full stroke that stops within the skills' `gripper_limit_tolerance` of it
     has opened fully; one stopped short of that is blocked.
 
@@ -230,7 +234,7 @@ class SkillExecutor(LeafSystem):
         if abs(opening - skill.gripper_opening) <= GRIPPER_TOLERANCE:
             return (SkillState.SUCCEEDED,
                     f"{skill.label}: reached {1000 * opening:.1f} mm"), current
-        if now - current.reference_time >= STALL_WINDOW:
+        if now - current.reference_time >= STALL_WINDOW + self._latency:
             moved = abs(opening - current.reference_opening)
             current = dc.replace(current, reference_opening=opening, reference_time=now)
             settled = now - skill.start_time >= self._latency + GRIPPER_MIN_TIME
