@@ -147,7 +147,8 @@ def build_robot_stack(scenario: Scenario, meshcat: Meshcat | None = None, *,
     planner = SkillPlanner(PlanningModel(robot=model), skills,
                            gripper_stroke=model.gripper_stroke)
     executor = builder.AddNamedSystem(
-        "skill_executor", SkillExecutor(planner, initial_force=skills.grasp_force))
+        "skill_executor", SkillExecutor(planner, initial_force=skills.grasp_force,
+                                        command_latency=station_config.command_latency))
     for name in (ports.ARM_POSITION_MEASURED, ports.GRIPPER_POSITION_MEASURED):
         builder.Connect(station.GetOutputPort(name), executor.GetInputPort(name))
     builder.Connect(executor.GetOutputPort(ports.ARM_POSITION),
@@ -175,7 +176,8 @@ def build_robot_stack(scenario: Scenario, meshcat: Meshcat | None = None, *,
                     mass_probe.GetInputPort(ESTIMATE_PORT))
 
     stiffness_estimator = builder.AddNamedSystem("stiffness_estimator", StiffnessEstimator(
-        scenario.physx.stiffness, load_thresholds(scenario.physx.stiffness.thresholds_file)))
+        scenario.physx.stiffness, load_thresholds(scenario.physx.stiffness.thresholds_file),
+        command_latency=station_config.command_latency))
     for name in (ports.GRIPPER_POSITION_MEASURED, ports.GRIPPER_EFFORT_MEASURED):
         builder.Connect(station.GetOutputPort(name), stiffness_estimator.GetInputPort(name))
     builder.Connect(stiffness_probe.GetOutputPort(SQUEEZE_PORT),

@@ -17,6 +17,7 @@ from typer.testing import CliRunner
 from physcap_drake.app.agent_episode import run_agent_episode
 from physcap_drake.can.emulator import wait_until
 from physcap_drake.can.link import StartupError
+from physcap_drake.can.playback import DELAY as PLAYBACK_DELAY
 from physcap_drake.cli import app
 from physcap_drake.resources import stations_dir
 from physcap_drake.scenario import load_scenario
@@ -25,6 +26,7 @@ from physcap_drake.station.arm_fault import ArmFault
 from physcap_drake.station.can_config import PiperCan
 from physcap_drake.station.can_scene import NoScene
 from physcap_drake.station.can_station import can_session, start_can_station
+from physcap_drake.station.sim_config import SimPiper
 
 TARGET = np.array([0.3, 0.6, -0.7, 0.2, 0.4, -0.3])
 
@@ -72,6 +74,26 @@ def test_the_can_station_reads_what_the_sim_station_reads(can_station):
     assert got[ports.GRIPPER_POSITION_MEASURED][0] == pytest.approx(0.06, abs=1e-4)
     assert 0.0 <= got[ports.GRIPPER_EFFORT_MEASURED][0] <= 1.0
     np.testing.assert_allclose(got[ports.ARM_VELOCITY_ESTIMATED], 0.0, atol=0.01)
+
+
+def test_a_gripper_command_shows_after_the_latency_the_station_publishes(can_station,
+                                                                         table_scenario):
+    simulator, context = run_to_target(can_station, 0.5, realtime=True)
+    measured = can_station.GetOutputPort(ports.GRIPPER_POSITION_MEASURED)
+    while abs(measured.Eval(context)[0] - 0.06) > 1e-4 and context.get_time() < 10.0:
+        simulator.AdvanceTo(context.get_time() + 0.05)
+    can_station.GetInputPort(ports.GRIPPER_POSITION).FixValue(context, [0.08])
+    start = context.get_time()
+    while measured.Eval(context)[0] < 0.0602 and context.get_time() < start + 2.0:
+        simulator.AdvanceTo(context.get_time() + 0.005)
+    shown_after = context.get_time() - start  # simulated s, as skills and probes count
+    # The streaming process plays the command back PLAYBACK_DELAY of simulated time late, so
+    # it cannot show sooner; the published latency adds the cycles after it (a little less
+    # than seen here: the fingers' own start, 0.2 mm at 0.1 m/s, also takes some ms).
+    latency = PiperCan(emulate=True, interface="virtual").command_latency
+    assert latency == pytest.approx(PLAYBACK_DELAY + 2 / 200.0 + 0.005)
+    assert PLAYBACK_DELAY <= shown_after < 1.0, shown_after
+    assert SimPiper().command_latency == 0.0
 
 
 def test_streaming_goes_on_while_the_simulator_stands_still(can_station):

@@ -36,19 +36,27 @@ class SyntheticArm(LeafSystem):
     """An arm whose joints are wherever they are commanded (or stay where they started, if
     `stuck`), and a gripper whose opening moves at GRIPPER_SPEED towards the command and
     stops at `object_width` (m) when closing on an object, or at `widest` (m) when something
-    keeps it from opening further."""
+    keeps it from opening further. With a `delay` (s) the gripper follows the command of
+    `delay` earlier, as over a station whose commands show late in its feedback (CAN); with
+    a `burst` (s) its opening is reported only that often (feedback that comes in bursts)."""
 
     def __init__(self, stuck: bool = False, object_width: float = 0.0, widest: float = 1.0,
-                 step: float = 0.004):
+                 step: float = 0.004, delay: float = 0.0, burst: float = 0.0):
         super().__init__()
         self._stuck, self._width, self._widest = stuck, object_width, widest
         n = ports.NUM_ARM_JOINTS
         self._command = self.DeclareVectorInputPort(ports.ARM_POSITION, n)
         self._gripper = self.DeclareVectorInputPort(ports.GRIPPER_POSITION, 1)
         self.DeclareVectorInputPort(ports.GRIPPER_FORCE_LIMIT, 1)
-        self._opening = self.DeclareDiscreteState([0.05])
+        # [opening, the gripper commands of the last `delay` s, oldest first]
+        self._delayed = round(delay / step)
+        self._opening = self.DeclareDiscreteState(np.full(1 + self._delayed, 0.05))
         self.DeclarePeriodicDiscreteUpdateEvent(step, 0.0, self._move_gripper)
         self._dt = step
+        self._burst = burst
+        if burst:  # group 1: the opening last reported
+            self.DeclareDiscreteState([0.05])
+            self.DeclarePeriodicDiscreteUpdateEvent(burst, 0.0, self._report)
         if stuck:
             self.DeclareVectorOutputPort(ports.ARM_POSITION_MEASURED, n,
                                          lambda context, out: out.SetFromVector(np.zeros(n)),
@@ -61,27 +69,32 @@ class SyntheticArm(LeafSystem):
                                      {self.xd_ticket()})
 
     def _move_gripper(self, context, state):
-        opening = context.get_discrete_state_vector().GetAtIndex(0)
-        step = np.clip(self._gripper.Eval(context)[0] - opening, -GRIPPER_SPEED * self._dt,
+        opening, *commands = context.get_discrete_state(0).get_value()
+        commands.append(self._gripper.Eval(context)[0])
+        step = np.clip(commands[0] - opening, -GRIPPER_SPEED * self._dt,
                        GRIPPER_SPEED * self._dt)
-        state.get_mutable_vector().SetAtIndex(0, np.clip(opening + step, self._width,
-                                                         self._widest))
+        state.get_mutable_vector(0).SetFromVector(
+            [np.clip(opening + step, self._width, self._widest), *commands[1:]])
+
+    def _report(self, context, state):
+        state.get_mutable_vector(1).SetAtIndex(0, context.get_discrete_state(0).GetAtIndex(0))
 
     def _output_opening(self, context, output: BasicVector):
-        output.SetAtIndex(0, context.get_discrete_state_vector().GetAtIndex(0))
+        output.SetAtIndex(0, context.get_discrete_state(1 if self._burst else 0).GetAtIndex(0))
 
 
 class Rig:
     """A SkillExecutor driving a SyntheticArm; requests go in through the exported
     `request` input."""
 
-    def __init__(self, **arm):
+    def __init__(self, latency: float = 0.0, **arm):
         scenario = load_scenario(stations_dir() / "piper_table.yaml")
         model = robot_model(scenario.directives, "piper", "piper_gripper")
         planner = SkillPlanner(PlanningModel(robot=model), scenario.skills,
                                gripper_stroke=model.gripper_stroke)
         builder = DiagramBuilder()
-        self.executor = builder.AddSystem(SkillExecutor(planner, initial_force=15.0))
+        self.executor = builder.AddSystem(SkillExecutor(planner, initial_force=15.0,
+                                                        command_latency=latency))
         arm = builder.AddSystem(SyntheticArm(**arm))
         for name in (ports.ARM_POSITION, ports.GRIPPER_POSITION, ports.GRIPPER_FORCE_LIMIT):
             builder.Connect(self.executor.GetOutputPort(name), arm.GetInputPort(name))
@@ -210,3 +223,71 @@ def test_a_motion_that_does_not_arrive_fails_and_the_arm_holds_where_it_is():
     assert status.state is SkillState.FAILED and "did not arrive" in status.message
     np.testing.assert_array_equal(rig.command(), np.zeros(6))  # stopped where measured
     np.testing.assert_array_equal(status.joint_target, np.zeros(6))
+
+
+def test_a_gripper_opened_fully_may_stop_a_little_short_of_its_stroke():
+    # The stroke is 100 mm; the skills allow gripper_limit_tolerance (2 mm) for an end stop
+    # that reads short of it (zeroing, wear).
+    rig = Rig(widest=0.0985)
+    request = RobotRequest("test", 1, MoveGripper(0.1, 10.0, "open_gripper"))
+    rig.send(request)
+    status = rig.finish(request)
+    assert status.state is SkillState.SUCCEEDED
+    assert "reached 98.5 mm (fully open: the stroke is 100 mm)" in status.message
+
+    short = Rig(widest=0.097)  # 3 mm short: something is in the way
+    short.send(request)
+    status = short.finish(request)
+    assert status.state is SkillState.FAILED and "blocked at 97.0 mm" in status.message
+
+    partway = Rig(widest=0.0985)  # only an opening to the full stroke may end short of it
+    halfway = RobotRequest("test", 1, MoveGripper(0.099, 10.0, "open_gripper"))
+    partway.send(halfway)
+    assert partway.finish(halfway).state is SkillState.FAILED
+
+
+#: A station whose commands show in its feedback this late (s), about the CAN station's.
+LATE = 0.35
+
+
+def test_a_gripper_whose_command_shows_late_is_judged_after_the_station_latency():
+    # The executor told the station's latency waits for the command to show, then for the
+    # fingers to move: the opening is reached ...
+    rig = Rig(latency=LATE, delay=LATE)
+    request = RobotRequest("test", 1, MoveGripper(0.1, 10.0, "open_gripper"))
+    rig.send(request)
+    status = rig.finish(request)
+    assert status.state is SkillState.SUCCEEDED and "reached" in status.message
+    assert status.finished_at - status.started_at > LATE + 0.4  # ~50 mm at 0.1 m/s, late
+    # ... where one that assumes none takes the fingers that have not moved yet for blocked.
+    unaware = Rig(latency=0.0, delay=LATE)
+    unaware.send(request)
+    status = unaware.finish(request)
+    assert status.state is SkillState.FAILED and "blocked at 50.0 mm" in status.message
+
+
+def test_feedback_that_pauses_for_less_than_the_latency_is_not_a_stalled_gripper():
+    # The opening is reported every 0.3 s: held between reports, as feedback through a late
+    # pipeline can be. Told the latency, the executor waits that much longer for motion.
+    request = RobotRequest("test", 1, MoveGripper(0.1, 10.0, "open_gripper"))
+    rig = Rig(latency=LATE, burst=0.3)
+    rig.send(request)
+    assert rig.finish(request).state is SkillState.SUCCEEDED
+    unaware = Rig(latency=0.0, burst=0.3)
+    unaware.send(request)
+    status = unaware.finish(request)
+    assert status.state is SkillState.FAILED and "blocked" in status.message
+
+
+def test_over_a_late_station_a_blocked_gripper_is_still_blocked_and_a_holding_one_holds():
+    blocked = Rig(latency=LATE, delay=LATE, widest=0.08)
+    request = RobotRequest("test", 1, MoveGripper(0.1, 10.0, "open_gripper"))
+    blocked.send(request)
+    status = blocked.finish(request)
+    assert status.state is SkillState.FAILED and "blocked at 80.0 mm" in status.message
+
+    holding = Rig(latency=LATE, delay=LATE, object_width=0.03)
+    close = RobotRequest("test", 1, MoveGripper(0.0, 10.0, "close_gripper"))
+    holding.send(close)
+    status = holding.finish(close)
+    assert status.state is SkillState.SUCCEEDED and "stopped at 30.0 mm" in status.message

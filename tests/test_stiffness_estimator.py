@@ -4,6 +4,7 @@ StiffnessProbe's sequence against a fake robot (no station, no physics)."""
 from __future__ import annotations
 
 import math
+import re
 
 import numpy as np
 import pytest
@@ -31,6 +32,7 @@ from physcap_drake.control.skill_executor import REQUEST_PORT, STATUS_PORT
 from physcap_drake.physx.physx_config import StiffnessProbeConfig
 from physcap_drake.physx.stiffness_estimator import (
     ACTIVE_PORT,
+    MAX_REJECTION_NOTES,
     RESULT_PORT,
     SQUEEZE_PORT,
     SqueezeRequest,
@@ -53,25 +55,54 @@ from physcap_drake.station import ports
 THRESHOLDS = StiffnessThresholds([13.0, 6.0, 2.7, 1.3])
 
 
+#: Period at which a delayed SyntheticGripper samples its command, s.
+DELAY_SAMPLING = 0.005
+
+
 class SyntheticGripper(LeafSystem):
     """A gripper closing on a linear spring object of width `width` (m) whose effort rises by
     `slope` per metre of squeeze. The finger settles where its servo (effort per metre
     `servo`) balances the object. Optionally a drive-friction spike: the effort reads
     `spike` for the first `spike_readings` readings after the command first goes below
-    `spike_at`, whatever the fingers do next."""
+    `spike_at`, whatever the fingers do next. With a `delay` (s) its feedback shows the
+    command of `delay` earlier (sampled every DELAY_SAMPLING s), as a station whose commands
+    are played back late (the CAN station)."""
 
     def __init__(self, width, slope, servo=40.0 / 0.001, spike_at=None, spike=0.2,
-                 spike_readings=2):
+                 spike_readings=2, delay=0.0):
         super().__init__()
         self._width, self._slope, self._servo = width, slope, servo
         self._spike_at, self._spike, self._spike_readings = spike_at, spike, spike_readings
+        self._delay = delay
         self._command = self.DeclareVectorInputPort(ports.GRIPPER_POSITION, 1)
         self.DeclareVectorInputPort(ports.GRIPPER_FORCE_LIMIT, 1)
         self.DeclareDiscreteState(1)  # unused group 0, so the spike counter is group 1
         self.DeclareDiscreteState(np.array([-1.0]))  # spike readings left (−1: not yet)
         self.DeclarePeriodicDiscreteUpdateEvent(0.06, 0.03, self._track_spike)
-        self.DeclareVectorOutputPort(ports.GRIPPER_POSITION_MEASURED, 1, self._opening)
-        self.DeclareVectorOutputPort(ports.GRIPPER_EFFORT_MEASURED, 1, self._effort)
+        outputs_depend_on = {self.all_sources_ticket()}
+        if delay > 0.0:  # group 2: the commands of the last `delay` s, oldest first
+            self.DeclareDiscreteState(np.zeros(round(delay / DELAY_SAMPLING)))
+            self.DeclareInitializationDiscreteUpdateEvent(self._fill_history)
+            self.DeclarePeriodicDiscreteUpdateEvent(DELAY_SAMPLING, 0.0, self._shift_history)
+            outputs_depend_on = {self.all_state_ticket()}
+        self.DeclareVectorOutputPort(ports.GRIPPER_POSITION_MEASURED, 1, self._opening,
+                                     outputs_depend_on)
+        self.DeclareVectorOutputPort(ports.GRIPPER_EFFORT_MEASURED, 1, self._effort,
+                                     outputs_depend_on)
+
+    def _fill_history(self, context, state):
+        history = state.get_mutable_vector(2)
+        history.SetFromVector(np.full(history.size(), self._command.Eval(context)[0]))
+
+    def _shift_history(self, context, state):
+        history = context.get_discrete_state(2).get_value()
+        state.get_mutable_vector(2).SetFromVector(
+            np.append(history[1:], self._command.Eval(context)[0]))
+
+    def _shown_command(self, context) -> float:
+        if self._delay > 0.0:
+            return context.get_discrete_state(2).GetAtIndex(0)
+        return self._command.Eval(context)[0]
 
     def _settled_opening(self, command):
         if command >= self._width:
@@ -80,7 +111,7 @@ class SyntheticGripper(LeafSystem):
 
     def _track_spike(self, context, state):
         left = context.get_discrete_state(1).GetAtIndex(0)
-        command = self._command.Eval(context)[0]
+        command = self._shown_command(context)
         if self._spike_at is not None and left < 0 and command < self._spike_at:
             left = self._spike_readings
         elif left > 0:
@@ -88,10 +119,10 @@ class SyntheticGripper(LeafSystem):
         state.get_mutable_vector(1).SetAtIndex(0, left)
 
     def _opening(self, context, output: BasicVector):
-        output.SetAtIndex(0, self._settled_opening(self._command.Eval(context)[0]))
+        output.SetAtIndex(0, self._settled_opening(self._shown_command(context)))
 
     def _effort(self, context, output: BasicVector):
-        d = self._settled_opening(self._command.Eval(context)[0])
+        d = self._settled_opening(self._shown_command(context))
         effort = max(0.0, self._width - d) * self._slope
         if context.get_discrete_state(1).GetAtIndex(0) > 0:
             effort = max(effort, self._spike)
@@ -115,10 +146,11 @@ class OpenGripperCommand(LeafSystem):
 
 
 def add_squeezing(builder: DiagramBuilder, gripper: SyntheticGripper, start_opening: float,
-                  config: StiffnessProbeConfig) -> StiffnessEstimator:
-    """Adds a StiffnessEstimator squeezing with `gripper`, which otherwise holds
-    `start_opening` (m); returns the estimator."""
-    estimator = builder.AddSystem(StiffnessEstimator(config, THRESHOLDS))
+                  config: StiffnessProbeConfig, latency: float = 0.0) -> StiffnessEstimator:
+    """Adds a StiffnessEstimator (told the station's command latency `latency`, s) squeezing
+    with `gripper`, which otherwise holds `start_opening` (m); returns the estimator."""
+    estimator = builder.AddSystem(StiffnessEstimator(config, THRESHOLDS,
+                                                     command_latency=latency))
     builder.AddSystem(gripper)
     hold = builder.AddSystem(OpenGripperCommand(start_opening))
     builder.Connect(estimator.GetOutputPort(ports.GRIPPER_POSITION), hold.GetInputPort(
@@ -135,11 +167,11 @@ def add_squeezing(builder: DiagramBuilder, gripper: SyntheticGripper, start_open
 
 
 def squeeze_rig(gripper: SyntheticGripper, start_opening: float,
-                config: StiffnessProbeConfig):
+                config: StiffnessProbeConfig, latency: float = 0.0):
     """The estimator and the synthetic gripper, squeeze requests fixed on the exported
     `squeeze` input, the estimator's report on the exported `result` output."""
     builder = DiagramBuilder()
-    estimator = add_squeezing(builder, gripper, start_opening, config)
+    estimator = add_squeezing(builder, gripper, start_opening, config, latency)
     builder.ExportInput(estimator.GetInputPort(SQUEEZE_PORT), SQUEEZE_PORT)
     builder.ExportOutput(estimator.GetOutputPort(RESULT_PORT), RESULT_PORT)
     diagram = builder.Build()
@@ -148,9 +180,10 @@ def squeeze_rig(gripper: SyntheticGripper, start_opening: float,
     return diagram, clock
 
 
-def probe(gripper: SyntheticGripper, start_opening: float, squeezes: int = 3):
+def probe(gripper: SyntheticGripper, start_opening: float, squeezes: int = 3,
+          latency: float = 0.0):
     diagram, clock = squeeze_rig(gripper, start_opening, StiffnessProbeConfig(
-        squeezes=squeezes))
+        squeezes=squeezes), latency)
     clock.run_for(0.1)
     diagram.GetInputPort(SQUEEZE_PORT).FixValue(clock.mutable_context, SqueezeRequest(1))
     result = diagram.GetOutputPort(RESULT_PORT)
@@ -202,6 +235,52 @@ def test_a_passing_spike_that_vanishes_on_back_off_is_not_taken_for_contact():
                    start_opening=0.07, squeezes=1)
     assert any("passing spike" in note for note in result.notes)
     assert result.level == 3  # the object's own deformation, not the spike's position
+
+
+#: A station whose commands show in its feedback this late (s): about the CAN station's.
+LATE = 0.1
+
+
+@pytest.mark.parametrize(("slope", "level"), [(40.0, 2), (400.0, 5)])
+def test_over_a_late_station_the_squeeze_gives_the_same_deformation(slope, level):
+    result = probe(SyntheticGripper(width=0.06, slope=slope, delay=LATE), start_opening=0.07,
+                   latency=LATE)
+    config = StiffnessProbeConfig()
+    upper = 1000 * (config.target_effort - config.contact_effort) / slope
+    for deformation in result.deformations_mm:
+        assert upper - 1000 * config.contact_step < deformation <= upper + 1e-6
+    assert result.level == level and result.notes == ()
+
+
+def test_an_estimator_unaware_of_the_latency_fails_and_its_notes_stay_short():
+    # Told no latency, it reads each step before it shows: the back-off never seems to
+    # lower the effort, every contact is taken for friction, and the fingers close.
+    result = probe(SyntheticGripper(width=0.06, slope=40.0, delay=LATE), start_opening=0.07,
+                   latency=0.0)
+    assert result.level == 0
+    rejected = [note for note in result.notes if note.startswith("rejected as friction")]
+    assert len(rejected) == MAX_REJECTION_NOTES
+    assert re.fullmatch(r"\d+ more contacts rejected", result.notes[-1])
+    assert int(result.notes[-1].split()[0]) > 10
+    assert sum(len(note) for note in result.notes) < 1000  # within a block's knowledge
+
+
+def test_over_a_late_station_friction_is_still_rejected():
+    # Effort that stays through the back-off (held longer than the latency) is friction; a
+    # spike gone when the fingers are back at the contact command is a passing one.
+    for readings, kind in ((5, "rejected as friction"), (2, "rejected as a passing spike")):
+        result = probe(SyntheticGripper(width=0.05, slope=100.0, spike_at=0.065,
+                                        spike_readings=readings, delay=LATE),
+                       start_opening=0.07, squeezes=1, latency=LATE)
+        assert result.notes[0].startswith(kind)
+        assert result.level == 3  # the object's own deformation, not the spike's position
+
+
+def test_over_a_late_station_closing_on_nothing_still_fails():
+    result = probe(SyntheticGripper(width=0.0, slope=100.0, delay=LATE), start_opening=0.02,
+                   squeezes=2, latency=LATE)
+    assert result.level == 0 and all(math.isnan(d) for d in result.deformations_mm)
+    assert all("closed without reaching" in note for note in result.notes)
 
 
 def test_closing_on_nothing_fails_with_level_zero():

@@ -27,10 +27,13 @@ from physcap_drake.station import ports
 
 #: Period of the executor's event: it takes new requests and checks the running skill, s.
 MONITOR_PERIOD = 0.01
-#: A gripper counts as stopped when its opening changed less than this over STALL_WINDOW, m.
+#: A gripper counts as stopped when its opening changed less than this over STALL_WINDOW, m
+#: (s), lengthened by the station's command latency: feedback that comes through a pipeline
+#: that late also comes in bursts up to about that long (a stale spell holds it too).
 STALL_MOTION = 1e-4
 STALL_WINDOW = 0.1
-#: ... but not before it had this long to start moving, s.
+#: ... but not before it had this long to start moving once the command shows in the
+#: feedback (the station's command latency after the skill started), s.
 GRIPPER_MIN_TIME = 0.3
 #: A gripper has reached its target opening within this distance, m.
 GRIPPER_TOLERANCE = 5e-4
@@ -70,16 +73,29 @@ class SkillExecutor(LeafSystem):
     `status` answers the latest request taken: RUNNING, then SUCCEEDED, FAILED or REFUSED with
     the reason; `robot_time` adds up the simulated time spent running skills.
 
+    `command_latency` (s) is the station's: how long after a command its effect can first
+    show in the measured outputs (the station config's `command_latency`, e.g. about 0.1 s
+    over CAN). A gripper is judged stopped only from GRIPPER_MIN_TIME after that (until then
+    the feedback still shows the fingers before the command reached them), and only when it
+    did not move over STALL_WINDOW plus that latency (such feedback pauses that long). A
+    gripper opened
+    towards its full stroke that stops within the skills' `gripper_limit_tolerance` of it
+    has opened fully; one stopped short of that is blocked.
+
     Input ports: request (RobotRequest with a MoveToJoints, MoveToPose, MoveGripper or Wait),
         piper.position_measured (6, rad), gripper.position_measured (1, m).
     Output ports: piper.position (6, rad), gripper.position (1, m), gripper.force_limit
         (1, N) for the station; status (SkillStatus).
     """
 
-    def __init__(self, planner: SkillPlanner, *, initial_force: float):
+    def __init__(self, planner: SkillPlanner, *, initial_force: float,
+                 command_latency: float):
         super().__init__()
+        if not command_latency >= 0.0:
+            raise ValueError(f"command_latency must be >= 0 s, got {command_latency}")
         self._planner = planner
         self._initial_force = float(initial_force)
+        self._latency = float(command_latency)
         n = ports.NUM_ARM_JOINTS
         self._request = self.DeclareAbstractInputPort(REQUEST_PORT,
                                                       AbstractValue.Make(RobotRequest()))
@@ -102,6 +118,11 @@ class SkillExecutor(LeafSystem):
     @property
     def planner(self) -> SkillPlanner:
         return self._planner
+
+    @property
+    def command_latency(self) -> float:
+        """The station's command latency this executor allows for, s."""
+        return self._latency
 
     def _get(self, context: Context) -> ExecutorState:
         return context.get_abstract_state(self._state_index).get_value()
@@ -213,14 +234,20 @@ class SkillExecutor(LeafSystem):
         if abs(opening - skill.gripper_opening) <= GRIPPER_TOLERANCE:
             return (SkillState.SUCCEEDED,
                     f"{skill.label}: reached {1000 * opening:.1f} mm"), current
-        if now - current.reference_time >= STALL_WINDOW:
+        if now - current.reference_time >= STALL_WINDOW + self._latency:
             moved = abs(opening - current.reference_opening)
             current = dc.replace(current, reference_opening=opening, reference_time=now)
-            if moved < STALL_MOTION and now - skill.start_time >= GRIPPER_MIN_TIME:
+            settled = now - skill.start_time >= self._latency + GRIPPER_MIN_TIME
+            if moved < STALL_MOTION and settled:
                 if skill.gripper_opening < opening:  # closing: stopped on what it holds
                     return (SkillState.SUCCEEDED,
                             f"{skill.label}: stopped at {1000 * opening:.1f} mm "
                             "(holding something)"), current
+                if self._fully_open(skill.gripper_opening, opening):
+                    return (SkillState.SUCCEEDED,
+                            f"{skill.label}: reached {1000 * opening:.1f} mm (fully open: "
+                            f"the stroke is {1000 * self._planner.gripper_stroke:.0f} mm)"), \
+                        current
                 return (SkillState.FAILED,
                         f"{skill.label}: blocked at {1000 * opening:.1f} mm, short of the "
                         "commanded opening"), current
@@ -228,6 +255,14 @@ class SkillExecutor(LeafSystem):
             return (SkillState.FAILED,
                     f"{skill.label} timed out at {1000 * opening:.1f} mm"), current
         return None, current
+
+    def _fully_open(self, target: float, opening: float) -> bool:
+        """Whether fingers sent to `target` (m) that stopped at `opening` (m) opened as far
+        as the gripper goes: the target is the full stroke and they stopped within the
+        skills' gripper_limit_tolerance of it."""
+        stroke = self._planner.gripper_stroke
+        tolerance = self._planner.config.gripper_limit_tolerance
+        return target >= stroke - 1e-9 and opening >= stroke - tolerance
 
     # Outputs ------------------------------------------------------------------------------------
 

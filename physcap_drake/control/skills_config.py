@@ -56,6 +56,11 @@ class SkillsConfig:
     grasp_force: float = 15.0
     # Time allowed for a gripper motion, s.
     gripper_timeout: float = 3.0
+    # A gripper opened towards its full stroke that stops this close to it has opened fully,
+    # m: a real gripper's end stop reads a little short of its nominal stroke (zeroing,
+    # wear), and fingers stopped there have let go of anything they held. Stopped further
+    # in, they are blocked.
+    gripper_limit_tolerance: float = 0.002
 
     def check(self, at: ConfigChecker) -> None:
         at.number("max_joint_velocity", self.max_joint_velocity, minimum=0.0, maximum=3.0,
@@ -71,3 +76,6 @@ class SkillsConfig:
         at.number("motion_timeout", self.motion_timeout, minimum=0.0, open_minimum=True)
         at.number("grasp_force", self.grasp_force, minimum=0.0, open_minimum=True)
         at.number("gripper_timeout", self.gripper_timeout, minimum=0.0, open_minimum=True)
+        at.number("gripper_limit_tolerance", self.gripper_limit_tolerance, minimum=0.0,
+                  maximum=0.01, why="a gripper stopped more than 1 cm short of its stroke is "
+                  "not fully open")

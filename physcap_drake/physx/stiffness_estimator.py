@@ -24,6 +24,11 @@ from physcap_drake.station import ports
 #: effort is left; the next squeeze starts after at most MAX_RELEASE_TICKS dwells anyway.
 RELEASED_TOLERANCE = 0.0005
 MAX_RELEASE_TICKS = 20
+#: Notes kept of rejected contacts (friction, passing spikes); more are only counted, so the
+#: result stays short whatever the drive does.
+MAX_REJECTION_NOTES = 3
+#: Slack when comparing event times, s.
+TIME_EPSILON = 1e-6
 #: The estimator's ports besides the gripper's signals.
 SQUEEZE_PORT = "squeeze"
 RESULT_PORT = "result"
@@ -55,10 +60,14 @@ class ProbeState(Immutable):
 
     sequence: the squeeze request served. command: the commanded opening, m. free_effort:
     the effort read before the last rise.
-    contact: (opening m, effort) where the effort rose. d0: the accepted contact opening, m.
+    contact: (opening m, effort) where the effort rose, and contact_command the command (m)
+    that reading showed. d0: the accepted contact opening, m.
     samples: (opening m, effort) pairs of the running squeeze. deformations_mm: one per
     finished squeeze (NaN for a failed one). notes: why squeezes failed or contacts were
-    rejected.
+    rejected (at most MAX_REJECTION_NOTES of the latter; `rejections` counts them all).
+    issued: the latest commands as (time s, opening m), to tell which one a reading shows.
+    read_after: the feedback is not read before this time (s): a step the next decision
+    depends on is held until it shows.
     """
 
     phase: Phase = Phase.IDLE
@@ -72,6 +81,10 @@ class ProbeState(Immutable):
     notes: tuple[str, ...] = ()
     release_ticks: int = 0
     start_opening: float = math.inf
+    contact_command: float = math.nan
+    rejections: int = 0
+    issued: tuple[tuple[float, float], ...] = ()
+    read_after: float = -math.inf
 
 
 @dc.dataclass(frozen=True)
@@ -110,6 +123,14 @@ class StiffnessEstimator(LeafSystem):
     without reaching the effort fails the squeeze. Every step is held `dwell` s before the
     gripper is read.
 
+    `command_latency` (s) is the station's: a command shows in the feedback that much later
+    (about 0.1 s over CAN, none on the simulated station). Closing steps go on every `dwell`
+    meanwhile (each reading pairs an opening with the effort of the same moment, whichever
+    step it shows), but a reading is taken for the command it shows: the contact is where
+    the command `command_latency` earlier put the fingers, and the steps a decision rests on
+    (the back-off, the return to the contact) are held `command_latency` + `dwell` before
+    they are read. Closing fully fails only once the last closing step had time to show.
+
     A probe starts at the first step (every `dwell` s) after a new request arrives on the
     `squeeze` port, closing from the opening measured then (the object between the open
     fingers); a `stop` request ends it. The squeezes' deformations, levels and vote are
@@ -124,10 +145,16 @@ class StiffnessEstimator(LeafSystem):
         probing, else 0), result (StiffnessReport).
     """
 
-    def __init__(self, config: StiffnessProbeConfig, thresholds: StiffnessThresholds):
+    def __init__(self, config: StiffnessProbeConfig, thresholds: StiffnessThresholds, *,
+                 command_latency: float):
         super().__init__()
+        if not command_latency >= 0.0:
+            raise ValueError(f"command_latency must be >= 0 s, got {command_latency}")
         self._config = config
         self._thresholds = thresholds
+        self._latency = float(command_latency)
+        # Commands remembered: enough to reach back over the latency, and the one before.
+        self._kept_commands = math.ceil(self._latency / config.dwell - TIME_EPSILON) + 2
         self._opening = self.DeclareVectorInputPort(ports.GRIPPER_POSITION_MEASURED, 1)
         self._effort = self.DeclareVectorInputPort(ports.GRIPPER_EFFORT_MEASURED, 1)
         self._request = self.DeclareAbstractInputPort(SQUEEZE_PORT,
@@ -150,12 +177,15 @@ class StiffnessEstimator(LeafSystem):
 
     def _result(self, state: ProbeState) -> StiffnessResult:
         levels = tuple(level_from_deformation(d, self._thresholds) for d in state.deformations_mm)
+        left_out = state.rejections - MAX_REJECTION_NOTES
+        notes = state.notes + ((f"{left_out} more contacts rejected",) if left_out > 0 else ())
         return StiffnessResult(majority_level(list(levels)), state.deformations_mm, levels,
-                               state.notes)
+                               notes)
 
     # The probe's steps ------------------------------------------------------------------------
 
     def _step(self, context: Context, state: State) -> None:
+        now = context.get_time()
         current = self._get(context)
         request = self._request.Eval(context)
         if request.sequence != current.sequence:
@@ -164,10 +194,12 @@ class StiffnessEstimator(LeafSystem):
             else:  # start closing from where the fingers are, with this dwell's step
                 opening = float(self._opening.Eval(context)[0])
                 current = ProbeState(Phase.SEEK_CONTACT, request.sequence, command=opening,
-                                     start_opening=opening)
+                                     start_opening=opening, issued=((now, opening),))
             state.get_mutable_abstract_state(self._state).set_value(current)
         if current.phase in (Phase.IDLE, Phase.DONE):
             return
+        if now < current.read_after - TIME_EPSILON:
+            return  # the step a decision rests on does not show in the feedback yet
         d = float(self._opening.Eval(context)[0])
         f = float(self._effort.Eval(context)[0])
         handler = {
@@ -176,49 +208,73 @@ class StiffnessEstimator(LeafSystem):
             Phase.SQUEEZE: self._squeeze,
             Phase.RELEASE: self._release,
         }[current.phase]
-        state.get_mutable_abstract_state(self._state).set_value(handler(current, d, f))
+        updated = handler(current, d, f, now)
+        if updated.command != current.command:
+            issued = current.issued + ((now, updated.command),)
+            updated = dc.replace(updated, issued=issued[-self._kept_commands:])
+        state.get_mutable_abstract_state(self._state).set_value(updated)
 
-    def _close_by(self, s: ProbeState, step: float, **changes) -> ProbeState:
+    def _shown_command(self, s: ProbeState, now: float) -> float:
+        """The command (m) the feedback read at `now` shows: the latest issued at least the
+        command latency earlier (the oldest remembered if none is that old)."""
+        shown = s.issued[0][1] if s.issued else s.command
+        for issued_at, command in s.issued:
+            if issued_at <= now - self._latency + TIME_EPSILON:
+                shown = command
+        return shown
+
+    def _hold(self, s: ProbeState, now: float, **changes) -> ProbeState:
+        """`s` with `changes`, its command read only once it shows and was held `dwell`."""
+        return dc.replace(s, read_after=now + self._latency + self._config.dwell, **changes)
+
+    def _reject(self, s: ProbeState, note: str, **changes) -> ProbeState:
+        notes = s.notes + ((note,) if s.rejections < MAX_REJECTION_NOTES else ())
+        return dc.replace(s, notes=notes, rejections=s.rejections + 1, **changes)
+
+    def _close_by(self, s: ProbeState, step: float, now: float, **changes) -> ProbeState:
         command = s.command - step
         if command < 0.0:
+            if s.issued and now - s.issued[-1][0] < self._latency - TIME_EPSILON:
+                return dc.replace(s, **changes)  # the last step does not show yet
             return self._finish_squeeze(s, math.nan, "the fingers closed without reaching "
                                         "the target effort")
         return dc.replace(s, command=command, **changes)
 
-    def _seek_contact(self, s: ProbeState, d: float, f: float) -> ProbeState:
+    def _seek_contact(self, s: ProbeState, d: float, f: float, now: float) -> ProbeState:
         c = self._config
-        if f >= c.contact_effort:  # undo the last step and open `backoff` further
-            return dc.replace(s, phase=Phase.BACK_OFF, contact=(d, f),
-                              command=s.command + c.contact_step + c.backoff)
-        return self._close_by(s, c.contact_step, free_effort=f)
+        if f >= c.contact_effort:  # undo the step shown and open `backoff` further
+            shown = self._shown_command(s, now)
+            return self._hold(s, now, phase=Phase.BACK_OFF, contact=(d, f),
+                              contact_command=shown,
+                              command=shown + c.contact_step + c.backoff)
+        return self._close_by(s, c.contact_step, now, free_effort=f)
 
-    def _back_off(self, s: ProbeState, d: float, f: float) -> ProbeState:
+    def _back_off(self, s: ProbeState, d: float, f: float, now: float) -> ProbeState:
         c = self._config
         d_contact, f_contact = s.contact
-        contact_command = s.command - c.contact_step - c.backoff
         if f_contact - f >= c.backoff_drop * (f_contact - s.free_effort):
-            return dc.replace(s, phase=Phase.SQUEEZE, d0=d_contact, command=contact_command,
-                              samples=((d_contact, f_contact),))
+            return self._hold(s, now, phase=Phase.SQUEEZE, d0=d_contact,
+                              command=s.contact_command, samples=((d_contact, f_contact),))
         note = f"effort {f_contact:.2f} at {1000 * d_contact:.1f} mm did not drop on back-off"
-        return self._close_by(dc.replace(s, phase=Phase.SEEK_CONTACT, command=contact_command,
-                                         notes=s.notes + (f"rejected as friction: {note}",)),
-                              c.contact_step)
+        return self._close_by(self._reject(s, f"rejected as friction: {note}",
+                                           phase=Phase.SEEK_CONTACT, command=s.contact_command),
+                              c.contact_step, now)
 
-    def _squeeze(self, s: ProbeState, d: float, f: float) -> ProbeState:
+    def _squeeze(self, s: ProbeState, d: float, f: float, now: float) -> ProbeState:
         c = self._config
         if len(s.samples) == 1 and f < c.contact_effort:
             # Back at the contact command the effort is gone: it was a passing spike (drive
             # friction), not the object. Keep looking for the real contact.
             note = f"rejected as a passing spike: effort {s.samples[0][1]:.2f} at " \
                    f"{1000 * s.samples[0][0]:.1f} mm did not return"
-            return self._close_by(dc.replace(s, phase=Phase.SEEK_CONTACT, contact=None,
-                                             d0=math.nan, samples=(),
-                                             notes=s.notes + (note,)), c.contact_step)
+            return self._close_by(self._reject(s, note, phase=Phase.SEEK_CONTACT, contact=None,
+                                               d0=math.nan, samples=()),
+                                  c.contact_step, now)
         samples = s.samples + ((d, f),)
         if f >= c.target_effort:
             return self._finish_squeeze(s, deformation_at_effort(s.d0, list(samples),
                                                                  c.target_effort))
-        return self._close_by(dc.replace(s, samples=samples), c.squeeze_step)
+        return self._close_by(dc.replace(s, samples=samples), c.squeeze_step, now)
 
     def _finish_squeeze(self, s: ProbeState, deformation_mm: float, note: str = "") -> ProbeState:
         reopen = min((s.d0 if math.isfinite(s.d0) else s.command) + self._config.release,
@@ -227,7 +283,7 @@ class StiffnessEstimator(LeafSystem):
         return dc.replace(s, phase=Phase.RELEASE, command=reopen, samples=(),
                           deformations_mm=s.deformations_mm + (deformation_mm,), notes=notes)
 
-    def _release(self, s: ProbeState, d: float, f: float) -> ProbeState:
+    def _release(self, s: ProbeState, d: float, f: float, now: float) -> ProbeState:
         still_opening = abs(d - s.command) > RELEASED_TOLERANCE or f >= self._config.contact_effort
         if still_opening and s.release_ticks < MAX_RELEASE_TICKS:
             return dc.replace(s, release_ticks=s.release_ticks + 1)

@@ -10,6 +10,7 @@ simulated scene provides what a real arm cannot (camera images, and the ground t
 # No `from __future__ import annotations`: yaml_load_typed reads the field types at run time.
 import dataclasses as dc
 
+from physcap_drake.can.playback import DELAY as PLAYBACK_DELAY
 from physcap_drake.config_checks import ConfigChecker
 from physcap_drake.station.sim_config import SimPiper
 
@@ -60,6 +61,9 @@ class PiperCan:
     # Names of the arm and gripper model instances in the directives (the controller's model).
     arm_model: str = "piper"
     gripper_model: str = "piper_gripper"
+    # The arm's own delay from a command frame to feedback frames that show it, s: one
+    # firmware control cycle (200 Hz) on the PiPER and its emulator.
+    arm_response_time: float = 0.005
     # Start-up: how long to wait for each answer (firmware, limits, enabled bits), s.
     startup_timeout: float = 2.0
     # Watchdog: feedback older than this marks the outputs stale and stops motion, s.
@@ -84,6 +88,17 @@ class PiperCan:
     # Faults on the emulated bus.
     faults: CanFaults = dc.field(default_factory=CanFaults)
 
+    @property
+    def command_latency(self) -> float:
+        """How long after a command reaches the station's inputs it can first show in the
+        measured outputs, s: the streaming process plays targets back `playback.DELAY`
+        behind the diagram and sends one at its next cycle, the arm answers within
+        `arm_response_time`, and the interface latches the feedback at its next cycle
+        (plus the delay of an emulated bus's faults). About 0.1 s at 200 Hz; skills and
+        probes that judge the arm by its feedback wait this long for a command to show."""
+        bus = self.faults.delay if self.emulate else 0.0
+        return PLAYBACK_DELAY + 2.0 / self.control_rate + self.arm_response_time + bus
+
     def check(self, at: ConfigChecker) -> None:
         at.choice("interface", self.interface, ["socketcan", "virtual", "slcan", "gs_usb"])
         if not self.channel:
@@ -94,6 +109,7 @@ class PiperCan:
         at.number("gripper_max_force", self.gripper_max_force, minimum=0.0, open_minimum=True)
         at.number("gripper_max_effort", self.gripper_max_effort, minimum=0.0, maximum=5.0,
                   open_minimum=True, why="0x159 accepts 0..5 N·m")
+        at.number("arm_response_time", self.arm_response_time, minimum=0.0, maximum=0.5)
         at.number("startup_timeout", self.startup_timeout, minimum=0.0, open_minimum=True)
         at.number("feedback_timeout", self.feedback_timeout, minimum=0.0, maximum=1.0,
                   open_minimum=True)

@@ -201,6 +201,13 @@ class SimPiper:
     # How the simulated arm and world depart from their models (default: not at all).
     as_built: AsBuilt = dc.field(default_factory=AsBuilt)
 
+    @property
+    def command_latency(self) -> float:
+        """How long after a command reaches the station's inputs it can first show in the
+        measured outputs, s: none here (the plant's servos take the commands at their next
+        step; the skills' own timing allows for how fast the arm and gripper respond)."""
+        return 0.0
+
     def check(self, at: ConfigChecker) -> None:
         at.vector("initial_arm_position", self.initial_arm_position, NUM_ARM_JOINTS)
         at.number("initial_gripper_opening", self.initial_gripper_opening, minimum=0.0)
