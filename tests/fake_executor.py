@@ -4,6 +4,7 @@ planning, no physics; each skill request is answered after a fixed time."""
 from __future__ import annotations
 
 import dataclasses as dc
+import math
 
 import numpy as np
 from pydrake.common.value import AbstractValue
@@ -22,7 +23,13 @@ from physcap_drake.control.skill_executor import MONITOR_PERIOD, REQUEST_PORT, S
 from physcap_drake.immutable_state import Immutable
 from physcap_drake.station import ports
 
-SKILL_TIME = 0.05  # s each motion takes
+SKILL_TIME = 4 * MONITOR_PERIOD  # s each motion takes (whole executor periods)
+
+
+def on_events(duration: float) -> float:
+    """How long a skill of `duration` s lasts when it ends at the first executor event after
+    that time has passed (events every MONITOR_PERIOD s), s."""
+    return math.ceil(duration / MONITOR_PERIOD - 1e-9) * MONITOR_PERIOD
 STROKE, FORCE = 0.1, 15.0  # the fake gripper's widest opening (m) and grasp force (N)
 
 

@@ -4,6 +4,8 @@ the bench's bookkeeping, not the episodes, is under test here)."""
 from __future__ import annotations
 
 import json
+import subprocess
+import sys
 import time
 
 import pytest
@@ -60,6 +62,25 @@ def test_bench_episode_adds_up_each_tasks_seeds(tmp_path, monkeypatch):
         assert row["rtf"] == pytest.approx(33.0 / row["wall_time_s"], rel=0.02)
         assert row["successes"] == 2 and row["episodes"] == 3
     assert "rtf" in result.output and str(out) in result.output.replace("\n", "")
+
+
+def test_bench_episode_counts_the_cpu_time_of_the_episodes_child_processes(tmp_path,
+                                                                           monkeypatch):
+    def fake_episode(task, seed, *, agent, llm):  # a code block's child computing 0.3 s
+        subprocess.run([sys.executable, "-c", "import time\nend = time.process_time() + 0.3"
+                        "\nwhile time.process_time() < end: pass"], check=True)
+        return FakeRun(task, seed)
+
+    monkeypatch.setattr(episode_bench, "run_agent_episode", fake_episode)
+    out = tmp_path / "bench.json"
+    result = runner.invoke(app, ["bench", "episode", "--tasks", "empty_cup", "--seeds", "0",
+                                 "--json", str(out)])
+    assert result.exit_code == 0, result.output
+    [row] = json.loads(out.read_text())
+    assert 0.3 <= row["child_cpu_time_s"] < 1.5
+    assert row["cpu_rtf"] == pytest.approx(
+        row["robot_time_s"] / (row["cpu_time_s"] + row["child_cpu_time_s"]), rel=0.01)
+    assert "cpu rtf" in result.output
 
 
 def test_bench_episode_runs_only_the_tasks_and_seeds_asked_for(tmp_path, monkeypatch):

@@ -17,6 +17,7 @@ from fake_executor import (
     ask,
     assert_actions,
     build_with_request_path,
+    on_events,
     served_log,
 )
 from pydrake.systems.framework import BasicVector, DiagramBuilder
@@ -41,6 +42,7 @@ from physcap_drake.physx.mass_estimator import (
 )
 from physcap_drake.physx.mass_probe import MassProbe, MeasureMass
 from physcap_drake.physx.physx_config import MassProbeConfig
+from physcap_drake.physx.probe_sequence import OFFSET as PROBE_OFFSET
 from physcap_drake.resources import stations_dir
 from physcap_drake.scenario import load_scenario
 from physcap_drake.station import ports
@@ -49,6 +51,8 @@ from physcap_drake.station.robot_model import robot_model
 LIFT_POSE = np.array([0.3, 1.5, -1.3, 0.1, 1.0, 0.2])  # rad, an arm reaching over the table
 MASS = 0.6  # kg, what the fake robot's torques show while it holds the object
 GRASP = [0.3, 0.1, 0.05]
+#: The probe's four waits (settling and averaging, twice) as the fake robot runs them, s.
+WAITS = 2 * (on_events(0.1) + on_events(0.2))
 
 
 @pytest.fixture(scope="module")
@@ -137,17 +141,18 @@ def test_a_measurement_runs_the_probe_sequence_and_reports_the_mass(estimator_mo
                 MoveGripper(STROKE, FORCE, "open_gripper"), MoveToPose(lift)]
     assert_actions(served, expected)
     # Eight motions and four waits of the fake robot, every one counted as robot time.
-    assert measurement.robot_time_s == pytest.approx(8 * SKILL_TIME + 0.6, abs=1e-9)
+    assert measurement.robot_time_s == pytest.approx(8 * SKILL_TIME + WAITS, abs=1e-9)
     assert status.robot_time == pytest.approx(measurement.robot_time_s)
 
 
 def test_each_step_starts_at_the_executor_event_after_the_previous_one_ended(estimator_model):
     rig = Rig(estimator_model)
     rig.ask(MeasureMass(GRASP))
-    # 12 skills of the fake robot, each started 10 ms (one executor period) after the last
-    # ended: the first at once, since the probe sends its first step straight through.
+    # 12 skills of the fake robot, each started one executor period after the last ended:
+    # the first at once, since the probe sends its first step straight through; the probe
+    # answers at its own event after the last one ended.
     assert rig.status().finished_at == pytest.approx(
-        8 * SKILL_TIME + 0.6 + 11 * MONITOR_PERIOD + 0.5 * MONITOR_PERIOD, abs=1e-9)
+        8 * SKILL_TIME + WAITS + 11 * MONITOR_PERIOD + PROBE_OFFSET, abs=1e-9)
 
 
 @pytest.mark.parametrize(("robot", "reason"), [

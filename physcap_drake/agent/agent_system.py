@@ -9,7 +9,7 @@ the top of that path: the agent is the robot's client inside the diagram. Its st
 agent's mind (`AgentMind`) and the code block it runs, in the Context; `agent.progress`
 publishes a summary.
 
-Every PERIOD s (between the SkillExecutor's events and the probes', so a request that one of
+Every PERIOD s (after the SkillExecutor's events and the probes', so a request that one of
 them finished is followed by the next one at the executor's next event) an
 unrestricted-update event moves the agent on as far as it can without the robot:
 
@@ -73,11 +73,12 @@ PROGRESS_PORT = "agent.progress"
 #: This system's name on the request path.
 CLIENT = "agent"
 #: Period of the agent's events, s of simulated time, and their offset (in periods) from the
-#: executor's events: between the executor's (which end skills) and the probes' (half a
+#: executor's events: after the executor's (which end skills) and the probes' (a third of a
 #: period after them, which end probes), so the next request follows either at the
 #: executor's next event, as when a client outside the diagram waits for each request.
+#: With the 12 ms period every event falls on a step of the simulated plant (4 ms).
 PERIOD = MONITOR_PERIOD
-OFFSET = 0.75
+OFFSET = 2.0 / 3.0
 
 
 @dc.dataclass(frozen=True)

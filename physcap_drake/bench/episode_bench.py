@@ -3,8 +3,11 @@
 Runs the `physcap` variant with the offline reference reasoner on a few seeds of each task,
 one episode after the other in this process (as one worker of `physcap eval` does), and
 adds up per task the robot execution time (simulated seconds spent executing skills), the
-wall time of the whole episode (building its diagram included) and the CPU time this
-process spent on it (a figure that a machine loaded by other work disturbs less).
+wall time of the whole episode (building its diagram included) and the CPU time (user +
+system) spent on it: this process's, and its child processes' (the sandboxed code blocks):
+figures that a machine loaded by other work disturbs less than wall time. `cpu_rtf` is the
+robot time per CPU second of both, what `rtf` would be on an idle machine were nothing
+waited for.
 """
 
 from __future__ import annotations
@@ -23,8 +26,10 @@ AGENT = "physcap"
 
 @dc.dataclass
 class EpisodeBenchResult:
-    """One task's episodes: `rtf` = robot_time_s / wall_time_s. load_average: the machine's
-    1-minute load average when the task's first episode started."""
+    """One task's episodes: `rtf` = robot_time_s / wall_time_s; cpu_time_s: this process's
+    CPU time, child_cpu_time_s: its child processes'; `cpu_rtf` = robot_time_s / (both).
+    load_average: the machine's 1-minute load average when the task's first episode
+    started."""
 
     task: str
     robot_time_s: float
@@ -34,6 +39,18 @@ class EpisodeBenchResult:
     episodes: int
     successes: int
     load_average: float
+    child_cpu_time_s: float = 0.0
+    cpu_rtf: float = 0.0
+
+
+def _ratio(robot: float, cpu: float) -> float:
+    return round(robot / cpu, 3) if cpu > 0 else float("inf")
+
+
+def _children_cpu_time() -> float:
+    """CPU time (user + system) of this process's finished child processes so far, s."""
+    times = os.times()
+    return times.children_user + times.children_system
 
 
 def run_episode_bench(tasks=TASKS, seeds=SEEDS,
@@ -43,13 +60,15 @@ def run_episode_bench(tasks=TASKS, seeds=SEEDS,
     results = []
     for task in tasks:
         load = os.getloadavg()[0]
-        robot = wall = cpu = 0.0
+        robot = wall = cpu = children = 0.0
         successes = 0
         for seed in seeds:
             start_wall, start_cpu = time.perf_counter(), time.process_time()
+            start_children = _children_cpu_time()
             run = run_agent_episode(task, seed, agent=AGENT, llm="reference")
             wall += time.perf_counter() - start_wall
             cpu += time.process_time() - start_cpu
+            children += _children_cpu_time() - start_children
             summary = run.summary()
             robot += summary["robot_time_s"]
             successes += bool(summary["success"])
@@ -57,5 +76,6 @@ def run_episode_bench(tasks=TASKS, seeds=SEEDS,
                 on_episode(task, seed, summary)
         results.append(EpisodeBenchResult(task, round(robot, 3), round(wall, 3),
                                           round(robot / wall, 3), round(cpu, 3), len(seeds),
-                                          successes, load))
+                                          successes, load, round(children, 3),
+                                          _ratio(robot, cpu + children)))
     return results

@@ -115,7 +115,8 @@ def episode(
 
     Runs the physcap variant with the reference reasoner on seeds 0-2 of each task (or the
     tasks and seeds given), one after the other in this process, and prints robot time,
-    wall time, robot time per wall-clock second (rtf) and CPU time per task."""
+    wall time, robot time per wall-clock second (rtf), CPU time (this process and the
+    code blocks' child processes) and robot time per CPU second (cpu rtf) per task."""
     names = EPISODE_TASKS if tasks == "all" else tuple(tasks.split(","))
     unknown = [name for name in names if name not in EPISODE_TASKS]
     if unknown:
@@ -130,12 +131,12 @@ def episode(
                                     advance(summary["success"]))
     table = Table(title=f"physcap bench episode (physcap, reference reasoner, seeds {seeds})")
     for column in ("task", "robot time (s)", "wall time (s)", "rtf", "cpu time (s)",
-                   "successes", "load"):
+                   "child cpu (s)", "cpu rtf", "successes", "load"):
         table.add_column(column, justify="right")
     for r in results:
         table.add_row(r.task, f"{r.robot_time_s:.1f}", f"{r.wall_time_s:.1f}", f"{r.rtf:.2f}",
-                      f"{r.cpu_time_s:.1f}", f"{r.successes}/{r.episodes}",
-                      f"{r.load_average:.1f}")
+                      f"{r.cpu_time_s:.1f}", f"{r.child_cpu_time_s:.1f}", f"{r.cpu_rtf:.2f}",
+                      f"{r.successes}/{r.episodes}", f"{r.load_average:.1f}")
     console.print(table)
     if json_path is not None:
         save_json(json_path, [dataclasses.asdict(r) for r in results])

@@ -26,7 +26,8 @@ from physcap_drake.immutable_state import Immutable
 from physcap_drake.station import ports
 
 #: Period of the executor's event: it takes new requests and checks the running skill, s.
-MONITOR_PERIOD = 0.01
+#: A multiple of the simulated plant's 4 ms step, so the simulator steps only at plant steps.
+MONITOR_PERIOD = 0.012
 #: A gripper counts as stopped when its opening changed less than this over STALL_WINDOW, m
 #: (s), lengthened by the station's command latency: feedback that comes through a pipeline
 #: that late also comes in bursts up to about that long (a stale spell holds it too).

@@ -16,8 +16,10 @@ class MassProbeConfig:
     settle_time: float = 0.5
     # Length of each torque-averaging window, s.
     window: float = 1.0
-    # Rate at which torques are sampled into the average, Hz (the arm reports at 200 Hz).
-    sample_rate: float = 200.0
+    # Rate at which torques are sampled into the average, Hz: every step of the simulated
+    # plant (4 ms), so sampling adds no simulator steps (the real arm reports at 200 Hz: a
+    # few of its reports are sampled twice, which leaves the average as it is).
+    sample_rate: float = 250.0
     # A grasp that closes the fingers to less than this gap held nothing, m.
     min_grasp_opening: float = 0.004
 

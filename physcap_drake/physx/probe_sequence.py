@@ -30,9 +30,10 @@ from physcap_drake.control.requests import RobotRequest, Served, SkillState, Ski
 from physcap_drake.control.skill_executor import MONITOR_PERIOD, REQUEST_PORT, STATUS_PORT
 from physcap_drake.immutable_state import Immutable
 
-#: Period of a probe's events, s, and their offset from the executor's.
+#: Period of a probe's events, s, and their offset from the executor's (a third of a period:
+#: on the simulated plant's 4 ms steps, before the AgentSystem's events at two thirds).
 PERIOD = MONITOR_PERIOD
-OFFSET = 0.5 * MONITOR_PERIOD
+OFFSET = MONITOR_PERIOD / 3
 
 
 @dc.dataclass(frozen=True)

@@ -34,6 +34,7 @@ from physcap_drake.station.realsense.camera_system import (
     RgbdCameraSystem,
 )
 from physcap_drake.station.realsense.config import RealSense
+from physcap_drake.station.render_world import RenderWorld
 
 
 def _ensure_renderer(scene_graph: SceneGraph, config: CameraConfig) -> None:
@@ -53,23 +54,24 @@ def _ensure_renderer(scene_graph: SceneGraph, config: CameraConfig) -> None:
     scene_graph.AddRenderer(config.renderer_name, engine)
 
 
-def add_cameras(builder: DiagramBuilder, plant: MultibodyPlant, scene_graph: SceneGraph,
+def add_cameras(builder: DiagramBuilder, plant: MultibodyPlant, world: RenderWorld,
                 scenario) -> None:
-    """Adds every camera of `scenario.cameras` (see the module docstring); the emulated
-    RealSense cameras' depth faults are seeded by `scenario.random_seed`."""
+    """Adds every camera of `scenario.cameras` (see the module docstring), looking at the
+    render world `world` of `plant`; the emulated RealSense cameras' depth faults are seeded
+    by `scenario.random_seed`."""
     for entry in scenario.cameras:
         if isinstance(entry, RealSense):
-            add_emulated_realsense(builder, plant, scene_graph, entry, scenario.random_seed)
+            add_emulated_realsense(builder, plant, world, entry, scenario.random_seed)
         else:
-            add_camera(builder, plant, scene_graph, entry)
+            add_camera(builder, plant, world, entry)
 
 
-def add_camera(builder: DiagramBuilder, plant: MultibodyPlant, scene_graph: SceneGraph,
+def add_camera(builder: DiagramBuilder, plant: MultibodyPlant, world: RenderWorld,
                config: CameraConfig) -> RgbdSensor:
     """Adds one RgbdSensor posed by `config.X_PB` (relative to `config.X_PB.base_frame`, the
     world when empty) and exports its images as `<name>.rgb`, `<name>.depth` (m, float32)
     and `<name>.label` (the body index of what each pixel sees)."""
-    sensor = _add_sensor(builder, plant, scene_graph, config)
+    sensor = _add_sensor(builder, plant, world, config)
     builder.ExportOutput(sensor.color_image_output_port(), camera_port(config.name, "rgb"))
     builder.ExportOutput(sensor.depth_image_32F_output_port(), camera_port(config.name, "depth"))
     builder.ExportOutput(sensor.label_image_output_port(), camera_port(config.name, "label"))
@@ -77,7 +79,7 @@ def add_camera(builder: DiagramBuilder, plant: MultibodyPlant, scene_graph: Scen
 
 
 def add_emulated_realsense(builder: DiagramBuilder, plant: MultibodyPlant,
-                           scene_graph: SceneGraph, entry: RealSense, seed: int):
+                           world: RenderWorld, entry: RealSense, seed: int):
     """Adds an emulated RealSense (an RgbdSensor feeding an EmulatedRealSenseCamera) and
     exports `<name>.rgb`, `<name>.depth` from the camera and `<name>.label` from the
     renderer. Raises ValueError for a live or recorded RealSense (not emulated)."""
@@ -85,7 +87,7 @@ def add_emulated_realsense(builder: DiagramBuilder, plant: MultibodyPlant,
         raise ValueError(f"camera '{entry.name}': a simulated station's RealSense must be "
                          "emulated (emulate: true); a live or recorded camera cannot see the "
                          "simulated scene")
-    sensor = _add_sensor(builder, plant, scene_graph, entry.rendering_config())
+    sensor = _add_sensor(builder, plant, world, entry.rendering_config())
     camera = builder.AddNamedSystem(f"realsense_{entry.name}",
                                     EmulatedRealSenseCamera(entry, seed))
     builder.Connect(sensor.color_image_output_port(), camera.GetInputPort(RENDERED_RGB))
@@ -104,8 +106,9 @@ def close_cameras(station: Diagram) -> None:
             system.close()
 
 
-def _add_sensor(builder: DiagramBuilder, plant: MultibodyPlant, scene_graph: SceneGraph,
+def _add_sensor(builder: DiagramBuilder, plant: MultibodyPlant, world: RenderWorld,
                 config: CameraConfig) -> RgbdSensor:
+    scene_graph = world.scene_graph
     _ensure_renderer(scene_graph, config)
     color_camera, depth_camera = config.MakeCameras()
     base_frame = config.X_PB.base_frame
@@ -115,7 +118,7 @@ def _add_sensor(builder: DiagramBuilder, plant: MultibodyPlant, scene_graph: Sce
     X_BodyB = parent.GetFixedPoseInBodyFrame() @ X_PB
     sensor = builder.AddNamedSystem(
         f"rgbd_sensor_{config.name}",
-        RgbdSensor(plant.GetBodyFrameIdOrThrow(parent.body().index()), X_BodyB,
+        RgbdSensor(world.frame_of(parent.body().index()), X_BodyB,
                    color_camera, depth_camera))
     builder.Connect(scene_graph.get_query_output_port(), sensor.query_object_input_port())
     return sensor

@@ -189,8 +189,7 @@ def MakeSimStation(scenario, meshcat: Meshcat | None = None) -> Diagram:
     builder.ExportOutput(effort.get_output_port(), ports.GRIPPER_EFFORT_MEASURED)
 
     if scenario.cameras:
-        render_plant, render_scene_graph = add_render_world(builder, plant, scenario.directives)
-        add_cameras(builder, render_plant, render_scene_graph, scenario)
+        add_cameras(builder, plant, add_render_world(builder, plant, scene_graph), scenario)
     builder.ExportOutput(plant.get_body_poses_output_port(), ports.BODY_POSES)
     if meshcat is not None:
         ApplyVisualizationConfig(scenario.visualization, builder, meshcat=meshcat)
