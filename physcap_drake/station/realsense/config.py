@@ -16,6 +16,7 @@ Three sources share the entry:
 
 # No `from __future__ import annotations`: yaml_load_typed reads the field types at run time.
 import dataclasses as dc
+import math
 from pathlib import Path
 
 import numpy as np
@@ -29,6 +30,12 @@ from physcap_drake.station.realsense.depth_faults import StereoDepthFaults
 
 #: Frame rates a D400-series colour stream offers, Hz.
 FRAME_RATES = (6, 15, 30, 60)
+#: The colour mode (width, height, px) an emulated RealSense streams in place of a rendered
+#: camera of the same aspect ratio: a D435's 1280 x 720 for a 16:9 view (its colour imager is
+#: 1920 x 1080; 1280 x 720 is also the finest mode its aligned depth has). Thin parts such as
+#: a cup's 6 mm straw at 1.1 m span 3 px here, 1 px at 640 x 360. Other aspect ratios keep
+#: the rendered camera's size.
+EMULATED_MODES = {(16, 9): (1280, 720)}
 
 
 @dc.dataclass
@@ -123,8 +130,9 @@ class RealSense:
 
 
 def emulated_like(config: CameraConfig) -> RealSense:
-    """An emulated RealSense that sees what the rendered camera `config` sees (same pose,
-    resolution and vertical field of view), with the default stereo depth faults."""
+    """An emulated RealSense that sees what the rendered camera `config` sees (same pose and
+    vertical field of view), streaming the D435 colour mode of its aspect ratio
+    (`EMULATED_MODES`; else its resolution), with the default stereo depth faults."""
     if config.X_PB.base_frame:
         raise ValueError(f"camera '{config.name}' is mounted on '{config.X_PB.base_frame}'; "
                          "an emulated RealSense stands fixed in the world")
@@ -133,7 +141,10 @@ def emulated_like(config: CameraConfig) -> RealSense:
     fov_y = float(np.degrees(intrinsics.fov_y()))
     X_WC = config.X_PB.GetDeterministicValue() @ config.X_BC.GetDeterministicValue()
     fps = min(FRAME_RATES, key=lambda rate: abs(rate - config.fps))
-    return RealSense(name=config.name, width=config.width, height=config.height, fps=fps,
+    divisor = math.gcd(config.width, config.height)
+    width, height = EMULATED_MODES.get((config.width // divisor, config.height // divisor),
+                                       (config.width, config.height))
+    return RealSense(name=config.name, width=width, height=height, fps=fps,
                      X_WC=Transform(X_WC), emulate=True,
                      emulation=RealSenseEmulation(fov_y=fov_y, z_near=config.z_near,
                                                   z_far=config.z_far))
