@@ -161,10 +161,12 @@ def test_decimation_keeps_the_geometry():
 
 def test_rgbd_mode_emulates_a_d435_colour_mode():
     """`--perception rgbd` replaces the 640 x 360 rendered camera by a RealSense streaming
-    1280 x 720 (a D435 colour mode) with the same field of view."""
+    1280 x 720 colour (a D435 colour mode) with the same field of view, and 640 x 360 depth
+    aligned to it."""
     rendered = _default_camera()
     emulated = emulated_like(rendered)
     assert (emulated.width, emulated.height) == (1280, 720)
+    assert emulated.emulation.depth_step == 2
     assert emulated.emulation.fov_y == pytest.approx(70.0)
     fine = CameraGeometry.from_entry(emulated)
     coarse = CameraGeometry.from_config(rendered)

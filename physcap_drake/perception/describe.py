@@ -22,6 +22,7 @@ from physcap_drake.perception.colors import color_name
 from physcap_drake.perception.decimation import upsample
 from physcap_drake.perception.grasp import grasp_point_from_points
 from physcap_drake.perception.regions import (
+    OBJECT_HEIGHT,
     Region,
     SceneGeometry,
     footprint,
@@ -90,7 +91,7 @@ def describe(region: Region, rgb: np.ndarray, geometry: SceneGeometry,
     the arm's pixels from `geometry`, if None)."""
     if region.container:
         region = sharpen_container(region, rgb, geometry)
-    color = color_name(rgb[region.mask][:, :3])
+    color = color_name(rgb[_own_pixels(region, geometry)][:, :3])
     if region.container:
         points = np.column_stack([region.points[:, :2], region.heights])
         grasp, top = grasp_point_from_points(points)
@@ -109,6 +110,15 @@ def describe(region: Region, rgb: np.ndarray, geometry: SceneGeometry,
     straw = rises_in_depth(region, geometry, top, grasp[:2]) or _straw_in_colour(
         region, rgb, geometry, full)
     return ObjectView(kind, color, straw, top, sides, grasp[:2].copy(), grasp, region)
+
+
+def _own_pixels(region: Region, geometry: SceneGeometry) -> np.ndarray:
+    """The pixels of the region to take its colour from: its mask, less (for an object)
+    the pixels its depth puts on the table (closing the mask spreads it a little over the
+    table around it; holes in a dark object's depth stay in)."""
+    if region.container:
+        return region.mask
+    return region.mask & ~(np.nan_to_num(geometry.heights, nan=np.inf) < OBJECT_HEIGHT)
 
 
 def dome_centre(points: np.ndarray, fallback: np.ndarray) -> np.ndarray:

@@ -267,12 +267,9 @@ def _containers(geometry: SceneGeometry, objects: np.ndarray,
     low = ((smooth > LOW_HEIGHT) & usable & ~near_objects.astype(bool)) | walls
     low = cv2.morphologyEx(low.astype(np.uint8), cv2.MORPH_OPEN, np.ones((3, 3), np.uint8))
     low = cv2.morphologyEx(low, cv2.MORPH_CLOSE, np.ones((5, 5), np.uint8))
-    # A container's floor can come apart where holes or noise cut a narrow channel through
-    # it: pieces closer than the smoothing window are one container.
-    grouped = cv2.morphologyEx(low, cv2.MORPH_CLOSE, np.ones(window, np.uint8))
     found = []
-    for box, mask in _components(grouped):
-        region = _region(box, mask & low[box].astype(bool), geometry, container=True)
+    for box, mask in _components(low):
+        region = _region(box, mask, geometry, container=True)
         if region is not None and footprint(region.points)[0] >= CONTAINER_SIZE:
             found.append(region)
     return found
