@@ -85,8 +85,7 @@ def stands_out_in_colour(rgb: np.ndarray, silhouette: np.ndarray, ignore: np.nda
     first = max(int(rows.min() - REACH * pixels_per_metre), 0)
     last = int(rows.min() + TOP_SHARE * (rows.max() - rows.min()))
     left, right = cols.min(), cols.max() + 1
-    height, width = rgb.shape[:2]
-    lo, hi = max(left - side, 0), min(right + side, width)
+    lo, hi = max(left - side, 0), min(right + side, rgb.shape[1])
     lab = cv2.cvtColor(np.ascontiguousarray(rgb[first:last + 1, lo:hi, :3]),
                        cv2.COLOR_RGB2LAB).astype(np.float32)
     centre = lab[:, side:-side] if lab.shape[1] > 2 * side else lab[:, :0]
