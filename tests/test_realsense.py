@@ -87,6 +87,29 @@ def test_the_emulated_camera_exports_faulty_depth_and_is_reproducible():
         close_station(station)
 
 
+def test_an_emulated_depth_stream_coarser_than_colour_comes_aligned_to_it():
+    """depth_step 2: colour at W x H, depth at W/2 x H/2 (its own noise per depth pixel),
+    each depth pixel over the 2 x 2 colour pixels it covers, as rs.align delivers it."""
+    scenario = _emulated_scenario()
+    scenario.cameras[0].emulation.depth_step = 2
+    station = MakeStation(scenario)
+    try:
+        ((rgb, depth),) = _frames(station, [0.0])
+        assert rgb.shape == (H, W, 4) and depth.shape == (H, W, 1)
+        coarse = depth[::2, ::2, 0]
+        for dr in (0, 1):
+            for dc in (0, 1):
+                assert np.array_equal(depth[dr::2, dc::2, 0], coarse)
+        assert (coarse > 0).mean() > 0.15
+    finally:
+        close_station(station)
+    with pytest.raises(ScenarioError) as error:  # 5 divides neither 64 nor 48
+        load_scenario_text(ROBOT + "cameras: [!RealSense {emulate: true, width: 64, height: "
+                           "48, emulation: {depth_step: 5}}]\n")
+    assert error.value.key_path == "cameras[0].emulation.depth_step"
+    assert "got 5 for 64 x 48" in str(error.value)
+
+
 def test_a_recording_plays_back_through_the_driver_as_it_was_recorded(tmp_path):
     """Rendered frames recorded to .db3 by the emulated camera come back through rs.pipeline
     and the driver system: the same RGB, depth within 1 mm, the same intrinsics, in order.

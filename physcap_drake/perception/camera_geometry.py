@@ -66,6 +66,15 @@ class CameraGeometry:
         return cls(calibration.width, calibration.height, known.fx, known.fy, known.cx,
                    known.cy, calibration.pose)
 
+    def decimated(self, factor: int) -> CameraGeometry:
+        """The camera of every `factor`-th pixel in both directions (its pixel (u, v) is
+        pixel (factor u, factor v) of this one): the image `image[::factor, ::factor]`."""
+        if factor < 1:
+            raise ValueError(f"decimation factor must be at least 1; got {factor}")
+        return CameraGeometry(-(-self.width // factor), -(-self.height // factor),
+                              self.fx / factor, self.fy / factor, self.cx / factor,
+                              self.cy / factor, self.X_WC)
+
     def back_project(self, u, v, depth) -> np.ndarray:
         """World points (N × 3, m) of pixels (u, v) seen at `depth` (m); arrays broadcast."""
         u, v, depth = np.broadcast_arrays(np.asarray(u, float), np.asarray(v, float),

@@ -3,8 +3,8 @@
 Geometry comes from the region's own depth, median-filtered over a small window of its
 pixels only (`SceneGeometry.smoothed_points`): its top height above the table, its footprint, and
 the top-down grasp point (`grasp_point_from_points`, the same rule as for the simulated
-segmenter). A straw is a thin part standing above the object's top: raw depth pixels just
-above its outline in the image, near its top on the table, higher than the top.
+segmenter). A straw is a thin part standing above the object's top, in the depth or in the
+full-resolution colour image (`straw`).
 
 A container's region comes from smoothed heights, which spread past its rim; its outline is
 sharpened by colour (the pixels nearer the colour of its inside than of the table around
@@ -19,23 +19,18 @@ import cv2
 import numpy as np
 
 from physcap_drake.perception.colors import color_name
+from physcap_drake.perception.decimation import upsample
 from physcap_drake.perception.grasp import grasp_point_from_points
 from physcap_drake.perception.regions import (
+    OBJECT_HEIGHT,
     Region,
     SceneGeometry,
     footprint,
     footprint_rectangle,
 )
 from physcap_drake.perception.shapes import classify, container_kind
+from physcap_drake.perception.straw import rises_in_depth, stands_out_in_colour
 
-#: A straw: pixels at least this much higher than the top (m), within this distance of the
-#: object's top on the table (m), at least `STRAW_GAP` px above its outline in the image and
-#: up to `STRAW_REACH` px; at least `STRAW_PIXELS` of them.
-STRAW_RISE = 0.008
-STRAW_NEAR = 0.05
-STRAW_GAP = 2
-STRAW_REACH = 20
-STRAW_PIXELS = 4
 #: Kinds whose top is round (a dome): their grasp point is over the fitted sphere's centre,
 #: which may lie at most MAX_AXIS_SHIFT from the middle of the visible top, m.
 ROUND_TOPS = ("avocado",)
@@ -78,13 +73,25 @@ class ObjectView:
         return self.region.row
 
 
+@dc.dataclass(frozen=True)
+class FullImage:
+    """The full-resolution colour image (H × W × 3 uint8) of which the geometry holds every
+    `factor`-th pixel, and the arm's pixels in it (H × W bool)."""
+
+    rgb: np.ndarray
+    factor: int
+    arm: np.ndarray
+
+
 def describe(region: Region, rgb: np.ndarray, geometry: SceneGeometry,
-             vocabulary: tuple[str, ...] = ()) -> ObjectView:
+             vocabulary: tuple[str, ...] = (), full: FullImage | None = None) -> ObjectView:
     """The ObjectView of `region` in the colour image `rgb` whose depth's back-projection is
-    `geometry`; its kind is chosen among `vocabulary` (see `shapes.classify`)."""
+    `geometry`; its kind is chosen among `vocabulary` (see `shapes.classify`). A straw is
+    looked for in `full`, the finer colour image `rgb` was taken from (`rgb` itself, with
+    the arm's pixels from `geometry`, if None)."""
     if region.container:
         region = sharpen_container(region, rgb, geometry)
-    color = color_name(rgb[region.mask][:, :3])
+    color = color_name(rgb[_own_pixels(region, geometry)][:, :3])
     if region.container:
         points = np.column_stack([region.points[:, :2], region.heights])
         grasp, top = grasp_point_from_points(points)
@@ -100,8 +107,18 @@ def describe(region: Region, rgb: np.ndarray, geometry: SceneGeometry,
     kind = classify(top, sides, vocabulary)
     if kind in ROUND_TOPS:
         grasp[:2] = dome_centre(table_points, grasp[:2])
-    straw = has_straw(region, geometry, top, grasp[:2])
+    straw = rises_in_depth(region, geometry, top, grasp[:2]) or _straw_in_colour(
+        region, rgb, geometry, full)
     return ObjectView(kind, color, straw, top, sides, grasp[:2].copy(), grasp, region)
+
+
+def _own_pixels(region: Region, geometry: SceneGeometry) -> np.ndarray:
+    """The pixels of the region to take its colour from: its mask, less (for an object)
+    the pixels its depth puts on the table (closing the mask spreads it a little over the
+    table around it; holes in a dark object's depth stay in)."""
+    if region.container:
+        return region.mask
+    return region.mask & ~(np.nan_to_num(geometry.heights, nan=np.inf) < OBJECT_HEIGHT)
 
 
 def dome_centre(points: np.ndarray, fallback: np.ndarray) -> np.ndarray:
@@ -118,19 +135,16 @@ def dome_centre(points: np.ndarray, fallback: np.ndarray) -> np.ndarray:
     return centre
 
 
-def has_straw(region: Region, geometry: SceneGeometry, top: float, centre: np.ndarray) -> bool:
-    """Whether a thin part rises above the object's top (see the module docstring)."""
-    rows, cols = np.nonzero(region.mask)
-    first, last = max(rows.min() - STRAW_REACH, 0), rows.min() + (rows.max() - rows.min()) // 2
-    left, right = max(cols.min() - 2, 0), cols.max() + 3
-    window = region.mask[first:last + 1, left:right]
-    outline = np.where(window.any(axis=0), window.argmax(axis=0), window.shape[0])
-    heights = np.nan_to_num(geometry.heights[first:last + 1, left:right], nan=-1.0)
-    xy = np.nan_to_num(geometry.points[first:last + 1, left:right, :2], nan=1e6)
-    near = np.linalg.norm(xy - centre, axis=2) < STRAW_NEAR
-    high_rows, high_cols = np.nonzero((heights > top + STRAW_RISE) & near)
-    above = high_rows < outline[high_cols] - STRAW_GAP
-    return int(above.sum()) >= STRAW_PIXELS
+def _straw_in_colour(region: Region, rgb: np.ndarray, geometry: SceneGeometry,
+                     full: FullImage | None) -> bool:
+    """`straw.stands_out_in_colour` over the region, in the full colour image."""
+    if full is None:
+        full = FullImage(rgb, 1, np.isfinite(geometry.depth) & ~geometry.usable)
+    distance = float(np.median(geometry.depth[region.rows, region.cols]))
+    pixels_per_metre = geometry.camera.fy * full.factor / distance
+    return stands_out_in_colour(full.rgb, upsample(region.mask, full.factor,
+                                                   full.rgb.shape[:2]),
+                                full.arm, pixels_per_metre)
 
 
 def sharpen_container(region: Region, rgb: np.ndarray, geometry: SceneGeometry) -> Region:

@@ -3,12 +3,14 @@
 No label image, no model names, no poses: what a real camera gives, and the robot's own
 joint positions (to leave its arm out of the picture). Each look:
 
-1. back-projects the depth with the camera's intrinsics and extrinsics, leaves out the
-   points on the robot (`robot_mask`), and fits the table plane (`table_plane`);
+1. back-projects the depth with the camera's intrinsics and extrinsics (on a fine image,
+   every other pixel or so: `decimation`), leaves out the points on the robot
+   (`robot_mask`), and fits the table plane (`table_plane`);
 2. finds the regions standing above the table: objects, and containers such as a tray
    (`regions`; pieces of a container's wall are not objects);
 3. describes each by what the camera shows: kind (by size, among the task's nouns),
-   colour, a straw, its height, and its top-down grasp point (`describe`);
+   colour, a straw (looked for in the full colour image: `straw`), its height, and its
+   top-down grasp point (`describe`);
 4. names them, recognizing the objects of earlier looks (`object_memory`).
 
 Phrases resolve against these objects (`phrases.resolve`), like the simulated segmenter's.
@@ -23,7 +25,8 @@ from collections.abc import Mapping
 import numpy as np
 
 from physcap_drake.perception.camera_geometry import CameraGeometry
-from physcap_drake.perception.describe import describe
+from physcap_drake.perception.decimation import decimation_factor, upsample
+from physcap_drake.perception.describe import FullImage, describe
 from physcap_drake.perception.object_memory import ObjectMemory
 from physcap_drake.perception.regions import (
     find_regions,
@@ -60,15 +63,20 @@ class RgbdPerception:
             key = zlib.crc32(np.asarray(q, dtype=np.float64).tobytes(), key)
         if self._last is not None and self._last[0] == key:
             return self._last[1]
-        geometry = scene_geometry(depth, self.camera,
+        step = decimation_factor(self.camera.width)
+        geometry = scene_geometry(depth[::step, ::step], self.camera.decimated(step),
                                   exclude=None if q is None else RobotSelfFilter(q))
-        views = [describe(region, rgb, geometry, self.vocabulary)
+        full = FullImage(rgb, step, upsample(np.isfinite(geometry.depth) & ~geometry.usable,
+                                             step, rgb.shape[:2]))
+        coarse_rgb = rgb[::step, ::step]
+        views = [describe(region, coarse_rgb, geometry, self.vocabulary, full)
                  for region in find_regions(geometry)]
         containers = [v.region for v in views if v.container]
         views = [v for v in views if v.container or not any(
             is_wall_of(v.region, container) for container in containers)]
         names = self.memory.recognize(views)
-        seen = sorted((SeenObject(visible, view.region.mask, view.column, view.row,
+        seen = sorted((SeenObject(visible, upsample(view.region.mask, step, rgb.shape[:2]),
+                                  step * view.column, step * view.row,
                                   view.grasp_point, view.top_height,
                                   footprint_rectangle(view.region.points) if view.container
                                   else None)

@@ -142,7 +142,11 @@ class EmulatedRealSenseCamera(RgbdCameraSystem):
         depth = self._depth_in.Eval(context).data[:, :, 0]
         time_us = int(round(context.get_time() * 1e6))
         rng = np.random.default_rng((self._seed, _FAULT_STREAM, time_us))
-        faulty = self.entry.emulation.depth_faults.apply(depth, rgb, self._focal_x, rng)
+        step = self.entry.emulation.depth_step  # the depth stream's pixels, aligned
+        faulty = self.entry.emulation.depth_faults.apply(depth[::step, ::step],
+                                                         rgb[::step, ::step],
+                                                         self._focal_x / step, rng)
+        faulty = np.repeat(np.repeat(faulty, step, axis=0), step, axis=1)
         return self.device.capture(rgb, faulty)
 
     def close(self) -> None:

@@ -16,6 +16,7 @@ Three sources share the entry:
 
 # No `from __future__ import annotations`: yaml_load_typed reads the field types at run time.
 import dataclasses as dc
+import math
 from pathlib import Path
 
 import numpy as np
@@ -29,6 +30,12 @@ from physcap_drake.station.realsense.depth_faults import StereoDepthFaults
 
 #: Frame rates a D400-series colour stream offers, Hz.
 FRAME_RATES = (6, 15, 30, 60)
+#: The colour mode (width, height, px) an emulated RealSense streams in place of a rendered
+#: camera of the same aspect ratio: a D435's 1280 x 720 for a 16:9 view (its colour imager is
+#: 1920 x 1080), with depth at the rendered camera's resolution (640 x 360, a D435 depth
+#: mode) aligned to it. Thin parts such as a cup's 6 mm straw at 1.1 m span 3 px of this
+#: colour image, 1 px at 640 x 360. Other aspect ratios keep the rendered camera's size.
+EMULATED_MODES = {(16, 9): (1280, 720)}
 
 
 @dc.dataclass
@@ -45,6 +52,10 @@ class RealSenseEmulation:
     depth_unit: float = 0.001
     # The stereo depth errors added to the rendered depth.
     depth_faults: StereoDepthFaults = dc.field(default_factory=StereoDepthFaults)
+    # The depth stream's resolution is the colour stream's divided by this (a D435 streaming
+    # 1280 x 720 colour with 640 x 360 depth: 2); its frames come aligned to colour (each
+    # depth pixel over the colour pixels it covers, as rs.align upsamples a coarser depth).
+    depth_step: int = 1
 
 
 @dc.dataclass
@@ -93,6 +104,10 @@ class RealSense:
                          open_minimum=True)
         emulation.number("depth_unit", self.emulation.depth_unit, minimum=1e-5,
                          maximum=0.01)
+        step = self.emulation.depth_step
+        if not isinstance(step, int) or step < 1 or self.width % step or self.height % step:
+            emulation.fail("depth_step", "a whole number >= 1 dividing the width and height",
+                           f"got {step!r} for {self.width} x {self.height}")
         self.emulation.depth_faults.check(emulation.child("depth_faults"))
         if self.calibration:
             from physcap_drake.station.realsense.calibration_file import check_calibration
@@ -123,8 +138,10 @@ class RealSense:
 
 
 def emulated_like(config: CameraConfig) -> RealSense:
-    """An emulated RealSense that sees what the rendered camera `config` sees (same pose,
-    resolution and vertical field of view), with the default stereo depth faults."""
+    """An emulated RealSense that sees what the rendered camera `config` sees (same pose and
+    vertical field of view), streaming the D435 colour mode of its aspect ratio
+    (`EMULATED_MODES`; else its resolution) and depth at the rendered camera's resolution
+    aligned to it, with the default stereo depth faults."""
     if config.X_PB.base_frame:
         raise ValueError(f"camera '{config.name}' is mounted on '{config.X_PB.base_frame}'; "
                          "an emulated RealSense stands fixed in the world")
@@ -133,7 +150,11 @@ def emulated_like(config: CameraConfig) -> RealSense:
     fov_y = float(np.degrees(intrinsics.fov_y()))
     X_WC = config.X_PB.GetDeterministicValue() @ config.X_BC.GetDeterministicValue()
     fps = min(FRAME_RATES, key=lambda rate: abs(rate - config.fps))
-    return RealSense(name=config.name, width=config.width, height=config.height, fps=fps,
+    divisor = math.gcd(config.width, config.height)
+    width, height = EMULATED_MODES.get((config.width // divisor, config.height // divisor),
+                                       (config.width, config.height))
+    return RealSense(name=config.name, width=width, height=height, fps=fps,
                      X_WC=Transform(X_WC), emulate=True,
                      emulation=RealSenseEmulation(fov_y=fov_y, z_near=config.z_near,
-                                                  z_far=config.z_far))
+                                                  z_far=config.z_far,
+                                                  depth_step=max(1, width // config.width)))
