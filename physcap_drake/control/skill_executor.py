@@ -79,9 +79,8 @@ class SkillExecutor(LeafSystem):
     over CAN). A gripper is judged stopped only from GRIPPER_MIN_TIME after that (until then
     the feedback still shows the fingers before the command reached them), and only when it
     did not move over STALL_WINDOW plus that latency (such feedback pauses that long). A
-    gripper opened
-    towards its full stroke that stops within the skills' `gripper_limit_tolerance` of it
-    has opened fully; one stopped short of that is blocked.
+    gripper opened towards its full stroke that stops within the skills'
+    `gripper_limit_tolerance` of it has opened fully; one stopped short of that is blocked.
 
     Input ports: request (RobotRequest with a MoveToJoints, MoveToPose, MoveGripper or Wait),
         piper.position_measured (6, rad), gripper.position_measured (1, m).
