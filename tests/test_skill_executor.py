@@ -18,6 +18,8 @@ from physcap_drake.control.requests import (
 )
 from physcap_drake.control.skill_executor import (
     MONITOR_PERIOD,
+    STALL_MOTION,
+    STALL_WINDOW,
     STATUS_PORT,
     SkillExecutor,
 )
@@ -38,12 +40,15 @@ class SyntheticArm(LeafSystem):
     stops at `object_width` (m) when closing on an object, or at `widest` (m) when something
     keeps it from opening further. With a `delay` (s) the gripper follows the command of
     `delay` earlier, as over a station whose commands show late in its feedback (CAN); with
-    a `burst` (s) its opening is reported only that often (feedback that comes in bursts)."""
+    a `burst` (s) its opening is reported only that often (feedback that comes in bursts);
+    with a `creep` (m/s) the object yields at that speed while the fingers press on it."""
 
     def __init__(self, stuck: bool = False, object_width: float = 0.0, widest: float = 1.0,
-                 step: float = 0.004, delay: float = 0.0, burst: float = 0.0):
+                 step: float = 0.004, delay: float = 0.0, burst: float = 0.0,
+                 creep: float = 0.0):
         super().__init__()
         self._stuck, self._width, self._widest = stuck, object_width, widest
+        self._creep = creep
         n = ports.NUM_ARM_JOINTS
         self._command = self.DeclareVectorInputPort(ports.ARM_POSITION, n)
         self._gripper = self.DeclareVectorInputPort(ports.GRIPPER_POSITION, 1)
@@ -73,8 +78,11 @@ class SyntheticArm(LeafSystem):
         commands.append(self._gripper.Eval(context)[0])
         step = np.clip(commands[0] - opening, -GRIPPER_SPEED * self._dt,
                        GRIPPER_SPEED * self._dt)
+        narrowest = self._width
+        if self._creep and commands[0] < opening <= self._width + 1e-12:  # pressing on it
+            narrowest = opening - self._creep * self._dt
         state.get_mutable_vector(0).SetFromVector(
-            [np.clip(opening + step, self._width, self._widest), *commands[1:]])
+            [np.clip(opening + step, narrowest, self._widest), *commands[1:]])
 
     def _report(self, context, state):
         state.get_mutable_vector(1).SetAtIndex(0, context.get_discrete_state(0).GetAtIndex(0))
@@ -213,6 +221,19 @@ def test_closing_on_an_object_succeeds_and_opening_against_one_fails():
     blocked.send(request)
     status = blocked.finish(request)
     assert status.state is SkillState.FAILED and "blocked at 80.0 mm" in status.message
+
+
+def test_fingers_that_creep_into_a_soft_object_hold_it_whatever_the_event_period():
+    """An object that yields at 0.95 mm/s under the fingers: slower than the stall speed
+    (STALL_MOTION per STALL_WINDOW, 1 mm/s), so the gripper holds it, although the executor
+    compares openings 0.108 s apart (its 12 ms events), over which the fingers move 0.103 mm."""
+    assert STALL_MOTION / STALL_WINDOW == pytest.approx(1e-3)
+    rig = Rig(object_width=0.03, creep=0.95e-3)
+    close = RobotRequest("test", 1, MoveGripper(0.0, 10.0, "close_gripper"))
+    rig.send(close)
+    status = rig.finish(close)
+    assert status.state is SkillState.SUCCEEDED and "(holding something)" in status.message
+    assert float(status.message.split("stopped at ")[1].split(" mm")[0]) > 29.0
 
 
 def test_a_motion_that_does_not_arrive_fails_and_the_arm_holds_where_it_is():

@@ -29,8 +29,10 @@ from physcap_drake.station import ports
 #: A multiple of the simulated plant's 4 ms step, so the simulator steps only at plant steps.
 MONITOR_PERIOD = 0.012
 #: A gripper counts as stopped when its opening changed less than this over STALL_WINDOW, m
-#: (s), lengthened by the station's command latency: feedback that comes through a pipeline
-#: that late also comes in bursts up to about that long (a stale spell holds it too).
+#: (s; pro rata over the time between the events that compare it, so the check does not
+#: depend on the event period). The window is lengthened by the station's command latency:
+#: feedback that comes through a pipeline that late also comes in bursts up to about that
+#: long (a stale spell holds it too).
 STALL_MOTION = 1e-4
 STALL_WINDOW = 0.1
 #: ... but not before it had this long to start moving once the command shows in the
@@ -236,9 +238,10 @@ class SkillExecutor(LeafSystem):
                     f"{skill.label}: reached {1000 * opening:.1f} mm"), current
         if now - current.reference_time >= STALL_WINDOW + self._latency:
             moved = abs(opening - current.reference_opening)
+            window = now - current.reference_time  # at least the window: events are discrete
             current = dc.replace(current, reference_opening=opening, reference_time=now)
             settled = now - skill.start_time >= self._latency + GRIPPER_MIN_TIME
-            if moved < STALL_MOTION and settled:
+            if moved < STALL_MOTION * window / (STALL_WINDOW + self._latency) and settled:
                 if skill.gripper_opening < opening:  # closing: stopped on what it holds
                     return (SkillState.SUCCEEDED,
                             f"{skill.label}: stopped at {1000 * opening:.1f} mm "
