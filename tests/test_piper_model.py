@@ -407,12 +407,18 @@ def test_scene_models_parse() -> None:
 
     # The table's top face is at z = 0 and spans x [-0.15, 0.55], y [-0.6, 0.6].
     inspector = scene_graph.model_inspector()
-    (top,) = plant.GetCollisionGeometriesForBody(plant.GetBodyByName("table_top"))
+    top, floor = (next(g for g in plant.GetCollisionGeometriesForBody(
+        plant.GetBodyByName("table_top")) if inspector.GetName(g).endswith(name))
+        for name in ("top_collision", "floor_collision"))
     X_BG = inspector.GetPoseInFrame(top)
     half = _shape_half_extents(inspector.GetShape(top))
     lo, hi = X_BG.translation() - half, X_BG.translation() + half
     np.testing.assert_allclose(lo, [-0.15, -0.60, -0.04], atol=1e-9)
     np.testing.assert_allclose(hi, [0.55, 0.60, 0.0], atol=1e-9)
+    # The floor catches what falls off the table: its top where the legs end.
+    X_BF = inspector.GetPoseInFrame(floor)
+    floor_top = X_BF.translation()[2] + _shape_half_extents(inspector.GetShape(floor))[2]
+    assert floor_top == pytest.approx(-0.75)
 
     # Free objects have their body frame at the bottom centre: the lowest collision point
     # is at z = 0 in the body frame.
