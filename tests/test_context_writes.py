@@ -80,11 +80,6 @@ ALLOWED = {
                            "scene's ground truth once the emulator runs (to move to the "
                            "emulator's start-up message, EmulatorProcess(body_masses=...))",
     },
-    "app/agent_episode.py": {
-        "mutable_context": "reads the agent's context (AgentSystem.release writes nothing); "
-                           "the clock's read-only `context` would do",
-        "GetMyMutableContextFromRoot": "the same: GetMyContextFromRoot would do",
-    },
 }
 
 

@@ -178,8 +178,8 @@ def run_agent_episode(task: str, seed: int, *, agent: str = "physcap",
         episode.api.use_locator(ObjectLocator(episode.api.locator.perception,
                                               VlmPointer(pointer_ask(client))))
     clock, system = episode.api.clock, episode.robot.agent
-    root = clock.mutable_context
-    agent_context = system.GetMyMutableContextFromRoot(root)
+    root = clock.context  # read only: the agent's state changes only in its own events
+    agent_context = system.GetMyContextFromRoot(root)
     recording = None if sink is None else AgentRecording(
         sink, root.get_time, client=client, recorder=episode.robot.recorder,
         context=episode.robot.recorder.GetMyContextFromRoot(root))
