@@ -165,7 +165,8 @@ def build_robot_stack(scenario: Scenario, meshcat: Meshcat | None = None, *,
 
     mass_estimator = builder.AddNamedSystem("mass_estimator", MassEstimator(
         model.controller_plant, model.arm_joints, TCP_FRAME,
-        sample_rate=scenario.physx.mass.sample_rate))
+        sample_rate=scenario.physx.mass.sample_rate,
+        torque_gain=scenario.physx.mass.torque_gain))
     for name in (ports.ARM_POSITION_MEASURED, ports.ARM_TORQUE_MEASURED):
         builder.Connect(station.GetOutputPort(name), mass_estimator.GetInputPort(name))
     builder.Connect(station.GetOutputPort(ports.GRIPPER_POSITION_MEASURED),

@@ -134,25 +134,27 @@ def test_a_measurement_runs_the_probe_sequence_and_reports_the_mass(estimator_mo
     assert measurement.empty.count == measurement.loaded.count == 40  # 0.2 s at 200 Hz
     served = rig.served()
     lift = np.add(GRASP, [0.0, 0.0, rig.config.lift_height])
-    expected = [MoveGripper(STROKE, FORCE, "open_gripper"), MoveToPose(lift),
-                Wait(0.1), Wait(0.2), MoveToPose(GRASP, None, 0.15),
+    # Both windows' lift pose is reached rising: 3 cm from below, then from the grasp.
+    below = lift - [0.0, 0.0, 0.03]
+    expected = [MoveGripper(STROKE, FORCE, "open_gripper"), MoveToPose(below),
+                MoveToPose(lift), Wait(0.1), Wait(0.2), MoveToPose(GRASP, None, 0.15),
                 MoveGripper(0.0, FORCE, "close_gripper"), MoveToJoints(LIFT_POSE),
                 Wait(0.1), Wait(0.2), MoveToPose(GRASP, None, 0.15),
                 MoveGripper(STROKE, FORCE, "open_gripper"), MoveToPose(lift)]
     assert_actions(served, expected)
-    # Eight motions and four waits of the fake robot, every one counted as robot time.
-    assert measurement.robot_time_s == pytest.approx(8 * SKILL_TIME + WAITS, abs=1e-9)
+    # Nine motions and four waits of the fake robot, every one counted as robot time.
+    assert measurement.robot_time_s == pytest.approx(9 * SKILL_TIME + WAITS, abs=1e-9)
     assert status.robot_time == pytest.approx(measurement.robot_time_s)
 
 
 def test_each_step_starts_at_the_executor_event_after_the_previous_one_ended(estimator_model):
     rig = Rig(estimator_model)
     rig.ask(MeasureMass(GRASP))
-    # 12 skills of the fake robot, each started one executor period after the last ended:
+    # 13 skills of the fake robot, each started one executor period after the last ended:
     # the first at once, since the probe sends its first step straight through; the probe
     # answers at its own event after the last one ended.
     assert rig.status().finished_at == pytest.approx(
-        8 * SKILL_TIME + WAITS + 11 * MONITOR_PERIOD + PROBE_OFFSET, abs=1e-9)
+        9 * SKILL_TIME + WAITS + 12 * MONITOR_PERIOD + PROBE_OFFSET, abs=1e-9)
 
 
 @pytest.mark.parametrize(("robot", "reason"), [
@@ -174,7 +176,7 @@ def test_a_skill_that_fails_ends_the_measurement_with_its_message(estimator_mode
     rig = Rig(estimator_model, fail="close_gripper")
     status = rig.ask(MeasureMass(GRASP))
     assert status.state is SkillState.FAILED and status.message == "close_gripper failed"
-    assert len(rig.served()) == 6  # nothing after the failed close
+    assert len(rig.served()) == 7  # nothing after the failed close
 
 
 def test_a_malformed_position_is_refused_without_motion(estimator_model):

@@ -7,6 +7,9 @@ the table with a translation only.
 - Reference masses: rigid cylinders Ø 50 mm × 80 mm (point contact), 13 g to 963 g like the
   paper's calibration set; the centre of mass is at mid-height, 40 mm up, where the
   fingertips grasp it.
+- The gain weight: a 500 g cylinder of the same size (brass-coloured), not one of the
+  reference masses: `physcap calibrate mass --fit-gain` weighs it to fit the torque sensors'
+  gains, and the reference masses are then weighed with those gains (held out).
 - Stiffness specimens: compliant-hydroelastic cylinders Ø 60 mm × 60 mm whose hydroelastic
   moduli put their squeeze deformation in the middle of each level 1 (ultra-soft) .. 5 (rigid).
 - Avocados: compliant-hydroelastic ellipsoids 84 × 84 × 72 mm (round seen from above, so
@@ -28,6 +31,7 @@ from sdf_parts import (  # noqa: E402
 HERE = Path(__file__).resolve().parent
 
 MASSES_G = (13, 120, 350, 600, 963)
+GAIN_WEIGHT_G = 500
 STIFFNESS_MODULI_PA = {1: 2.0e4, 2: 1.0e5, 3: 3.0e5, 4: 8.0e5, 5: 1.0e7}
 AVOCADOS = {  # name: (modulus Pa, RGBA skin colour)
     "avocado_overripe": (3.0e4, "0.16 0.12 0.08 1"),
@@ -74,6 +78,13 @@ def main() -> None:
             name, f"Reference mass {grams} g: rigid cylinder 50 mm x 80 mm, uniform density.",
             inertial(mass, height / 2, cylinder_inertia(mass, radius, height)), geometry,
             height / 2, "0.55 0.57 0.60 1", POINT_STIFFNESS, 0.8))
+    mass = GAIN_WEIGHT_G / 1000.0
+    name = f"gain_weight_{GAIN_WEIGHT_G}g"
+    (HERE / f"{name}.sdf").write_text(body(
+        name, f"Gain weight {GAIN_WEIGHT_G} g: rigid cylinder 50 mm x 80 mm, uniform density.",
+        inertial(mass, height / 2, cylinder_inertia(mass, radius, height)),
+        f"<cylinder><radius>{radius}</radius><length>{height}</length></cylinder>",
+        height / 2, "0.71 0.58 0.26 1", POINT_STIFFNESS, 0.8))
     radius, height, mass = 0.03, 0.06, 0.1
     for level, modulus in STIFFNESS_MODULI_PA.items():
         name = f"stiffness_level{level}"

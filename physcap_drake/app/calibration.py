@@ -7,8 +7,10 @@ Trial k of a run with --seed s has the trial seed 1000·s + k: it fixes the plac
 specimen), the sensor noise and, with a mismatch, the arm.
 
 Held out: the stiffness thresholds are fitted on one set of trial seeds and scored on
-another, disjoint one (`split_trials`). get_mass fits nothing from data (its model is the
-arm's file and the joint servo's stiffness), so all its trials are evaluation.
+another, disjoint one (`split_trials`). get_mass's model is the arm's file; the one thing it
+may fit from data is its torque sensors' gains (`--fit-gain`): on each trial's arm they are
+fitted by weighing the gain weight (500 g, not a reference mass, at a place of its own), and
+the reference masses are then weighed with them, so those stay held out.
 
 Mismatch (see app/mismatch.py): each trial's simulated arm departs from its model by
 drawn deviations; the estimators keep the nominal model.
@@ -31,6 +33,7 @@ from physcap_drake.physx.stiffness_levels import (
     level_from_deformation,
     majority_level,
 )
+from physcap_drake.physx.torque_gain import fit_torque_gain
 from physcap_drake.resources import stations_dir
 from physcap_drake.robot_api import RobotAPI
 from physcap_drake.robot_stack import build_robot_stack
@@ -43,6 +46,9 @@ NOMINAL_XY = np.array([0.32, 0.05])
 PERTURBATION = 0.03
 #: Reference masses (g) and stiffness specimens (level), as in models/calibration/.
 REFERENCE_MASSES_G = (13, 120, 350, 600, 963)
+#: The weight the torque sensors' gains are fitted with (models/calibration/), and its mass.
+GAIN_WEIGHT = "gain_weight_500g"
+GAIN_WEIGHT_KG = 0.5
 STIFFNESS_LEVELS = (1, 2, 3, 4, 5)
 AVOCADOS = {"avocado_overripe": "overripe", "avocado_ripe": "ripe",
             "avocado_unripe": "unripe"}
@@ -91,6 +97,42 @@ def _api(scenario: Scenario) -> RobotAPI:
 
 
 @dc.dataclass(frozen=True)
+class GainFit:
+    """The torque sensors' gains (J1..J6) fitted on one trial's arm with the gain weight;
+    None if the weighing failed (`reason` says why)."""
+
+    gain: tuple[float, ...] | None
+    robot_time_s: float
+    reason: str = ""
+    seed: int = 0
+
+
+def fit_gain_trial(trial: int, seed: int = 0, noise: bool = True,
+                   groups: tuple[str, ...] = ()) -> GainFit:
+    """Weighs the gain weight once on the arm of trial `trial` (drawn for the mismatch
+    `groups`, as run_mass_trial draws it) and fits the torque sensors' gains to it."""
+    drawn = mismatch.draw(trial_seed(seed, trial), groups)
+    scenario, base = _scenario_with(GAIN_WEIGHT, seed, trial, noise, drawn)
+    robot = build_robot_stack(scenario)
+    api = RobotAPI(robot, robot.make_clock())
+    try:
+        api.get_mass(base + [0.0, 0.0, MASS_GRASP_HEIGHT])
+    except SkillError as error:
+        return GainFit(None, api.robot_time, f"skill error: {error}", trial_seed(seed, trial))
+    measurement = api.last_mass
+    if not measurement.ok:
+        return GainFit(None, measurement.robot_time_s, measurement.reason,
+                       trial_seed(seed, trial))
+    try:
+        gain = fit_torque_gain(robot.mass_estimator, measurement.empty,
+                               measurement.loaded, GAIN_WEIGHT_KG)
+    except ValueError as error:
+        return GainFit(None, measurement.robot_time_s, str(error), trial_seed(seed, trial))
+    return GainFit(tuple(float(g) for g in gain), measurement.robot_time_s, "",
+                   trial_seed(seed, trial))
+
+
+@dc.dataclass(frozen=True)
 class MassTrial:
     true_g: float
     estimate_g: float
@@ -102,12 +144,15 @@ class MassTrial:
 
 
 def run_mass_trial(grams: int, trial: int, seed: int = 0, noise: bool = True,
-                   groups: tuple[str, ...] = ()) -> MassTrial:
+                   groups: tuple[str, ...] = (),
+                   torque_gain: tuple[float, ...] | None = None) -> MassTrial:
     """Weighs the `grams` reference mass once, at the trial's place (on an arm drawn for
-    the mismatch `groups`, if any). A skill that fails makes the trial a failure (with its
-    reason), not an exception."""
+    the mismatch `groups`, if any; with the torque sensors' gains `torque_gain`, if given).
+    A skill that fails makes the trial a failure (with its reason), not an exception."""
     drawn = mismatch.draw(trial_seed(seed, trial), groups)
     scenario, base = _scenario_with(f"mass_{grams:03d}g", seed, trial, noise, drawn)
+    if torque_gain is not None:
+        scenario.physx.mass.torque_gain = list(torque_gain)
     api = _api(scenario)
     try:
         api.get_mass(base + [0.0, 0.0, MASS_GRASP_HEIGHT])

@@ -98,16 +98,23 @@ def _run_all(function, jobs: list[tuple], workers: int, description: str) -> lis
 @app.command("mass")
 def mass(trials: Trials = 20, seed: Seed = 0, workers: Workers = 2, noise: Noise = True,
          mismatch_on: Mismatch = False, mismatch_only: MismatchOnly = None,
+         fit_gain: Annotated[bool, typer.Option(
+             "--fit-gain", help="First weigh the 500 g gain weight on each trial's arm and "
+             "fit the torque sensors' gains to it; then weigh the reference masses with "
+             "those gains.")] = False,
          json_path: JsonOut = None, plot: PlotOut = None) -> None:
     """Validate get_mass on five reference masses.
 
     Weighs each mass (13 g to 963 g) --trials times at perturbed places and prints the
     mean, standard deviation and error per mass, and the robot time per measurement.
-    get_mass fits nothing from data, so every trial is a held-out one.
+    Without --fit-gain get_mass fits nothing from data; with it, the gains come from the gain
+    weight alone, so every reference trial is a held-out one either way.
     """
     groups = _groups(mismatch_on, mismatch_only)
-    jobs = [(grams, trial, seed, noise, groups) for grams in cal.REFERENCE_MASSES_G
-            for trial in range(trials)]
+    fits = _fit_gains(trials, seed, noise, groups, workers) if fit_gain else {}
+    jobs = [(grams, trial, seed, noise, groups, fits[trial].gain if fit_gain else None)
+            for grams in cal.REFERENCE_MASSES_G for trial in range(trials)
+            if not fit_gain or fits[trial].gain is not None]
     trial_results = _run_all(cal.run_mass_trial, jobs, workers, "get_mass")
     for (grams, trial, *_), result in zip(jobs, trial_results, strict=True):
         if not result.ok:
@@ -115,7 +122,8 @@ def mass(trials: Trials = 20, seed: Seed = 0, workers: Workers = 2, noise: Noise
     rows = cal.summarize_mass(trial_results)
     table = Table(title=f"get_mass, {trials} trials per mass"
                   + ("" if noise else " (noise-free)")
-                  + (f", mismatch: {', '.join(groups)}" if groups else ""))
+                  + (f", mismatch: {', '.join(groups)}" if groups else "")
+                  + (", torque gains fitted per arm" if fit_gain else ""))
     for column in ("true (g)", "mean (g)", "std (g)", "error (g)", "failures",
                    "max robot time (s)"):
         table.add_column(column, justify="right")
@@ -142,6 +150,8 @@ def mass(trials: Trials = 20, seed: Seed = 0, workers: Workers = 2, noise: Noise
             "rows": rows, "within_goal": within, "seeds": [cal.trial_seed(seed, k)
                                                           for k in range(trials)],
             "noise": noise, "mismatch": list(groups), "mismatch_attribution": shares,
+            "gain_fits": [{"seed": f.seed, "gain": f.gain, "reason": f.reason,
+                           "robot_time_s": f.robot_time_s} for f in fits.values()],
             "trials": [{"true_g": t.true_g, "estimate_g": None if math.isnan(t.estimate_g)
                         else t.estimate_g, "ok": t.ok, "seed": t.seed,
                         "robot_time_s": t.robot_time_s, "reason": t.reason,
@@ -150,6 +160,26 @@ def mass(trials: Trials = 20, seed: Seed = 0, workers: Workers = 2, noise: Noise
     if plot is not None:
         _plot_mass(rows, plot)
         console.print(f"saved {plot}")
+
+
+def _fit_gains(trials: int, seed: int, noise: bool, groups: tuple[str, ...],
+               workers: int) -> dict[int, cal.GainFit]:
+    """The torque gains fitted on each trial's arm with the gain weight; a trial whose fit
+    failed is reported and its reference masses are not weighed."""
+    jobs = [(trial, seed, noise, groups) for trial in range(trials)]
+    fits = dict(zip(range(trials), _run_all(cal.fit_gain_trial, jobs, workers,
+                                            "gain weight"), strict=True))
+    for trial, fit in fits.items():
+        if fit.gain is None:
+            console.print(f"gain weight, trial {trial}: failed, its arm is left out: "
+                          f"{fit.reason}")
+        else:
+            console.print(f"gain weight, trial {trial}: torque gains J1..J6 "
+                          + " ".join(f"{g:.4f}" for g in fit.gain))
+    if all(fit.gain is None for fit in fits.values()):
+        fail("no trial's gain weight could be weighed: no gains to weigh the references "
+             "with", code=1)
+    return fits
 
 
 def _fmt(value, spec: str = ".2f") -> str:

@@ -128,16 +128,21 @@ class MassEstimator(LeafSystem):
     its kind's window, and a LOADED window is turned into a mass against the EMPTY one before
     it (`estimate_mass`).
 
+    torque_gain: each joint's torque sensor gain (reported change = gain × true change), as
+    fitted with a weight of known mass (physx/torque_gain.py); None: ideal sensors (ones).
+
     Input ports: piper.position_measured (6, rad), piper.torque_measured (6, N·m),
         window (WindowRequest).
     Output port: estimate (MassEstimate).
     """
 
     def __init__(self, controller_plant: MultibodyPlant, arm_joints: list, tcp_frame_name: str,
-                 *, sample_rate: float):
+                 *, sample_rate: float, torque_gain=None):
         super().__init__()
         self._plant = controller_plant
         self._rate = float(sample_rate)
+        gain = np.ones(ports.NUM_ARM_JOINTS) if torque_gain is None else torque_gain
+        self._gain = as_gain(gain)
         # Scratch context of our model, this object's own and never a running diagram's:
         # set from the arguments of each computation (a pure function of them).
         self._scratch = controller_plant.CreateDefaultContext()
@@ -189,6 +194,11 @@ class MassEstimator(LeafSystem):
         output.set_value(context.get_abstract_state(self._state).get_value().estimate)
 
     @property
+    def torque_gain(self) -> np.ndarray:
+        """The torque sensors' gains the estimator divides the torque change by (6,)."""
+        return self._gain.copy()
+
+    @property
     def model_plant(self) -> MultibodyPlant:
         """The estimator's own model of the robot (arm and gripper only)."""
         return self._plant
@@ -230,12 +240,36 @@ class MassEstimator(LeafSystem):
         the two measured poses is taken out of Δτ first. The held object's centre of mass
         may sit a little beside the fingertip point (a grasp is never perfectly centred); its
         horizontal offset is estimated from the same torques (`horizontal_load_offset`) and
-        J_z is taken there.
+        J_z is taken there. The reported change is divided by the sensors' `torque_gain`
+        first (their offsets cancel in the difference).
         """
-        own_change = (self.arm_gravity_torque(loaded.position)
-                      - self.arm_gravity_torque(empty.position))
-        delta_tau = loaded.torque - empty.torque - own_change
+        delta_tau = self.load_torque(empty, loaded)
         jacobian = self.fingertip_jacobian(loaded.position)
         offset = horizontal_load_offset(jacobian[5], jacobian[0], jacobian[1], delta_tau)
         return mass_from_torque_change(self.vertical_jacobian(loaded.position, offset),
                                        delta_tau)
+
+    def own_torque_change(self, empty: TorqueWindow, loaded: TorqueWindow) -> np.ndarray:
+        """How much the arm's own gravity torque changes between the two windows' measured
+        poses (the sag under the load), N·m, from the robot's model."""
+        return (self.arm_gravity_torque(loaded.position)
+                - self.arm_gravity_torque(empty.position))
+
+    def load_torque(self, empty: TorqueWindow, loaded: TorqueWindow) -> np.ndarray:
+        """The holding torques the load itself adds, N·m: the reported change divided by the
+        sensors' gains, less the arm's own change (`own_torque_change`)."""
+        return ((loaded.torque - empty.torque) / self._gain
+                - self.own_torque_change(empty, loaded))
+
+
+def as_gain(values) -> np.ndarray:
+    """Six positive torque sensor gains as an array; a ValueError names a bad one."""
+    gain = np.asarray(values, dtype=float).reshape(-1)
+    if gain.shape != (ports.NUM_ARM_JOINTS,):
+        raise ValueError(f"torque_gain needs {ports.NUM_ARM_JOINTS} values, one per arm "
+                         f"joint; got {gain.size}")
+    bad = [f"J{i + 1} = {g}" for i, g in enumerate(gain) if not (0.5 <= g <= 2.0)]
+    if bad:
+        raise ValueError(f"torque_gain must lie in [0.5, 2] (a gain is reported over true "
+                         f"torque): {', '.join(bad)}")
+    return gain

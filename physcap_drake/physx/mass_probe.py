@@ -62,7 +62,8 @@ class Stage(enum.Enum):
     """The skill a measurement is running (see MassProbe)."""
 
     OPEN = "open the gripper"
-    ABOVE = "go to the lift pose"
+    BELOW = "go just below the lift pose"
+    ABOVE = "rise to the lift pose"
     SETTLE_EMPTY = "settle, empty"
     AVERAGE_EMPTY = "average the torques, empty"
     DESCEND = "descend to the grasp point"
@@ -96,8 +97,10 @@ class MassMemory(Immutable):
 class MassProbe(ProbeSequence):
     """Weighs an object for a MeasureMass request, with the MassEstimator.
 
-    1. Fingers open, go to the lift pose `lift_height` above the grasp point; settle; hold
-       for `window` s while the estimator averages the torques (empty). 2. Descend straight
+    1. Fingers open, go to the lift pose `lift_height` above the grasp point, rising into it
+       from `rise` below (as step 2 rises into it from the grasp, so each joint's static
+       friction holds the same way in both windows); settle; hold for `window` s while the
+       estimator averages the torques (empty). 2. Descend straight
        down, grasp, return to the very same joint positions; settle; average (loaded).
        3. The estimator's mass: m = J_z·Δτ / (g·|J_z|²) with the robot's model. 4. Put the
        object back where it was, let go and retreat upwards. If the fingers close on nothing
@@ -142,7 +145,10 @@ class MassProbe(ProbeSequence):
         config, stage = self._config, m.stage
         grasp = np.array(m.grasp)
         lift = grasp + [0.0, 0.0, config.lift_height]
-        if stage is Stage.OPEN:
+        if stage is Stage.OPEN and config.rise > 0.0:
+            return Step(dc.replace(m, stage=Stage.BELOW),
+                        MoveToPose(lift - [0.0, 0.0, config.rise]))
+        if stage in (Stage.OPEN, Stage.BELOW):
             return Step(dc.replace(m, stage=Stage.ABOVE), MoveToPose(lift))
         if stage is Stage.ABOVE:
             return Step(dc.replace(m, stage=Stage.SETTLE_EMPTY,

@@ -12,6 +12,10 @@ class MassProbeConfig:
 
     # Height of the measurement pose above the grasp point, m (the paper lifts 15 cm).
     lift_height: float = 0.15
+    # The empty window's lift pose is reached rising this far, m, as the loaded one is
+    # (rising from the grasp): a joint's static friction then holds the same way in both
+    # windows and cancels in their difference. 0: go there directly.
+    rise: float = 0.03
     # Time to let the arm settle at the measurement pose before averaging, s.
     settle_time: float = 0.5
     # Length of each torque-averaging window, s.
@@ -22,14 +26,21 @@ class MassProbeConfig:
     sample_rate: float = 250.0
     # A grasp that closes the fingers to less than this gap held nothing, m.
     min_grasp_opening: float = 0.004
+    # Gain of each arm joint's torque reading, J1..J6 (a reported torque change is this
+    # times the true one): ones for an ideal sensor. A real arm's are fitted by weighing a
+    # weight of known mass (physx/torque_gain.py, `physcap calibrate mass --fit-gain`).
+    torque_gain: list[float] = dc.field(default_factory=lambda: [1.0] * 6)
 
     def check(self, at: ConfigChecker) -> None:
         at.number("lift_height", self.lift_height, minimum=0.02, maximum=0.4)
+        at.number("rise", self.rise, minimum=0.0, maximum=self.lift_height,
+                  why="at most lift_height")
         at.number("settle_time", self.settle_time, minimum=0.0)
         at.number("window", self.window, minimum=0.0, open_minimum=True)
         at.number("sample_rate", self.sample_rate, minimum=0.0, maximum=1000.0,
                   open_minimum=True)
         at.number("min_grasp_opening", self.min_grasp_opening, minimum=0.0)
+        at.vector("torque_gain", self.torque_gain, 6, minimum=0.5, maximum=2.0)
 
 
 @dc.dataclass

@@ -1,0 +1,63 @@
+"""Fitting the arm's torque sensor gains with a weight of known mass.
+
+A joint torque reading is `gain × true torque + offset`; the offset cancels in get_mass's
+loaded-minus-empty difference, the gain does not: a joint whose sensor reads 5 % high makes
+every mass it carries read up to 5 % heavy. Weighing a weight of known mass m once gives each
+loaded joint's gain directly: the load's true torque change is m·g·J_z (J_z at the weight,
+from the robot's model, plus the arm's own sag change), and the reported change divided by
+it is the gain. Joints the weight hardly loads at that pose (|m·g·J_z| below `min_share` of
+the largest: the base yaw, the tool roll) keep the gain 1, since their reading hardly moves a
+mass estimate either.
+
+The weight's centre of mass may hang a little beside the fingertip point; where, comes from
+the same torques (`horizontal_load_offset`), refitted with the gains found so far.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from physcap_drake.physx.mass_estimator import (
+    GRAVITY,
+    MassEstimator,
+    TorqueWindow,
+    as_gain,
+    horizontal_load_offset,
+)
+
+#: A joint whose expected load torque is below this share of the largest keeps gain 1.
+MIN_SHARE = 0.15
+#: Rounds of refitting the load's offset with the gains found so far.
+ROUNDS = 4
+
+
+def fit_torque_gain(estimator: MassEstimator, empty: TorqueWindow, loaded: TorqueWindow,
+                    mass_kg: float, *, min_share: float = MIN_SHARE) -> np.ndarray:
+    """Each arm joint's torque sensor gain (6,), from one get_mass measurement (its `empty`
+    and `loaded` windows) of a weight of known `mass_kg`, with the estimator's model of the
+    arm. The estimator's own gains are not used: the reported change is taken as it is.
+
+    Raises ValueError if the mass is not positive or the fitted gains leave [0.5, 2] (the
+    weight was not held, or the mass given is not the weight's).
+    """
+    if not mass_kg > 0.0:
+        raise ValueError(f"the calibration weight's mass must be positive, got {mass_kg} kg")
+    reported = np.asarray(loaded.torque - empty.torque, dtype=float)
+    own = estimator.own_torque_change(empty, loaded)
+    jacobian = estimator.fingertip_jacobian(loaded.position)
+    gain = np.ones_like(reported)
+    for _ in range(ROUNDS):
+        offset = horizontal_load_offset(jacobian[5], jacobian[0], jacobian[1],
+                                        reported / gain - own)
+        expected_load = mass_kg * GRAVITY * estimator.vertical_jacobian(loaded.position,
+                                                                        offset)
+        loaded_joints = np.abs(expected_load) >= min_share * np.abs(expected_load).max()
+        gain = np.where(loaded_joints, reported / np.where(loaded_joints,
+                                                           expected_load + own, 1.0), 1.0)
+        try:
+            gain = as_gain(gain)
+        except ValueError as error:
+            raise ValueError(f"the fitted gains do not look like a sensor's ({error}): was "
+                             f"the {1000 * mass_kg:.0f} g weight held during the loaded "
+                             "window?") from None
+    return gain
