@@ -14,7 +14,8 @@ from physcap_drake.station.simulated_motion import SimulatedMotion
 
 def build_world(scenario_yaml: str, gripper_max_effort: float) -> SimulatedMotion:
     """The simulated station of `scenario_yaml` (a scenario with a `SimPiper` station) as the
-    emulated arm's motion backend; `gripper_max_effort`: N·m at the simulated gripper's full
-    force (see SimulatedMotion)."""
+    emulated arm's motion backend, weighing the scenario's hidden `body_masses` from its
+    first step on; `gripper_max_effort`: N·m at the simulated gripper's full force (see
+    SimulatedMotion). Raises ValueError naming a body mass the world has no body for."""
     return SimulatedMotion(load_scenario_text(scenario_yaml, label="emulated arm"),
                            gripper_max_effort=gripper_max_effort)

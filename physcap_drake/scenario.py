@@ -106,6 +106,11 @@ class Scenario:
     station: SimPiper | PiperCan = dc.field(default_factory=SimPiper)
     # The evaluation task whose objects the scenario's seed lays out (none by default).
     task: TaskConfig = dc.field(default_factory=TaskConfig)
+    # Hidden masses of bodies of the simulated world, kg by scoped body name
+    # ("model_instance::body"); a task's layout puts its objects' masses here. The world's
+    # owner sets them before the world runs (an episode's clock on the simulated station,
+    # the emulated arm's world behind a PiperCan station); agents never see them.
+    body_masses: dict[str, float] = dc.field(default_factory=dict)
     # Limits and tolerances of the robot skills (goto_pose, gripper, home).
     skills: SkillsConfig = dc.field(default_factory=SkillsConfig)
     # The physical probes get_mass and get_stiffness.
@@ -174,6 +179,7 @@ def check_scenario(scenario: Scenario, filename: str = "<scenario>") -> None:
     scenario.skills.check(at.child("skills"))
     scenario.physx.check(at.child("physx"))
     _check_directives(scenario, at)
+    _check_body_masses(scenario, at)
     at.child("task").choice("perception", scenario.task.perception, ["", "rgbd", "label"])
     at.child("task").choice("judge", scenario.task.judge,
                             ["", "simulator", "perception", "operator"])
@@ -223,6 +229,18 @@ def _check_directives(scenario: Scenario, at: ConfigChecker) -> None:
             if wanted not in names:
                 at.child("station").fail(key, f"the name of a model the directives add "
                                          f"(they add {names})", f"got {wanted!r}")
+
+
+def _check_body_masses(scenario: Scenario, at: ConfigChecker) -> None:
+    """Positive masses, and a world to set them in (their names are checked against the
+    world's plant where it is built: `station.body_masses`)."""
+    station = scenario.station
+    if scenario.body_masses and isinstance(station, PiperCan) and not station.emulate:
+        at.fail("body_masses", "none on the real arm (station.emulate: false): there is no "
+                "simulated world to weigh", f"got {sorted(scenario.body_masses)}")
+    for name, kg in scenario.body_masses.items():
+        at.child("body_masses").number(name, kg, minimum=0.0, open_minimum=True,
+                                       why="a body's mass, kg")
 
 
 def _check_joints(at: ConfigChecker, key: str, q: list[float], lower, upper) -> None:

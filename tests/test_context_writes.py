@@ -41,23 +41,27 @@ ALLOWED = {
         "mutable_context": "the blocking client puts its request through "
                            "RobotStack.put_request on the clock's root context",
     },
-    "tasks/task_instance.py": {
-        "SetMass": "a task's hidden masses are initial parameters, set on the fresh root "
-                   "context before any simulator holds it (RobotStack.make_clock's set_up)",
+    "station/body_masses.py": {
+        "SetMass": "a simulated world's hidden masses are initial parameters, set in the "
+                   "fresh context its simulator is then created with (the emulated world's "
+                   "in SimulatedMotion, the sim station's in RobotStack.make_clock's set_up)",
     },
     "station/simulated_motion.py": {
-        "FixValue": "the emulated world's own driver: the emulated firmware's commands are "
-                    "the inputs of the world it steps (its simulator, its context)",
+        "FixValue": "the end load's torque (0x477) on the world plant's applied-force input, "
+                    "which the simulated station does not export (the firmware's commands "
+                    "come from the world's FirmwareCommandSource)",
         "get_mutable_context": "the emulated world owns its simulator (it stands for the "
                                "real world behind the CAN bus)",
         "GetMyMutableContextFromRoot": "the emulated world's plant context, in the context "
-                                       "of the simulator it owns",
+                                       "its simulator owns: its hidden masses before the "
+                                       "first step, the end load's torque and an operator's "
+                                       "moves (set_world) between steps",
     },
     "station/__init__.py": {
         "GetMyMutableContextFromRoot": "scene_ground_truth on the sim station: the plant's "
                                        "part of a root context its caller owns and no "
-                                       "simulator runs yet (a task's initial masses, the "
-                                       "calibration run's own station)",
+                                       "simulator holds yet (an episode's initial masses, "
+                                       "a calibration run's own station)",
     },
     "station/can_scene.py": {
         "GetMyMutableContextFromRoot": "the scene's private scratch copy of the emulated "
@@ -74,11 +78,6 @@ ALLOWED = {
         "SetTime": "the replay viewer's own scratch context of a rebuilt diagram, never "
                    "simulated: each recorded sample is drawn from it",
         "GetMyMutableContextFromRoot": "the plant's part of that scratch context",
-    },
-    "app/episode.py": {
-        "mutable_context": "the emulated world's hidden masses are written through the "
-                           "scene's ground truth once the emulator runs (to move to the "
-                           "emulator's start-up message, EmulatorProcess(body_masses=...))",
     },
 }
 

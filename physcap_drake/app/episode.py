@@ -2,7 +2,10 @@
 
 The scene is simulated either by the sim station or, with `station: !PiperCan {emulate:
 true}`, by the emulator behind the CAN station; the objects, their hidden masses and the
-success check live in that simulated world (`station.scene_ground_truth`).
+success check live in that simulated world (`station.scene_ground_truth`). The hidden
+masses are the scenario's `body_masses` (the task's layout puts them there): set in the
+sim station's fresh context before its clock runs, or by the emulated arm's world when it
+is built in the emulator's process.
 
 Perception (what get_object_pose and the agent's observations use) is either "rgbd", the
 RGB-D perception that sees from the colour and depth images alone, or "label", the
@@ -40,6 +43,7 @@ from physcap_drake.station import (
     scene_plant,
     scene_snapshot,
 )
+from physcap_drake.station.body_masses import set_body_masses
 from physcap_drake.station.realsense.config import emulated_like
 from physcap_drake.station.sim_config import SimPiper
 from physcap_drake.tasks.registry import get_task
@@ -180,19 +184,19 @@ def make_episode(task_name: str, seed: int, answer: str = "", meshcat=None, *,
             lambda station: make_mcap_recorder(sink, station, scenario)))
     simulated = robot.station.HasSubsystemNamed("plant")
 
-    def set_up(root) -> None:  # initial conditions of the simulated world, before it runs
+    def set_up(root) -> None:
+        # The simulated station's world is in this diagram: its hidden masses are initial
+        # parameters of the clock's fresh context. An emulated arm's world was given them in
+        # its scenario when the station started it (before its simulator started).
         if simulated:
             with scene_ground_truth(robot.station, root) as (plant, context):
-                instance.apply_hidden_masses(plant, context)
+                set_body_masses(plant, context, scenario.body_masses)
 
     try:
         clock = robot.make_clock(set_up)
     except BaseException:
         close_station(robot.station)
         raise
-    if world and not simulated:  # the emulated arm's world, in its own process, once started
-        with scene_ground_truth(robot.station, clock.mutable_context) as (plant, context):
-            instance.apply_hidden_masses(plant, context)
     station_context = robot.station.GetMyContextFromRoot(clock.context)
 
     def read_station(name: str):

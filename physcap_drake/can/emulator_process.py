@@ -10,9 +10,10 @@ physics never holds up the cycle. After every step the world's state (plant posi
 velocities, and the simulation time) is published to a shared block. The parent keeps a
 copy of the world's model (`station.can_scene.EmulatedScene`) and reads that block to
 render the camera and report ground truth, so rendering in the parent never holds up the
-arm. The world's hidden parameters (a task's object masses) come with the start-up message
-and are the world's from its first step; moving things in it later (`set_world`: an
-operator placing a calibration board) goes the other way over the pipe.
+arm. The world's hidden parameters (a task's object masses, the scenario's `body_masses`)
+come with the start-up message, in the scenario the world is built from, and are the
+world's from its first step; moving things in it later (`set_world`: an operator placing
+a calibration board) goes the other way over the pipe.
 """
 
 from __future__ import annotations
@@ -22,7 +23,6 @@ import logging
 import socket
 import sys
 import time
-from collections.abc import Mapping
 
 import numpy as np
 
@@ -38,6 +38,9 @@ WORLD_PATIENCE = 0.005
 REQUEST_TIMEOUT = 10.0
 #: The emulator process's GIL switch interval, s (Python's default is 5 ms).
 SWITCH_INTERVAL = 0.0005
+#: The emulated firmware's cycle rate in the emulator's process, Hz (the PiPER's feedback
+#: rate): the world is stepped, and published, once per cycle.
+FIRMWARE_RATE = 200.0
 
 
 def world_layout(size: int) -> Layout:
@@ -51,31 +54,23 @@ class EmulatorProcess:
     arm, or None for the kinematic arm; `world_builder`: with a scenario, the function that
     builds the world from it in the child, as "package.module:function" called with
     (scenario_yaml, gripper_max_effort) and returning a motion backend (named, not imported:
-    the world is built from layers above this package, see `physcap_drake.emulated_world`);
-    `gripper_max_effort`: N·m at the simulated gripper's
-    full force (see SimulatedMotion); `body_masses`: the world's hidden masses, kg by scoped
-    body name ("model_instance::body", e.g. a task's `TaskInstance.hidden_masses()`), handed
-    to the world builder as its `body_masses` keyword (only when there are some), which
-    builds the world with them; `state_size`: the plant's positions + velocities (the
-    world block's size, 0 without a scenario); `firmware`: the version it reports;
-    `realtime_priority`: its scheduling (see `can.realtime`, 0: normal); `pace_world`:
-    step the world in a thread of its own (`paced_world`, see `serve`). The process starts
-    at once and builds its world in the background; `wait_ready()` waits for it."""
+    the world is built from layers above this package, see `physcap_drake.emulated_world`;
+    it sets the scenario's hidden `body_masses` before the world runs);
+    `gripper_max_effort`: N·m at the simulated gripper's full force (see SimulatedMotion);
+    `state_size`: the plant's positions + velocities (the world block's size, 0 without a
+    scenario); `firmware`: the version it reports; `realtime_priority`: its scheduling (see
+    `can.realtime`, 0: normal); `pace_world`: step the world in a thread of its own
+    (`paced_world`, see `serve`). The process starts at once and builds its world in the
+    background; `wait_ready()` waits for it."""
 
     def __init__(self, bus_socket: socket.socket, scenario_yaml: str | None = None, *,
                  world_builder: str | None = None, gripper_max_effort: float = 2.0,
-                 body_masses: Mapping[str, float] | None = None, state_size: int = 0,
-                 firmware: str = "S-V1.8-2", realtime_priority: int = 0,
+                 state_size: int = 0, firmware: str = "S-V1.8-2", realtime_priority: int = 0,
                  pace_world: bool = False):
         if scenario_yaml is not None and world_builder is None:
             bus_socket.close()
             raise ValueError("an emulated world from a scenario needs its world_builder "
                              "(\"package.module:function\")")
-        if body_masses and scenario_yaml is None:
-            bus_socket.close()
-            raise ValueError("body_masses are the emulated world's, and the kinematic "
-                             "emulated arm (no scenario_yaml) has no world")
-        masses = {str(name): float(kg) for name, kg in (body_masses or {}).items()}
         self._world = SharedBlock(world_layout(state_size)) if state_size else None
         self._last_world: tuple[float, np.ndarray] | None = None
         world_fd = None if self._world is None else self._world.fd
@@ -83,7 +78,7 @@ class EmulatorProcess:
         self._child = ChildProcess(
             "physcap_drake.can.emulator_process:serve",
             (bus_socket.fileno(), scenario_yaml, world_builder, gripper_max_effort, firmware,
-             world_fd, state_size, realtime_priority, pace_world, masses), fds,
+             world_fd, state_size, realtime_priority, pace_world), fds,
             name="piper-emulator")
         bus_socket.close()  # the child has its own copy
         self._ready = False
@@ -132,12 +127,12 @@ class EmulatorProcess:
         """The arm reports this error state from now on (see PiperEmulator.set_error)."""
         self._request(("set_error", arm_status, err_code))
 
-    def set_world(self, parameters: dict[int, np.ndarray], state: np.ndarray | None) -> None:
-        """Writes the simulated world while it runs, as something outside the arm would
-        change it (an operator moving an object): numeric parameter groups of the plant
-        context (by index) and, if given, its positions and velocities; returns once
-        applied. The world's hidden parameters belong in `body_masses` at start instead."""
-        self._request(("set_world", parameters, state))
+    def set_world(self, state: np.ndarray) -> None:
+        """Moves things in the simulated world while it runs, as something outside the arm
+        would (an operator placing an object): the plant's positions and velocities become
+        `state`; returns once applied. The world's parameters (its hidden masses) are set
+        once, before it runs, from the scenario's `body_masses`."""
+        self._request(("set_world", state))
 
     def close(self) -> None:
         """Stops the emulator (the emulated arm stops answering). Safe to call twice."""
@@ -150,10 +145,9 @@ class EmulatorProcess:
 
 def serve(conn, bus_fd: int, scenario_yaml: str | None, world_builder: str | None,
           gripper_max_effort: float, firmware: str, world_fd: int | None, state_size: int,
-          realtime_priority: int, pace_world: bool = False,
-          body_masses: dict[str, float] | None = None) -> None:
+          realtime_priority: int, pace_world: bool = False) -> None:
     """The emulated arm's process: runs until the parent says close or goes away."""
-    from physcap_drake.can.emulator import DEFAULT_RATE, PiperEmulator
+    from physcap_drake.can.emulator import PiperEmulator
     from physcap_drake.can.motion import KinematicMotion
     from physcap_drake.can.paced_world import PacedWorld
     from physcap_drake.can.realtime import use_realtime
@@ -167,9 +161,8 @@ def serve(conn, bus_fd: int, scenario_yaml: str | None, world_builder: str | Non
         if scenario_yaml is None:
             motion = KinematicMotion()
         else:
-            # The hidden masses are the world's parameters from its first step on.
-            extra = {"body_masses": body_masses} if body_masses else {}
-            motion = named_function(world_builder)(scenario_yaml, gripper_max_effort, **extra)
+            # The builder sets the scenario's hidden masses before the world's first step.
+            motion = named_function(world_builder)(scenario_yaml, gripper_max_effort)
     except (RuntimeError, ValueError, OSError) as error:  # say why there is no world; end
         conn.recv()
         conn.send(("error", f"{type(error).__name__}: {error}"))
@@ -191,7 +184,7 @@ def serve(conn, bus_fd: int, scenario_yaml: str | None, world_builder: str | Non
         setup = (lambda: use_realtime(max(realtime_priority - 1, 1),
                                       "the emulated PiPER's world")) \
             if realtime_priority > 1 else None
-        motion = PacedWorld(motion, 1.0 / DEFAULT_RATE, world_thread_setup=setup,
+        motion = PacedWorld(motion, 1.0 / FIRMWARE_RATE, world_thread_setup=setup,
                             on_step=publish if world is not None else None)
 
     use_realtime(realtime_priority, "the emulated PiPER")  # its firmware thread inherits it
@@ -202,7 +195,7 @@ def serve(conn, bus_fd: int, scenario_yaml: str | None, world_builder: str | Non
     bus = SocketBus(socket.socket(fileno=bus_fd), "emulator")
     # A world stepped in the firmware's cycle is published after every cycle.
     on_cycle = publish if world is not None and not pace_world else None
-    emulator = PiperEmulator(bus, firmware=firmware, motion=motion, rate=DEFAULT_RATE,
+    emulator = PiperEmulator(bus, firmware=firmware, motion=motion, rate=FIRMWARE_RATE,
                              on_cycle=on_cycle).start()
     try:
         while True:
@@ -232,15 +225,11 @@ def _answer(emulator, kind: str, args) -> tuple[str, object]:
         emulator.set_error(*args)
         return "ok", None
     if kind == "set_world":
-        parameters, state = args
+        (state,) = args
         motion = emulator.motion
         if not hasattr(motion, "plant"):
             return "error", "the kinematic emulated arm has no simulated world to set"
         with getattr(motion, "lock", emulator.lock):
-            context = motion.plant_context
-            for index, values in parameters.items():
-                context.get_mutable_numeric_parameter(index).SetFromVector(values)
-            if state is not None:
-                motion.plant.SetPositionsAndVelocities(context, state)
+            motion.plant.SetPositionsAndVelocities(motion.plant_context, state)
         return "ok", None
     return "error", f"unknown request {kind!r}"

@@ -66,11 +66,13 @@ NO_WORLD = ("this station has no simulated world (the real arm over CAN): ground
 
 @contextmanager
 def scene_ground_truth(station: Diagram, root_context: Context):
-    """Yields (plant, plant context) of the simulated world behind `station`: the sim
-    station's own plant, or an emulated CAN station's emulated world (what the block changes
-    is written to it when the block ends). Ground truth for success checks and task set-up
-    only, never for agents. Raises RuntimeError for the real arm, which has no simulated
-    world."""
+    """Yields (plant, plant context) of the simulated world behind `station`, to set up
+    before it runs or to move things in, never for agents: the sim station's plant in
+    `root_context` (a root context the caller owns and no simulator holds yet: an
+    episode's initial masses, a calibration run's own context), or an emulated CAN
+    station's emulated world (the positions the block changes are written to it when the
+    block ends; its masses are set at its start, see `Scenario.body_masses`). Raises
+    RuntimeError for the real arm, which has no simulated world."""
     from physcap_drake.station.can_station import SCENE
 
     plant = scene_plant(station)

@@ -97,20 +97,29 @@ class EmulatedScene(LeafSystem):
 
     @contextmanager
     def ground_truth(self):
-        """Yields (plant, plant context) of the world now; what the block changes in it
-        (parameters such as masses, positions, velocities) is written to the emulated
-        world when the block ends."""
+        """Yields (plant, plant context) of the world now; the positions and velocities the
+        block changes are written to the emulated world when the block ends (as an operator
+        moves things). Raises RuntimeError if the block changed a parameter (a mass): the
+        emulated world's parameters are set before it runs (the scenario's body_masses)."""
         self._sync()
         context = self._plant_context
         before = _parameters(context)
         state = self.plant.GetPositionsAndVelocities(context).copy()
-        yield self.plant, context
-        changed = {i: v for i, v in _parameters(context).items()
-                   if not np.array_equal(v, before[i])}
-        now = self.plant.GetPositionsAndVelocities(context)
-        moved = None if np.array_equal(now, state) else now.copy()
-        if changed or moved is not None:
-            self.emulator.set_world(changed, moved)
+        try:
+            yield self.plant, context
+            changed = [i for i, v in _parameters(context).items()
+                       if not np.array_equal(v, before[i], equal_nan=True)]
+            if changed:
+                raise RuntimeError(
+                    f"the emulated world's parameters (groups {changed}) cannot change while "
+                    "it runs: give its hidden masses in the scenario's body_masses, which the "
+                    "emulated arm's world sets before its first step")
+            now = self.plant.GetPositionsAndVelocities(context)
+            if not np.array_equal(now, state):
+                self.emulator.set_world(now.copy())
+        finally:  # the scratch copy keeps the model's parameters
+            for index, values in before.items():
+                context.get_mutable_numeric_parameter(index).SetFromVector(values)
 
 
 def _parameters(context: Context) -> dict[int, np.ndarray]:

@@ -1,10 +1,14 @@
 """SimulatedMotion: the emulator's arm is the simulated station (MultibodyPlant physics).
 
-Each firmware cycle feeds the joint reference and the gripper command into the simulated
-station's inputs and advances its simulator by one period, so joint motion, joint torques
-and gripper effort come from the same physics as the sim station, with the task's objects
-in the scene. The scene is also what an emulated station's camera sees and what the task's
-success check reads (ground truth the real arm does not have).
+The world is a diagram of the simulated station and a `FirmwareCommandSource` wired to its
+inputs. Each firmware cycle leaves the joint reference and the gripper command in the
+source's mailbox and advances the world's simulator by one period; the source latches the
+command in its own event, so the station pulls it from the diagram and nothing writes it
+into the world's context. Joint motion, joint torques and gripper effort come from the
+same physics as the sim station, with the task's objects in the scene, weighing the
+scenario's hidden `body_masses` from the first step on. The scene is also what an emulated
+station's camera sees and what the task's success check reads (ground truth the real arm
+does not have).
 
 The end-load setting (0x477) is applied as the firmware applies it: the weight of a half
 (0.75 kg) or full (1.5 kg) payload at the fingertip is added to the joints' feed-forward.
@@ -17,11 +21,13 @@ import dataclasses as dc
 import numpy as np
 from pydrake.multibody.tree import JacobianWrtVariable
 from pydrake.systems.analysis import Simulator
-from pydrake.systems.framework import Context
+from pydrake.systems.framework import Context, DiagramBuilder
 
 from physcap_drake.can.arm_state import DEFAULT_MAX_SPEED
 from physcap_drake.can.motion import MotionCommand, MotionReading
 from physcap_drake.station import ports
+from physcap_drake.station.body_masses import set_body_masses
+from physcap_drake.station.firmware_command import CommandMailbox, FirmwareCommandSource
 
 #: Payload of the end-load settings 0 (empty), 1 (half), 2 (full), kg: the PiPER's rated
 #: payload is 1.5 kg.
@@ -42,7 +48,8 @@ class SimulatedMotion:
     """A motion backend for `PiperEmulator` (see module docstring).
 
     Args:
-        scenario: a scenario whose `station` is a `SimPiper` (the scene to simulate).
+        scenario: a scenario whose `station` is a `SimPiper` (the scene to simulate); its
+            `body_masses` are set in the world's context before its simulator starts.
         gripper_max_effort: the gripper motor effort (N·m) that corresponds to the simulated
             gripper's maximum squeeze force (`station.gripper_servo.max_force`): a commanded
             effort limit e maps to a force limit e / gripper_max_effort · max_force, and the
@@ -60,13 +67,28 @@ class SimulatedMotion:
         scenario = dc.replace(scenario, station=dc.replace(
             scenario.station, joint_servo=dc.replace(
                 servo, max_acceleration=PASS_THROUGH_ACCELERATION)))
-        self.station = MakeSimStation(scenario)
-        self.plant = self.station.GetSubsystemByName("plant")
         config = scenario.station
+        self._mailbox = CommandMailbox(np.asarray(config.initial_arm_position, dtype=float),
+                                       config.initial_gripper_opening, 0.0)
+        builder = DiagramBuilder()
+        self.station = builder.AddNamedSystem("station", MakeSimStation(scenario))
+        command = builder.AddNamedSystem("firmware_command", FirmwareCommandSource(
+            self._mailbox))
+        for name in ports.VECTOR_INPUTS:
+            builder.Connect(command.GetOutputPort(name), self.station.GetInputPort(name))
+        world = builder.Build()
+        world.set_name("emulated_world")
+        self.plant = self.station.GetSubsystemByName("plant")
         self._max_force = config.gripper_servo.max_force
         self._max_effort = float(gripper_max_effort)
-        self._simulator = Simulator(self.station)
+        context = world.CreateDefaultContext()
+        # The hidden masses are parameters of this fresh context, which the simulator then
+        # owns: the world weighs them from its first step on.
+        set_body_masses(self.plant, self.plant.GetMyMutableContextFromRoot(context),
+                        scenario.body_masses)
+        self._simulator = Simulator(world, context)
         self._context = self._simulator.get_mutable_context()
+        self._station_context = self.station.GetMyContextFromRoot(self._context)
         arm = self.plant.GetModelInstanceByName(config.arm_model)
         self._arm_velocities = sorted(
             self.plant.get_joint_actuator(i).joint().velocity_start()
@@ -76,14 +98,14 @@ class SimulatedMotion:
         self._feedforward = (self.station.GetSubsystemByName("arm_feedforward")
                              if self.station.HasSubsystemNamed("arm_feedforward") else None)
         self._reference: np.ndarray | None = None  # the last period's joint reference
-        self._fix(np.asarray(config.initial_arm_position, dtype=float),
-                  config.initial_gripper_opening, 0.0)
-        self._applied(np.zeros(self.plant.num_velocities()))
+        # The end load's torque now on the plant's applied-force input (None: never set,
+        # which the plant takes as zero).
+        self._load_applied: np.ndarray | None = None
         self._simulator.Initialize()
 
     @property
     def context(self) -> Context:
-        """The simulated station's live context (read it holding the emulator's lock)."""
+        """The emulated world's live root context (read it holding the emulator's lock)."""
         return self._context
 
     @property
@@ -127,10 +149,10 @@ class SimulatedMotion:
                 # Fixed before the update and advanced just past it: the update sees this
                 # value whichever side of a boundary Drake handles it on.
                 fraction = min((update - t0) / dt, 1.0)
-                self._fix(start + fraction * (reference - start), opening, force)
+                self._mailbox.put(start + fraction * (reference - start), opening, force)
                 self._simulator.AdvanceTo(update + PAST_UPDATE)
                 update += period
-            self._fix(reference, opening, force)
+            self._mailbox.put(reference, opening, force)
             if self._context.get_time() < end:
                 self._simulator.AdvanceTo(end)
         except RuntimeError as error:
@@ -179,17 +201,20 @@ class SimulatedMotion:
 
     # Station I/O -------------------------------------------------------------------------
 
-    def _fix(self, q: np.ndarray, opening: float, force: float) -> None:
-        station, context = self.station, self._context
-        station.GetInputPort(ports.ARM_POSITION).FixValue(context, q)
-        station.GetInputPort(ports.GRIPPER_POSITION).FixValue(context, [opening])
-        station.GetInputPort(ports.GRIPPER_FORCE_LIMIT).FixValue(context, [force])
-
     def _applied(self, tau: np.ndarray) -> None:
+        """The end load's torque on the plant's applied-force input, when it changed. The
+        simulated station keeps that input inside (it exports no port to connect a source
+        to), so the world's owner sets it between steps; without an end load it is never
+        set and the plant applies nothing."""
+        if self._load_applied is None and not tau.any():
+            return
+        if self._load_applied is not None and np.array_equal(tau, self._load_applied):
+            return
         self.plant.get_applied_generalized_force_input_port().FixValue(self.plant_context, tau)
+        self._load_applied = tau.copy()
 
     def _output(self, name: str) -> np.ndarray:
-        return self.station.GetOutputPort(name).Eval(self._context)
+        return self.station.GetOutputPort(name).Eval(self._station_context)
 
 
 def simulated_motion(scenario) -> SimulatedMotion:

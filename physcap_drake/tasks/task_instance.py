@@ -64,29 +64,18 @@ class TaskInstance:
                        f"(objects: {[o.visible.name for o in self.objects]})")
 
     def add_to(self, scenario: Scenario) -> None:
-        """Appends the objects' model directives to the scenario."""
+        """Appends the objects' model directives to the scenario and gives its simulated
+        world the objects' hidden masses (`Scenario.body_masses`, set by whoever runs that
+        world before it starts)."""
         scenario.random_seed = self.seed
         scenario.directives.extend(obj.directive() for obj in self.objects)
+        scenario.body_masses.update(self.hidden_masses())
 
     def hidden_masses(self) -> dict[str, float]:
         """The objects' hidden masses, kg, by scoped body name ("model_instance::body"):
-        parameters of the simulated world, given to it where it is built (an emulated arm's
-        world takes them in its start-up message, see `can.emulator_process`)."""
+        parameters of the simulated world, given to it where it is built (see add_to)."""
         return {f"{obj.body}::{_link_name(obj.model)}": float(obj.hidden["mass_kg"])
                 for obj in self.objects if "mass_kg" in obj.hidden}
-
-    def apply_hidden_masses(self, plant, plant_context) -> None:
-        """Sets each object's simulated mass from its hidden `mass_kg` (simulation only) in
-        `plant_context`, a fresh context of the world that no simulator runs yet: masses are
-        initial parameters, never changed once the world runs.
-
-        (A MultibodyPlant reads a body's default mass from its model file and has no setter
-        for it once the model is parsed, so the parameter is set in the one root context
-        the world's clock is created with: `RobotStack.make_clock(set_up)`.)"""
-        for name, mass in self.hidden_masses().items():
-            instance, link = name.rsplit("::", 1)
-            body = plant.GetBodyByName(link, plant.GetModelInstanceByName(instance))
-            body.SetMass(plant_context, mass)
 
     def body_of(self, plant, name: str):
         obj = self.object(name)

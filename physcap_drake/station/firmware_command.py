@@ -1,0 +1,90 @@
+"""The emulated firmware's command as a source system of the emulated world.
+
+The emulated arm's world (`simulated_motion.SimulatedMotion`) is the simulated station
+driven by the emulated firmware: each firmware period the firmware's joint reference,
+gripper opening and gripper force limit must reach the station's inputs. The firmware is
+not a Drake system; it hands its command over the way Drake's LcmSubscriberSystem receives
+a message from outside the diagram: the outside writes a small holder (`CommandMailbox`,
+like the subscriber's message buffer), and the source system latches the holder's latest
+value into its own state in an unrestricted update event; its outputs read only that
+state. So the command enters the world's context only through the world's own event, and
+every output is a function of the context.
+
+Why a per-step unrestricted update: the world's owner advances its simulator exactly to
+each of the joint loop's updates and puts the command meant for that update in the
+mailbox before each advance, so every simulator step must begin with the latest command
+(per-step), and the latch must come before the plant's and the servos' discrete updates at
+the same time (Drake handles a step's unrestricted updates before its discrete updates).
+A periodic latch would need the owner's schedule twice; an input port fixed from outside
+(what this replaces) writes into the context behind its systems' backs.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from pydrake.systems.framework import BasicVector, Context, LeafSystem, State
+
+from physcap_drake.station import ports
+
+#: Layout of the command: joint reference (6, rad), gripper opening (m), force limit (N).
+_Q = slice(0, ports.NUM_ARM_JOINTS)
+_OPENING = ports.NUM_ARM_JOINTS
+_FORCE = ports.NUM_ARM_JOINTS + 1
+_SIZE = ports.NUM_ARM_JOINTS + 2
+
+
+class CommandMailbox:
+    """The latest command the emulated firmware left for the world: joint reference (6,
+    rad), gripper opening (m, total gap) and gripper force limit (N per finger).
+
+    `put` replaces the whole command at once (one reference assignment), so a reader in
+    another thread sees the previous command or the new one, never a mix."""
+
+    def __init__(self, q: np.ndarray, opening: float, force: float):
+        self.put(q, opening, force)
+
+    def put(self, q: np.ndarray, opening: float, force: float) -> None:
+        command = np.empty(_SIZE)
+        command[_Q] = q
+        command[_OPENING], command[_FORCE] = opening, force
+        command.setflags(write=False)
+        self._command = command
+
+    def latest(self) -> np.ndarray:
+        """The latest command as one read-only vector [q (6), opening, force]."""
+        return self._command
+
+
+class FirmwareCommandSource(LeafSystem):
+    """The emulated firmware's latest command (see module docstring).
+
+    Discrete state: the command [q (6, rad), opening (m), force limit (N)] latched from
+    `mailbox` at initialization and at the start of every simulator step.
+    Output ports (the simulated station's inputs): piper.position (6, rad),
+        gripper.position (1, m), gripper.force_limit (1, N).
+    """
+
+    def __init__(self, mailbox: CommandMailbox):
+        super().__init__()
+        self.mailbox = mailbox  # the firmware's side of the hand-over, not state
+        self._command = self.DeclareDiscreteState(np.array(mailbox.latest()))
+        self.DeclareInitializationUnrestrictedUpdateEvent(self._latch)
+        self.DeclarePerStepUnrestrictedUpdateEvent(self._latch)
+        ticket = {self.discrete_state_ticket(self._command)}
+        for name, part in ((ports.ARM_POSITION, _Q),
+                           (ports.GRIPPER_POSITION, slice(_OPENING, _OPENING + 1)),
+                           (ports.GRIPPER_FORCE_LIMIT, slice(_FORCE, _FORCE + 1))):
+            self.DeclareVectorOutputPort(name, part.stop - part.start, self._output_of(part),
+                                         ticket)
+
+    def command(self, context: Context) -> np.ndarray:
+        """The command latched in `context`: [q (6), opening, force]."""
+        return context.get_discrete_state(self._command).get_value()
+
+    def _latch(self, context: Context, state: State) -> None:
+        state.get_mutable_discrete_state(self._command).SetFromVector(self.mailbox.latest())
+
+    def _output_of(self, part: slice):
+        def calc(context: Context, output: BasicVector) -> None:
+            output.SetFromVector(self.command(context)[part])
+        return calc
