@@ -12,8 +12,10 @@ from pydrake.common.yaml import yaml_dump_typed
 
 from physcap_drake.can.motion import MotionCommand
 from physcap_drake.emulated_world import build_world
+from physcap_drake.robot_stack import build_robot_stack
 from physcap_drake.scenario import check_scenario, load_scenario_text
 from physcap_drake.scenario_errors import ScenarioError
+from physcap_drake.station import scene_plant
 from physcap_drake.station.can_config import PiperCan
 from physcap_drake.station.simulated_motion import simulated_motion
 from physcap_drake.tasks.registry import get_task
@@ -67,3 +69,14 @@ def test_the_real_arm_has_no_world_to_weigh(table_scenario):
     table_scenario.station = PiperCan(interface="virtual", emulate=False)
     with pytest.raises(ScenarioError, match=r"body_masses.*real arm"):
         check_scenario(dc.replace(table_scenario, cameras=[]))
+
+
+def test_the_sim_stations_clock_starts_with_the_masses_whoever_builds_it(table_scenario):
+    # Not only an episode: `physcap sim`, the demo and the benches make their clock the
+    # same way, and the world they simulate weighs what the scenario says.
+    table_scenario.body_masses = {CAN: 0.321}
+    robot = build_robot_stack(table_scenario)
+    clock = robot.make_clock()
+    plant = scene_plant(robot.station)
+    can = plant.GetBodyByName("soda_can")
+    assert can.get_mass(plant.GetMyContextFromRoot(clock.context)) == pytest.approx(0.321)

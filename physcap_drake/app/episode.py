@@ -39,11 +39,9 @@ from physcap_drake.robot_stack import RobotStack, build_robot_stack
 from physcap_drake.scenario import MAIN_CAMERA, Scenario, load_scenario
 from physcap_drake.station import (
     close_station,
-    scene_ground_truth,
     scene_plant,
     scene_snapshot,
 )
-from physcap_drake.station.body_masses import set_body_masses
 from physcap_drake.station.realsense.config import emulated_like
 from physcap_drake.station.sim_config import SimPiper
 from physcap_drake.tasks.registry import get_task
@@ -182,18 +180,8 @@ def make_episode(task_name: str, seed: int, answer: str = "", meshcat=None, *,
         if with_agent else None,
         make_recorder=None if sink is None else (
             lambda station: make_mcap_recorder(sink, station, scenario)))
-    simulated = robot.station.HasSubsystemNamed("plant")
-
-    def set_up(root) -> None:
-        # The simulated station's world is in this diagram: its hidden masses are initial
-        # parameters of the clock's fresh context. An emulated arm's world was given them in
-        # its scenario when the station started it (before its simulator started).
-        if simulated:
-            with scene_ground_truth(robot.station, root) as (plant, context):
-                set_body_masses(plant, context, scenario.body_masses)
-
     try:
-        clock = robot.make_clock(set_up)
+        clock = robot.make_clock()
     except BaseException:
         close_station(robot.station)
         raise
