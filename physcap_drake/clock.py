@@ -11,7 +11,13 @@ bus) calls `AdvanceTo`.
 Pacing also lives here: with the scenario's `simulator_config.target_realtime_rate` > 0 the
 simulator runs no faster than that multiple of real time. Time spent outside the clock (a
 model answering, a caller computing) is a pause: every run restarts Drake's pacing
-statistics, so a run never makes up for a pause by going faster than the rate.
+statistics, so a run never makes up for a pause by going faster than the rate. Nor does a
+run make up for a stall within it: Drake's Simulator paces against the wall time since the
+run began, so after a step that took long (a rendered frame, an RGB-D look) it would run
+flat out until it caught up, and a robot that moves in real time (the arm over CAN) would
+see its diagram's deadlines and trajectories pass faster than life. A paced run that falls
+more than MAX_CATCH_UP behind the wall clock restarts its pacing there: the lost time is
+lost, as on a real controller.
 """
 
 from __future__ import annotations
@@ -25,6 +31,9 @@ from pydrake.systems.framework import Context, Diagram, EventStatus
 
 #: How often run_for reports progress by default, s of simulated time.
 PROGRESS_PERIOD = 0.1
+#: How far behind the wall clock a paced run may fall and still make it up (by running
+#: faster than its rate), s of wall time: the scheduler's jitter, not a stall.
+MAX_CATCH_UP = 0.02
 
 
 @dc.dataclass
@@ -128,8 +137,9 @@ class Clock:
 
     def _advance(self, boundary: float, monitor) -> None:
         simulator = self._simulator
-        if simulator.get_target_realtime_rate() > 0:
-            simulator.ResetStatistics()  # the time since the last run was a pause
+        rate = simulator.get_target_realtime_rate()
+        if rate > 0:  # the time since the last run was a pause; stalls in it are let go
+            monitor = _Pacing(simulator, rate, monitor)
         if monitor is not None:
             simulator.set_monitor(monitor)
         try:
@@ -137,3 +147,29 @@ class Clock:
         finally:
             if monitor is not None:
                 simulator.clear_monitor()
+
+
+class _Pacing:
+    """The monitor of a paced run: after every step, a run more than MAX_CATCH_UP s behind
+    the wall clock restarts Drake's pacing statistics (which it paces against) from where it
+    is, so it never runs faster than its rate to make up a stall; then `monitor` (if any)."""
+
+    def __init__(self, simulator: Simulator, rate: float, monitor):
+        self._simulator = simulator
+        self._rate = rate
+        self._monitor = monitor
+        self._restart()
+
+    def _restart(self) -> None:
+        self._simulator.ResetStatistics()
+        self._sim_origin = self._simulator.get_context().get_time()
+        self._wall_origin = time.monotonic()
+
+    def __call__(self, context: Context) -> EventStatus:
+        elapsed = context.get_time() - self._sim_origin
+        behind = time.monotonic() - self._wall_origin - elapsed / self._rate  # wall s
+        if behind > MAX_CATCH_UP:
+            self._restart()
+        if self._monitor is None:
+            return EventStatus.DidNothing()
+        return self._monitor(context)

@@ -76,3 +76,25 @@ def test_only_the_clock_and_the_emulator_advance_time():
     callers = sorted(str(path.relative_to(package)) for path in package.rglob("*.py")
                      if ".AdvanceTo(" in path.read_text())
     assert callers == ["clock.py", "station/simulated_motion.py"]
+
+
+class Stall(Counter):
+    """A Counter whose event at STALL_AT s holds the interpreter for STALL s (a rendered frame
+    or an RGB-D look inside the run)."""
+
+    STALL_AT, STALL = 0.1, 0.3
+
+    def _tick(self, context, state):
+        if abs(context.get_time() - self.STALL_AT) < TICK / 2:
+            time.sleep(self.STALL)
+            self.after_stall = time.perf_counter()
+        super()._tick(context, state)
+
+
+def test_a_paced_run_does_not_make_up_for_a_stall_within_it():
+    stall = Stall()
+    clock = Clock(stall, SimulatorConfig(target_realtime_rate=1.0))
+    clock.run_for(0.5)
+    # The 0.4 s of simulated time after the stall take 0.4 s of wall time: the run does not
+    # sprint to catch up the 0.3 s the stall lost (it would be done about 0.1 s after it).
+    assert time.perf_counter() - stall.after_stall >= 0.38
