@@ -56,7 +56,7 @@ def _twin(tmp_path, task: str = "identify_empty_can", small: bool = True) -> str
     text = (stations_dir() / f"{task}_rig_emulated.yaml").read_text()
     text = text.replace(f"channel: {task}_rig", f"channel: {unique_channel()}")
     if small:
-        text = text.replace("width: 640", f"width: {W}").replace("height: 360", f"height: {H}")
+        text = text.replace("width: 1280", f"width: {W}").replace("height: 720", f"height: {H}")
     path = tmp_path / "twin.yaml"
     path.write_text(text)
     return str(path)
