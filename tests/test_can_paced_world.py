@@ -8,10 +8,17 @@ import time
 import numpy as np
 import pytest
 
+from physcap_drake.can.arm_state import DEFAULT_MAX_SPEED
 from physcap_drake.can.emulator import PiperEmulator
 from physcap_drake.can.lateness import LagTracker
 from physcap_drake.can.motion import KinematicMotion, MotionCommand
-from physcap_drake.can.paced_world import MAX_LAG, MAX_STEP_PERIODS, REST, PacedWorld
+from physcap_drake.can.paced_world import (
+    MAX_LAG,
+    MAX_STEP_PERIODS,
+    REST,
+    PacedWorld,
+    along_path,
+)
 from physcap_drake.can.socket_bus import SocketBus, socket_pair
 
 PERIOD = 0.005
@@ -152,3 +159,59 @@ def test_a_failed_world_is_reported_to_the_firmware_naming_the_failure():
                 time.sleep(PERIOD)
     finally:
         world.stop()
+
+
+class Recording(SlowWorld):
+    """A SlowWorld that keeps the joint reference of every step it was given."""
+
+    def __init__(self, cost: float):
+        super().__init__(cost)
+        self.references: list[np.ndarray] = []
+
+    def step(self, command, dt):
+        self.references.append(command.reference.copy())
+        return super().step(command, dt)
+
+
+def test_a_world_that_is_behind_follows_the_references_it_missed_in_order():
+    """The firmware's reference turns a corner (joint 1 out to 0.3 rad, then joint 2 out to
+    0.3 rad, each at 1.5 rad/s); a world four times slower than real time is given every
+    point of that path in order, at most the arm's top joint speed apart per step, never
+    the newest reference alone (which its joint loop would reach on a straight line, across
+    the corner: an arm descending early onto what stands below its path)."""
+    slow = Recording(cost=10 * PERIOD)
+    world = PacedWorld(slow, PERIOD)
+    speed = 1.5  # rad/s
+    corner = 0.3 / speed
+    start = time.monotonic()
+    try:
+        while (elapsed := time.monotonic() - start) < 2 * corner + 1.0:
+            q = np.zeros(6)
+            q[0] = min(elapsed, corner) * speed
+            q[1] = min(max(elapsed - corner, 0.0), corner) * speed
+            world.step(MotionCommand(q, np.ones(6, dtype=bool), 0.05, 1.0, True), PERIOD)
+            time.sleep(PERIOD)
+    finally:
+        world.stop()
+    given = np.array(slow.references)
+    # On the path: joint 2 moves only once joint 1 is out (within a step of the corner).
+    assert np.all((given[:, 1] <= 1e-9) | (given[:, 0] >= 0.3 - 1e-9))
+    # No jumps: consecutive references within the top joint speed over the step's time.
+    jumps = np.abs(np.diff(given, axis=0)).max(axis=1)
+    assert np.all(jumps <= DEFAULT_MAX_SPEED * np.array(slow.steps[1:]) + 1e-9)
+    # And the world got to the end of the path.
+    np.testing.assert_allclose(given[-1, :2], [0.3, 0.3], atol=1e-9)
+
+
+def test_along_path_walks_the_legs_in_order_by_their_largest_joint_travel():
+    start = np.zeros(2)
+    path = [np.array([0.2, 0.0]), np.array([0.2, 0.1]), np.array([0.2, 0.1])]
+    point, passed = along_path(start, path, 0.25)
+    np.testing.assert_allclose(point, [0.2, 0.05])
+    assert passed == 1  # past the corner, not yet at the second point
+    point, passed = along_path(start, path, 1.0)
+    np.testing.assert_allclose(point, [0.2, 0.1])
+    assert passed == 3
+    point, passed = along_path(np.array([0.0, 0.0]), [np.array([0.4, 0.2])], 0.1)
+    np.testing.assert_allclose(point, [0.1, 0.05])  # the largest joint moves 0.1 rad
+    assert passed == 0

@@ -8,8 +8,12 @@ command to this wrapper and takes the world's latest reading back at once, and a
 thread advances the world by the wall time that passed since its last step:
 
 - one firmware period at a time while it keeps up (it sleeps until the next one is due);
-- behind, by several periods in one step (at most `max_step` s), with the latest command
-  (the reference then moves over the longer step at the firmware's own speed);
+- behind, by several periods in one step (at most `max_step` s), with the latest command's
+  gripper and settings and a joint reference that follows the path the firmware's
+  references took since the last step, in order, at most the arm's top joint speed over
+  the step (`along_path`): never the latest reference alone, which the world's joint loop
+  would reach on a straight line across the path's corners (an arm that cuts the corner
+  from a lift to the point above a tray descends early, onto the tray's rim);
 - more than `max_lag` s behind, it lets the excess go (the world's time slips against the
   wall clock, like a simulator that cannot keep real time) instead of sprinting after it;
 - after every step it rests for at least `REST` of the step's wall time, so a world that
@@ -27,8 +31,12 @@ import dataclasses as dc
 import logging
 import threading
 import time
+from collections import deque
 from collections.abc import Callable
 
+import numpy as np
+
+from physcap_drake.can.arm_state import DEFAULT_MAX_SPEED
 from physcap_drake.can.lateness import LagTracker, Lateness
 from physcap_drake.can.motion import MotionCommand, MotionReading
 
@@ -41,6 +49,23 @@ MAX_STEP_PERIODS = 4
 MAX_LAG = 0.1
 #: The least rest after a world step, as a fraction of the step's wall time.
 REST = 0.5
+#: The most firmware references a world that is behind keeps to follow, s of them: older
+#: ones are dropped (the reference then jumps, and the backend's own speed limit takes over).
+MAX_BACKLOG = 2.0
+
+
+def along_path(start: np.ndarray, path, reach: float) -> tuple[np.ndarray, int]:
+    """The point `reach` along the polyline from `start` (rad) through the points of `path`
+    (rad), measuring each leg by its largest joint travel, so no joint moves more than
+    `reach` (rad) in all; and how many points of `path` it passed (all of them, ending on
+    the last, when the path is shorter than `reach`)."""
+    point = np.asarray(start, dtype=float)
+    for passed, q in enumerate(path):
+        leg = float(np.max(np.abs(q - point)))
+        if leg > reach:
+            return point + (q - point) * (reach / leg), passed
+        point, reach = q, reach - leg
+    return point, len(path)
 
 
 @dc.dataclass(frozen=True)
@@ -61,11 +86,14 @@ class PacedWorld:
     waits for it (see module docstring). `period`: the firmware's period (s);
     `on_step()`: called after every world step while `lock` is held (to publish the world);
     `world_thread_setup()`: called once in the world thread before it steps (its
-    scheduling). Hold `lock` to read or write the wrapped world."""
+    scheduling); `max_speed`: the fastest a joint reference moves, rad/s (the pace at which
+    a world that is behind follows the references it missed). Hold `lock` to read or
+    write the wrapped world."""
 
     def __init__(self, motion, period: float, *, on_step: Callable[[], None] | None = None,
                  world_thread_setup: Callable[[], None] | None = None,
-                 max_step_periods: int = MAX_STEP_PERIODS, max_lag: float = MAX_LAG):
+                 max_step_periods: int = MAX_STEP_PERIODS, max_lag: float = MAX_LAG,
+                 max_speed: float = DEFAULT_MAX_SPEED):
         if max_lag < max_step_periods * period:
             raise ValueError(f"max_lag {max_lag} s is shorter than the largest step "
                              f"({max_step_periods} periods of {period} s)")
@@ -76,7 +104,12 @@ class PacedWorld:
         self._max_lag = max_lag
         self._on_step = on_step
         self._setup = world_thread_setup
+        self._max_speed = max_speed
         self._command: MotionCommand | None = None
+        # The joint references the firmware left since the world's last step, and the one
+        # the world was last given (rad).
+        self._backlog: deque[np.ndarray] = deque(maxlen=max(1, round(MAX_BACKLOG / period)))
+        self._followed: np.ndarray | None = None
         self._reading: MotionReading | None = None
         self._error: BaseException | None = None  # what stopped the world thread
         self._stop = threading.Event()
@@ -100,6 +133,8 @@ class PacedWorld:
         firmware's period: the world thread paces itself by the wall clock."""
         with self._state_lock:
             self._command = command
+            if not self._backlog or not np.array_equal(command.reference, self._backlog[-1]):
+                self._backlog.append(np.array(command.reference, dtype=float))
             reading, error = self._reading, self._error
         if error is not None:  # the arm cannot move without its world: say why, as before
             raise RuntimeError(f"the emulated world stopped: {error}") from error
@@ -111,6 +146,8 @@ class PacedWorld:
                 self._on_step()
         with self._state_lock:
             self._reading = reading
+            self._followed = np.array(command.reference, dtype=float)
+            self._backlog.clear()
         self._start()
         return reading
 
@@ -152,8 +189,7 @@ class PacedWorld:
             origin += slip
             due -= slip
             dt = min(self._period * int(due / self._period + 1e-9), self._max_step)
-            with self._state_lock:
-                command = self._command
+            command = self._next_command(dt)
             with self.lock:
                 reading = self.motion.step(command, dt)
                 if self._on_step is not None:
@@ -170,3 +206,14 @@ class PacedWorld:
                                           world_time=simulated,
                                           wall_time=time.monotonic() - started)
             self._stop.wait(REST * cost)
+
+    def _next_command(self, dt: float) -> MotionCommand:
+        """The latest command, its joint reference moved along the backlog's path by at most
+        the top joint speed over `dt` s from the one the world was given last."""
+        with self._state_lock:
+            reference, passed = along_path(self._followed, self._backlog,
+                                           self._max_speed * dt)
+            for _ in range(passed):
+                self._backlog.popleft()
+            self._followed = reference
+            return dc.replace(self._command, reference=reference.copy())
