@@ -83,6 +83,11 @@ def test_the_emulated_twin_sees_the_emulators_world_through_librealsense(tmp_pat
         rendered_rgb = scene.GetOutputPort("camera.rgb").Eval(scene_context).data
         rendered = scene.GetOutputPort("camera.depth").Eval(scene_context).data[:, :, 0]
         assert rgb.shape == (H, W, 4) and np.array_equal(rgb[:, :, :3], rendered_rgb[:, :, :3])
+        # The twin's depth stream has half the colour resolution (depth_step 2), aligned to
+        # colour: each depth pixel covers 2 x 2 colour pixels.
+        step = scenario.cameras[0].emulation.depth_step
+        assert step == 2 and depth.shape == (H, W)
+        rendered = np.repeat(np.repeat(rendered[::step, ::step], step, axis=0), step, axis=1)
         measured, seen = depth > 0, np.isfinite(rendered) & (rendered > 0)
         assert seen.mean() > 0.15 and not (measured & ~seen).any()  # the table, not the sky
         assert 0.6 < measured.sum() / seen.sum() < 1.0  # some holes, mostly depth
