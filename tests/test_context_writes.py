@@ -65,7 +65,9 @@ ALLOWED = {
     },
     "station/can_scene.py": {
         "GetMyMutableContextFromRoot": "the scene's private scratch copy of the emulated "
-                                       "world, set from its own state before each use",
+                                       "world, set from its own latched state (or, for "
+                                       "readers outside the diagram, the published world) "
+                                       "before each use",
     },
     "control/planning_model.py": {
         "GetMyMutableContextFromRoot": "the planning model's own scratch context",

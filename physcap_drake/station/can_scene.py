@@ -17,8 +17,9 @@ from contextlib import contextmanager
 import numpy as np
 from pydrake.common.value import AbstractValue
 from pydrake.multibody.plant import MultibodyPlant
-from pydrake.systems.framework import Context, LeafSystem
+from pydrake.systems.framework import Context, DiscreteValues, LeafSystem
 
+from physcap_drake.can.emulator_process import FIRMWARE_RATE
 from physcap_drake.station import ports
 from physcap_drake.station.can_session import CanSession
 from physcap_drake.station.ports import camera_port
@@ -34,11 +35,16 @@ class EmulatedScene(LeafSystem):
     `cameras` (names of the emulator's simulated station's cameras; the station camera by
     default) and body_poses, all of the emulator's simulated scene.
 
-    Each evaluation copies the world state the emulated arm last published into this
-    system's own copy of the scene and evaluates the simulated station's port there, so
-    rendering never holds up the arm. The values are the same types as the sim station's.
-    Body poses are in the world frame, indexed by BodyIndex of `plant`; they and the label
-    image are ground truth for success checks only.
+    Discrete state: the emulated plant's positions and velocities (`world_size` values) as
+    the emulated arm last published them, latched by this system's own events: at
+    initialization and every period at which the emulated arm publishes its world (1 /
+    `can.emulator_process.FIRMWARE_RATE` s; more often would read nothing new), or, once the
+    station was released, the world as it was then. The outputs read only that state: they
+    set it into this system's private copy of the scene (a scratch context no other system
+    sees) and evaluate the simulated station's port there, so rendering never holds up the
+    arm. The values are the same types as the sim station's. Body poses are in the world
+    frame, indexed by BodyIndex of `plant`; they and the label image are ground truth for
+    success checks only.
     """
 
     def __init__(self, scenario, session: CanSession, cameras: tuple[str, ...] = (MAIN_CAMERA,)):
@@ -48,13 +54,19 @@ class EmulatedScene(LeafSystem):
         self.session = session  # resources shared with the emulator, not state
         self.station = MakeSimStation(dc.replace(scenario, station=scenario.station.emulated))
         self.plant = self.station.GetSubsystemByName("plant")
+        # The scene copy's scratch context, owned by this system (the usual Drake way to
+        # evaluate a model outside the diagram); set from this system's state before use.
         self._context = self.station.CreateDefaultContext()
         self._plant_context = self.plant.GetMyMutableContextFromRoot(self._context)
+        self._world = self.DeclareDiscreteState(
+            self.plant.GetPositionsAndVelocities(self._plant_context))
+        self.DeclareInitializationDiscreteUpdateEvent(self._latch)
+        self.DeclarePeriodicDiscreteUpdateEvent(1.0 / FIRMWARE_RATE, 0.0, self._latch)
         names = [camera_port(camera, image) for camera in cameras for image in IMAGES]
         for name in (*names, ports.BODY_POSES):
             port = self.station.GetOutputPort(name)
             self.DeclareAbstractOutputPort(name, port.Allocate, self._copier(port),
-                                           {self.time_ticket()})
+                                           {self.discrete_state_ticket(self._world)})
         # The first image costs several times the next ones (renderer set-up): pay it now.
         for camera in cameras:
             self.station.GetOutputPort(camera_port(camera, "rgb")).Eval(self._context)
@@ -72,23 +84,34 @@ class EmulatedScene(LeafSystem):
                                "or call start_can_station(station)")
         return self.session.emulator
 
+    def world_state(self, context: Context) -> np.ndarray:
+        """The emulated plant's positions and velocities latched in this system's `context`."""
+        return context.get_discrete_state(self._world).get_value()
+
+    def _latch(self, context: Context, state: DiscreteValues) -> None:
+        state.get_mutable_vector(self._world).SetFromVector(self._published())
+
     def _copier(self, port):
         def calc(context: Context, output: AbstractValue) -> None:
-            self._sync()
+            self.plant.SetPositionsAndVelocities(self._plant_context, self.world_state(context))
             output.SetFrom(port.EvalAbstract(self._context))
         return calc
 
-    def _sync(self) -> None:
-        """Copies the world's state into this copy: as published now, or, once the station
-        was released, as it was then."""
+    def _published(self) -> np.ndarray:
+        """The world's state as the emulated arm publishes it now, or, once the station was
+        released, as it was then."""
         if self.session.emulator is None and self.session.last_world is not None:
             world = self.session.last_world
         else:
             world = self.emulator.world()
         if world is None:
             raise RuntimeError("the emulated arm has not published its world yet")
-        _, state = world
-        self.plant.SetPositionsAndVelocities(self._plant_context, state)
+        return world[1]
+
+    def _sync(self) -> None:
+        """Sets the world as published now into the scratch copy (for the readers outside
+        the diagram below; the outputs read this system's state instead)."""
+        self.plant.SetPositionsAndVelocities(self._plant_context, self._published())
 
     def snapshot(self) -> Context:
         """The plant's context as the emulated world is now (a copy, to read)."""
