@@ -22,6 +22,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # models/
 from sdf_parts import (  # noqa: E402
+    AVOCADO_MESH_RESOLUTION,
     POINT_STIFFNESS,
     compliant,
     cylinder_inertia,
@@ -102,7 +103,7 @@ def main() -> None:
             name, f"Avocado ({name.split('_')[1]}): compliant ellipsoid 84 x 84 x 72 mm, 200 g, "
             f"hydroelastic modulus {modulus:g} Pa.",
             inertial(mass, c, ellipsoid_inertia(mass, a, b, c)), geometry, c, rgba,
-            compliant(modulus), 0.7))
+            compliant(modulus, AVOCADO_MESH_RESOLUTION), 0.7))
 
 
 if __name__ == "__main__":

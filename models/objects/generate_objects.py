@@ -42,6 +42,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # models/
 from sdf_parts import (  # noqa: E402
+    AVOCADO_MESH_RESOLUTION,
     POINT_STIFFNESS,
     compliant,
     cylinder_inertia,
@@ -406,7 +407,8 @@ def avocado(name: str, modulus: float, rgb: str) -> None:
         " (the calibration\n"
         "  avocados' geometry and contact properties; the modulus sets the ripeness).\n"
         "  Body frame at the lowest point of the ellipsoid, +z up.")
-    elements = (collision("collision", pose(z=c), geometry, AVOCADO_MU, compliant(modulus))
+    elements = (collision("collision", pose(z=c), geometry, AVOCADO_MU,
+                          compliant(modulus, AVOCADO_MESH_RESOLUTION))
                 + visual("visual", pose(z=c), geometry, rgb))
     write(name, model(name, comment, inertial(m, (0, 0, c), ellipsoid_inertia(m, a, b, c)),
                       elements))
