@@ -27,7 +27,15 @@ from physcap_drake.perception import (
 )
 from physcap_drake.perception.colors import color_name
 from physcap_drake.perception.describe import ObjectView
-from physcap_drake.perception.judge import contents, judge_placement, judge_uncovered
+from physcap_drake.perception.footprint import footprint_outline
+from physcap_drake.perception.judge import (
+    Verdict,
+    contents,
+    inside,
+    judge_placement,
+    judge_uncovered,
+    overhang,
+)
 from physcap_drake.perception.object_memory import ObjectMemory
 from physcap_drake.perception.phrases import PointingError, resolve
 from physcap_drake.perception.regions import footprint_rectangle
@@ -149,10 +157,14 @@ def test_names_describe_objects_and_number_look_alikes_left_to_right():
         "blue cube 2", "blue cube 3", "brown tray"]
 
 
-def _seen(name, category, color, x, y, area=None, size=""):
+def _seen(name, category, color, x, y, area=None, size="", radius=0.033):
+    """An object standing at (x, y), its footprint a disc of `radius` (a container's: its
+    area)."""
     visible = VisibleObject(name, category, color, size=size)
+    turn = np.linspace(0.0, 2 * np.pi, 24, endpoint=False)
+    disc = np.column_stack([x + radius * np.cos(turn), y + radius * np.sin(turn)])
     return SeenObject(visible, np.zeros((2, 2), bool), 100 - 200 * y, 0.0,
-                      np.array([x, y, 0.05]), 0.1, area)
+                      np.array([x, y, 0.05]), 0.1, disc if area is None else area, area)
 
 
 TRAY_AREA = np.array([[0.15, -0.38], [0.45, -0.38], [0.45, -0.16], [0.15, -0.16]])
@@ -179,10 +191,58 @@ def test_the_judge_reads_what_lies_in_the_container():
     assert not wrong.success and "not in the brown tray (it holds red can)" in wrong.reason
     both = seen + [_seen("blue can", "can", "blue", 0.25, -0.20)]
     assert not judge_placement(both, [], "red can", "wooden tray", "can").success
+    # Another can standing over the tray's edge, its middle over the tray, is in it too.
+    rim = seen + [_seen("blue can", "can", "blue", 0.25, -0.37)]
+    assert contents(rim)["brown tray"] == ["red can"]
+    assert judge_placement(rim, [], "red can", "wooden tray", "can").reason == (
+        "the brown tray holds the red can and also blue can")
     cubes = [_seen(f"blue cube {i}", "cube", "blue", 0.3, 0.1 * i) for i in (1, 2)]
     assert not judge_uncovered(cubes, "cube", 3).success
     assert judge_uncovered(cubes + [_seen("blue cube 3", "cube", "blue", 0.44, 0.3)], "cube",
                            3).success
+
+
+def test_an_object_over_the_rim_is_not_in_the_tray():
+    """The judge asks for the object's whole footprint in the tray: a 84 mm avocado whose
+    middle is over the tray, 0.085 m from its middle across (the tray's area is 0.22 m
+    across), reaches 17 mm past its edge: not in it; 25 mm further in, it is (its edge
+    8 mm inside); an outline 4 mm past the edge is within the depth noise (EDGE_TOLERANCE)."""
+    tray = _seen("brown tray", "tray", "brown", 0.3, -0.27, TRAY_AREA)
+    on_rim = _seen("dark avocado 2", "avocado", "dark", 0.33, -0.355, radius=0.042)
+    assert overhang(on_rim.footprint, TRAY_AREA) == pytest.approx(0.017, abs=1e-6)
+    assert not inside(on_rim, TRAY_AREA)
+    verdict = judge_placement([on_rim, tray], [], "dark avocado 2", "wooden tray", "avocado")
+    assert verdict == Verdict(False, "the dark avocado 2 hangs over the edge of the brown "
+                                     "tray (the camera sees it reach 17 mm past it)")
+    further_in = _seen("dark avocado 2", "avocado", "dark", 0.33, -0.33, radius=0.042)
+    assert overhang(further_in.footprint, TRAY_AREA) == pytest.approx(-0.008, abs=1e-6)
+    assert judge_placement([further_in, tray], [], "dark avocado 2", "wooden tray",
+                           "avocado").success
+    noisy_edge = _seen("dark avocado 2", "avocado", "dark", 0.33, -0.33, radius=0.054)
+    assert inside(noisy_edge, TRAY_AREA)
+    assert not inside(noisy_edge, TRAY_AREA, tolerance=0.0)
+    off = _seen("dark avocado 2", "avocado", "dark", 0.33, -0.43, radius=0.042)
+    assert judge_placement([off, tray], [], "dark avocado 2", "wooden tray",
+                           "avocado").reason == ("the dark avocado 2 is not in the brown "
+                                                 "tray (it holds nothing)")
+
+
+def test_a_footprint_is_the_outline_of_the_points_less_strays():
+    """A can's top and side seen with depth noise (3 mm horizontally), and a few stray
+    points 5 cm out: its footprint is the 66 mm disc within the noise, the strays left out;
+    too few points is an error naming the count."""
+    rng = np.random.default_rng(5)
+    turn = rng.uniform(0.0, 2 * np.pi, 800)
+    reach = 0.033 * np.sqrt(rng.uniform(0.0, 1.0, 800))
+    xy = np.column_stack([0.3 + reach * np.cos(turn), -0.2 + reach * np.sin(turn)])
+    xy += rng.normal(0.0, 0.003, xy.shape)
+    strays = np.array([[0.38, -0.2], [0.3, -0.28], [0.22, -0.15]])
+    points = np.column_stack([np.vstack([xy, strays]), np.full(803, 0.1)])
+    outline = footprint_outline(points)
+    radii = np.hypot(*(outline - [0.3, -0.2]).T)
+    assert np.all(np.abs(radii - 0.033) < 0.005), radii
+    with pytest.raises(ValueError, match="at least 3 points with depth; got 2"):
+        footprint_outline(points[:2])
 
 
 @pytest.mark.parametrize(("task", "seed"), [*((task, 0) for task in sorted(TASKS)),

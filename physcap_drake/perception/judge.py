@@ -1,12 +1,35 @@
 """Judging a task's outcome from the final camera view, as an observer at the rig would.
 
 Without a simulator there is no ground truth to check; the camera can still tell where
-things ended. `contents` says which objects lie in each container's area (their grasp
-point over the rectangle the container covers on the table, kept `MARGIN` inside its
-edges). `judge_placement` decides a "put the right one in the container" task: the object
-the task was about (named as the perception names objects) is in the container, and no
-other object of its kind is. `judge_uncovered` decides a "find the hidden ones" task: at
-least `count` objects of the sought kind are in view.
+things ended. `contents` says which objects lie wholly in each container's area: the
+object's footprint (the outline of its 3D points seen from above, `SeenObject.footprint`)
+within the rectangle the container covers on the table (`SeenObject.area`), reaching past
+its edges by at most `EDGE_TOLERANCE`. `judge_placement` decides a "put the right one in
+the container" task: the object the task was about (named as the perception names
+objects) is wholly in the container, and no other object of its kind stands in it (its
+grasp point over the container's area, even if part of it hangs over the rim).
+`judge_uncovered` decides a "find the hidden ones" task: at least `count` objects of the
+sought kind are in view.
+
+This mirrors the simulator's ground truth (`tasks.placement.check_in_tray`: the object's
+base axis plus its radius inside the container's inner walls; another object counts as in
+the container when its base is within the walls, `tasks.ground_truth.near_container`) as
+far as the camera allows. Where they still differ:
+
+- The ground truth knows the object's radius and the walls' inner faces; the camera sees
+  the object's outline (not its far side: about a fifth of a dome's radius, along the
+  viewing direction, is hidden) and the container's outline (its 2nd to 98th percentile
+  extent, about at the inner faces of a tray's 6 mm walls).
+- Depth noise: the emulated RealSense's depth (like a D400's) has 13 mm RMS noise along
+  the ray at the task's 1.15 m, about 7 mm of it horizontal, per pixel; the outline drops
+  the 1 % of points farthest out in each direction, and its edges still come out up to
+  about 4 mm past an object's own (measured on rendered scenes of objects wholly inside a
+  tray). The container's rectangle is good to about 5 mm. `EDGE_TOLERANCE` (8 mm) covers
+  both, so the judge calls "outside" an object reaching a centimetre or more past the
+  walls; one within about a centimetre of them can go either way.
+- The ground truth takes a tipped object's base frame as its axis (a tipped avocado's
+  base point moves up to its 36 mm half-height sideways); the camera takes its outline.
+  Whether an object stands upright, or rests on the floor, is not judged from the image.
 """
 
 from __future__ import annotations
@@ -18,9 +41,9 @@ import numpy as np
 from physcap_drake.perception.phrases import PointingError, resolve
 from physcap_drake.perception.seen_object import SeenObject
 
-#: An object is in a container when its grasp point is at least this far inside the
-#: container's area (its rim), m.
-MARGIN = 0.005
+#: How far an object's footprint may reach past the edge of a container's area and still
+#: count as inside, m (depth noise at the edges; see the module docstring).
+EDGE_TOLERANCE = 0.008
 
 
 @dc.dataclass(frozen=True)
@@ -31,20 +54,32 @@ class Verdict:
     reason: str
 
 
-def inside(point: np.ndarray, area: np.ndarray, margin: float = MARGIN) -> bool:
-    """Whether the table point (x, y, m) lies in the rectangle `area` (4 × 2 corners),
-    `margin` inside its edges."""
+def overhang(footprint: np.ndarray, area: np.ndarray) -> float:
+    """How far (m) the footprint (K × 2 corners, world x y) reaches past the edges of the
+    rectangle `area` (4 × 2 corners) at its farthest; negative: how far its nearest corner
+    stays inside them."""
     centre = area.mean(axis=0)
     axes = [area[1] - area[0], area[3] - area[0]]
-    offset = np.asarray(point)[:2] - centre
-    return all(abs(offset @ (a / np.linalg.norm(a))) <= np.linalg.norm(a) / 2 - margin
-               for a in axes)
+    offsets = np.asarray(footprint, dtype=float)[:, :2] - centre
+    return float(max(np.max(np.abs(offsets @ (a / np.linalg.norm(a))) - np.linalg.norm(a) / 2)
+                     for a in axes))
+
+
+def over(point: np.ndarray, area: np.ndarray) -> bool:
+    """Whether the table point (x, y, m) lies over the rectangle `area` (4 × 2 corners)."""
+    return overhang(np.atleast_2d(point), area) <= 0.0
+
+
+def inside(seen: SeenObject, area: np.ndarray, tolerance: float = EDGE_TOLERANCE) -> bool:
+    """Whether the whole footprint of `seen` lies in the rectangle `area` (4 × 2 corners),
+    reaching past its edges by at most `tolerance` (m)."""
+    return overhang(seen.footprint, area) <= tolerance
 
 
 def contents(seen: list[SeenObject]) -> dict[str, list[str]]:
-    """The names of the objects in each container's area, by the container's name."""
+    """The names of the objects wholly in each container's area, by the container's name."""
     containers = [s for s in seen if s.area is not None]
-    return {c.name: [s.name for s in seen if s.area is None and inside(s.grasp_point, c.area)]
+    return {c.name: [s.name for s in seen if s.area is None and inside(s, c.area)]
             for c in containers}
 
 
@@ -61,8 +96,12 @@ def judge_placement(seen: list[SeenObject], known, answer: str, destination: str
         target = resolve(answer, seen, known)
     except PointingError as error:
         return Verdict(False, f"the camera does not see the {answer}: {error}")
-    others = [s.name for s in seen if s.name in inside_names and s.name != target.name
-              and s.visible.category == kind]
+    others = [s.name for s in seen if s.area is None and s.name != target.name
+              and s.visible.category == kind and over(s.grasp_point, container.area)]
+    if target.name not in inside_names and over(target.grasp_point, container.area):
+        reach = overhang(target.footprint, container.area)
+        return Verdict(False, f"the {target.name} hangs over the edge of the {container.name} "
+                              f"(the camera sees it reach {1000 * reach:.0f} mm past it)")
     if target.name not in inside_names:
         where = ", ".join(inside_names) or "nothing"
         return Verdict(False, f"the {target.name} is not in the {container.name} (it holds "

@@ -2,8 +2,9 @@
 
 `LabelPerception` reports the objects the simulated camera's label image shows, with the
 names and visible attributes of the task's catalogue (`OfflinePointer`), and grasp points
-from the depth at their exact masks. It exists only in simulation (`camera.label`); the
-default is `RgbdPerception`, which sees from the colour and depth images alone.
+and footprints (`footprint`) from the depth at their exact masks. It exists only in
+simulation (`camera.label`); the default is `RgbdPerception`, which sees from the colour
+and depth images alone.
 """
 
 from __future__ import annotations
@@ -13,6 +14,7 @@ from collections.abc import Mapping
 import numpy as np
 
 from physcap_drake.perception.camera_geometry import CameraGeometry
+from physcap_drake.perception.footprint import footprint_outline
 from physcap_drake.perception.grasp import grasp_point_from_points
 from physcap_drake.perception.offline_pointer import OfflinePointer
 from physcap_drake.perception.regions import footprint_rectangle
@@ -43,7 +45,7 @@ class LabelPerception:
             grasp, top = grasp_point_from_points(points)
             area = footprint_rectangle(points) if visible.category in CONTAINERS else None
             seen.append(SeenObject(visible, mask, column, float(np.nonzero(mask)[0].mean()),
-                                   grasp, top, area))
+                                   grasp, top, footprint_outline(points), area))
         return seen
 
     def known(self) -> list[VisibleObject]:

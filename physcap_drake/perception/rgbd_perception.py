@@ -9,8 +9,11 @@ joint positions (to leave its arm out of the picture). Each look:
 2. finds the regions standing above the table: objects, and containers such as a tray
    (`regions`; pieces of a container's wall are not objects);
 3. describes each by what the camera shows: kind (by size, among the task's nouns),
-   colour, a straw (looked for in the full colour image: `straw`), its height, and its
-   top-down grasp point (`describe`);
+   colour, a straw (looked for in the full colour image: `straw`), its height, its
+   top-down grasp point (`describe`), and its footprint on the table (the outline of its
+   3D points seen from above, `footprint`; from the points as measured: the median filter
+   `describe` uses pulls an object's edge points towards its nearer middle, which moves a
+   round object's outline inwards by up to 2 cm);
 4. names them, recognizing the objects of earlier looks (`object_memory`).
 
 Phrases resolve against these objects (`phrases.resolve`), like the simulated segmenter's.
@@ -27,6 +30,7 @@ import numpy as np
 from physcap_drake.perception.camera_geometry import CameraGeometry
 from physcap_drake.perception.decimation import decimation_factor, upsample
 from physcap_drake.perception.describe import FullImage, describe
+from physcap_drake.perception.footprint import footprint_outline
 from physcap_drake.perception.object_memory import ObjectMemory
 from physcap_drake.perception.regions import (
     find_regions,
@@ -78,6 +82,7 @@ class RgbdPerception:
         seen = sorted((SeenObject(visible, upsample(view.region.mask, step, rgb.shape[:2]),
                                   step * view.column, step * view.row,
                                   view.grasp_point, view.top_height,
+                                  footprint_outline(view.region.points),
                                   footprint_rectangle(view.region.points) if view.container
                                   else None)
                        for visible, view in zip(names, views, strict=True)),

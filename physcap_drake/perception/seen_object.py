@@ -17,8 +17,10 @@ class SeenObject:
     use). mask: its pixels (H × W bool). column, row: its mean pixel (px; columns grow to
     the image's right, so sorting by column orders objects left to right). grasp_point: the
     fingertip target of a top-down grasp (world frame, m). top_height: its top above the
-    table, m. area: for a container (tray, basket), the rectangle it covers on the table
-    (4 × 2 corners, m); None for other objects.
+    table, m. footprint: the outline of the part of the table it stands over, as its
+    3D points show it (K × 2 corners of a convex polygon, world x y, m; see
+    `footprint.footprint_outline`). area: for a container (tray, basket), the rectangle it
+    covers on the table (4 × 2 corners, m); None for other objects.
     """
 
     visible: VisibleObject
@@ -27,6 +29,7 @@ class SeenObject:
     row: float
     grasp_point: np.ndarray
     top_height: float
+    footprint: np.ndarray
     area: np.ndarray | None = None
 
     @property
