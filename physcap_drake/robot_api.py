@@ -6,7 +6,7 @@ is sent the SkillStatus that answered it; it returns the call's result or raises
 SkillRefused / SkillFailed. Two clients drive those steps:
 
 - called as a method, the RobotAPI is a thin blocking client of the robot stack's exported
-  `robot.request` port: it puts each request on it (`RobotStack.put_request`: the value of
+  `robot.request` port: it puts each request on it (`RobotStack.send`: the value of
   that exported input, Drake's way for a caller outside a diagram to feed it; the systems on
   the request path take it in through their own events) and asks the clock to run until
   `robot.status` reports that request finished (succeeded, failed or refused). Sim time
@@ -34,7 +34,6 @@ from physcap_drake.control.requests import (
     MoveGripper,
     MoveToJoints,
     MoveToPose,
-    RobotRequest,
     SkillState,
     SkillStatus,
     Wait,
@@ -307,9 +306,7 @@ class RobotAPI:
         if self._robot.request_input is None:
             raise RuntimeError("this robot's requests come from its agent, a system inside "
                                "the diagram; a blocking RobotAPI call cannot send one")
-        root = self._clock.mutable_context
-        request = RobotRequest(CLIENT, self._robot.last_request(root).sequence + 1, action)
-        self._robot.put_request(root, request)  # the outside client's contract
+        request = self._robot.send(self._clock, CLIENT, action)  # the outside client's contract
         status_port = self._robot.status_output
         if not self._clock.run_until(lambda root: status_port.Eval(root).finished(request),
                                      timeout=REQUEST_TIMEOUT):

@@ -120,6 +120,15 @@ class RobotStack:
                                "the diagram; a caller outside it cannot send one")
         self.request_input.FixValue(root, request)
 
+    def send(self, clock: Clock, client: str, action) -> RobotRequest:
+        """The outside client's next request: `action`, numbered after the last one on
+        `robot.request`, put there in `clock`'s root context between two runs (see
+        `put_request`). Returns the request, to wait for its answer on `status_output`."""
+        root = clock.mutable_context
+        request = RobotRequest(client, self.last_request(root).sequence + 1, action)
+        self.put_request(root, request)
+        return request
+
     def last_request(self, root: Context) -> RobotRequest:
         """The request the outside client last put on `robot.request` in `root`."""
         if self.request_input is None:

@@ -36,10 +36,8 @@ ALLOWED = {
     "robot_stack.py": {
         "FixValue": "the outside client's contract: the value of the exported robot.request "
                     "input (RobotStack.put_request), and its initial empty request",
-    },
-    "robot_api.py": {
-        "mutable_context": "the blocking client puts its request through "
-                           "RobotStack.put_request on the clock's root context",
+        "mutable_context": "RobotStack.send: the outside client's next request, put on the "
+                           "exported input in the clock's root context between two runs",
     },
     "station/body_masses.py": {
         "SetMass": "a simulated world's hidden masses are initial parameters, set in the "
