@@ -45,15 +45,12 @@ ALLOWED = {
                    "in SimulatedMotion, the sim station's in RobotStack.make_clock's set_up)",
     },
     "station/simulated_motion.py": {
-        "FixValue": "the end load's torque (0x477) on the world plant's applied-force input, "
-                    "which the simulated station does not export (the firmware's commands "
-                    "come from the world's FirmwareCommandSource)",
         "get_mutable_context": "the emulated world owns its simulator (it stands for the "
                                "real world behind the CAN bus)",
         "GetMyMutableContextFromRoot": "the emulated world's plant context, in the context "
                                        "its simulator owns: its hidden masses before the "
-                                       "first step, the end load's torque and an operator's "
-                                       "moves (set_world) between steps",
+                                       "first step and an operator's moves (set_world) "
+                                       "between steps",
     },
     "station/__init__.py": {
         "GetMyMutableContextFromRoot": "scene_ground_truth on the sim station: the plant's "

@@ -10,7 +10,11 @@ from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.primitives import ZeroOrderHold
 
 from physcap_drake.station import ports
-from physcap_drake.station.firmware_command import CommandMailbox, FirmwareCommandSource
+from physcap_drake.station.firmware_command import (
+    END_LOAD_MASS,
+    CommandMailbox,
+    FirmwareCommandSource,
+)
 
 Q0 = np.array([0.0, 0.5, -0.5, 0.0, 0.3, 0.0])
 
@@ -63,7 +67,19 @@ def test_a_discrete_update_in_the_same_step_sees_the_command_put_before_it():
 def test_a_put_replaces_the_whole_command_read_only():
     mailbox = CommandMailbox(Q0, 0.07, 0.0)
     first = mailbox.latest()
-    mailbox.put(Q0 + 1.0, 0.03, 4.0)
-    np.testing.assert_array_equal(first, [*Q0, 0.07, 0.0])  # the old one is untouched
-    np.testing.assert_array_equal(mailbox.latest(), [*(Q0 + 1.0), 0.03, 4.0])
+    mailbox.put(Q0 + 1.0, 0.03, 4.0, 0.75)
+    np.testing.assert_array_equal(first, [*Q0, 0.07, 0.0, 0.0])  # the old one is untouched
+    np.testing.assert_array_equal(mailbox.latest(), [*(Q0 + 1.0), 0.03, 4.0, 0.75])
     assert not mailbox.latest().flags.writeable
+
+
+def test_the_end_load_mass_is_latched_with_the_rest_of_the_command():
+    mailbox = CommandMailbox(Q0, 0.07, 0.0)
+    source = FirmwareCommandSource(mailbox)
+    simulator = Simulator(source)
+    load = source.GetOutputPort(END_LOAD_MASS)
+    assert load.Eval(simulator.get_context())[0] == 0.0
+    mailbox.put(Q0, 0.07, 0.0, 1.5)
+    assert load.Eval(simulator.get_context())[0] == 0.0  # not latched yet
+    simulator.AdvanceTo(0.001)
+    assert load.Eval(simulator.get_context())[0] == 1.5

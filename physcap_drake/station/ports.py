@@ -27,6 +27,11 @@ CAMERA_LABEL = "camera.label"  # ImageLabel16I, one label per body (simulation o
 # Simulation-only ground truth: for success checks, never for agents or estimators.
 BODY_POSES = "body_poses"  # list of RigidTransform, world frame, indexed by BodyIndex
 
+# Simulation-only input, exported on request (MakeSimStation(..., external_forces=True)):
+# forces from outside the station's own model on the plant's bodies, e.g. the emulated
+# firmware's end-load compensation (station/end_load.py).
+APPLIED_SPATIAL_FORCE = "plant.applied_spatial_force"  # list of ExternallyAppliedSpatialForce
+
 VECTOR_INPUTS = {ARM_POSITION: NUM_ARM_JOINTS, GRIPPER_POSITION: 1, GRIPPER_FORCE_LIMIT: 1}
 VECTOR_OUTPUTS = {
     ARM_POSITION_MEASURED: NUM_ARM_JOINTS,

@@ -77,11 +77,15 @@ def _release_arm_end_stops(plant: MultibodyPlant, arm: ModelInstanceIndex):
     return lower, upper
 
 
-def MakeSimStation(scenario, meshcat: Meshcat | None = None) -> Diagram:
+def MakeSimStation(scenario, meshcat: Meshcat | None = None, *,
+                   external_forces: bool = False) -> Diagram:
     """Builds the simulated station for `scenario` (whose `station` is a `SimPiper`).
 
     See `physcap_drake.station.ports` for the port contract. The diagram's subsystems named
     "plant" and "scene_graph" are the simulated world (for sim-only tools and tests).
+    `external_forces`: also export the plant's applied spatial force input as
+    `ports.APPLIED_SPATIAL_FORCE` (for a world that pushes on the station's bodies from
+    outside its model, as the emulated firmware's end-load compensation does).
     """
     config: SimPiper = scenario.station
     as_built = config.as_built
@@ -191,6 +195,9 @@ def MakeSimStation(scenario, meshcat: Meshcat | None = None) -> Diagram:
     if scenario.cameras:
         add_cameras(builder, plant, add_render_world(builder, plant, scene_graph), scenario)
     builder.ExportOutput(plant.get_body_poses_output_port(), ports.BODY_POSES)
+    if external_forces:
+        builder.ExportInput(plant.get_applied_spatial_force_input_port(),
+                            ports.APPLIED_SPATIAL_FORCE)
     if meshcat is not None:
         ApplyVisualizationConfig(scenario.visualization, builder, meshcat=meshcat)
 

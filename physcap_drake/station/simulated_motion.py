@@ -11,7 +11,9 @@ station's camera sees and what the task's success check reads (ground truth the 
 does not have).
 
 The end-load setting (0x477) is applied as the firmware applies it: the weight of a half
-(0.75 kg) or full (1.5 kg) payload at the fingertip is added to the joints' feed-forward.
+(0.75 kg) or full (1.5 kg) payload at the fingertip is added to the joints' feed-forward,
+which pushes the unloaded arm up at the fingertip (`EndLoadWeight`, fed by the same
+command source).
 """
 
 from __future__ import annotations
@@ -19,7 +21,6 @@ from __future__ import annotations
 import dataclasses as dc
 
 import numpy as np
-from pydrake.multibody.tree import JacobianWrtVariable
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import Context, DiagramBuilder
 
@@ -27,7 +28,12 @@ from physcap_drake.can.arm_state import DEFAULT_MAX_SPEED
 from physcap_drake.can.motion import MotionCommand, MotionReading
 from physcap_drake.station import ports
 from physcap_drake.station.body_masses import set_body_masses
-from physcap_drake.station.firmware_command import CommandMailbox, FirmwareCommandSource
+from physcap_drake.station.end_load import EndLoadWeight
+from physcap_drake.station.firmware_command import (
+    END_LOAD_MASS,
+    CommandMailbox,
+    FirmwareCommandSource,
+)
 
 #: Payload of the end-load settings 0 (empty), 1 (half), 2 (full), kg: the PiPER's rated
 #: payload is 1.5 kg.
@@ -37,7 +43,6 @@ LOAD_MASS = {0: 0.0, 1: 0.75, 2: 1.5}
 PASS_THROUGH_ACCELERATION = 1000.0
 #: How far past a joint-loop update a period's sub-step ends, s (never on an update).
 PAST_UPDATE = 1e-7
-GRAVITY = 9.81
 #: The fastest the emulated arm's joint reference moves, rad/s (the PiPER's top joint speed).
 MAX_JOINT_SPEED = DEFAULT_MAX_SPEED
 #: How many non-finite state entries a failed step names.
@@ -71,14 +76,21 @@ class SimulatedMotion:
         self._mailbox = CommandMailbox(np.asarray(config.initial_arm_position, dtype=float),
                                        config.initial_gripper_opening, 0.0)
         builder = DiagramBuilder()
-        self.station = builder.AddNamedSystem("station", MakeSimStation(scenario))
+        self.station = builder.AddNamedSystem("station", MakeSimStation(
+            scenario, external_forces=True))
+        self.plant = self.station.GetSubsystemByName("plant")
         command = builder.AddNamedSystem("firmware_command", FirmwareCommandSource(
             self._mailbox))
         for name in ports.VECTOR_INPUTS:
             builder.Connect(command.GetOutputPort(name), self.station.GetInputPort(name))
+        end_load = builder.AddNamedSystem("end_load", EndLoadWeight(
+            self.plant, self.plant.GetFrameByName("tcp", self.plant.GetModelInstanceByName(
+                config.gripper_model))))
+        builder.Connect(command.GetOutputPort(END_LOAD_MASS), end_load.get_input_port())
+        builder.Connect(end_load.get_output_port(),
+                        self.station.GetInputPort(ports.APPLIED_SPATIAL_FORCE))
         world = builder.Build()
         world.set_name("emulated_world")
-        self.plant = self.station.GetSubsystemByName("plant")
         self._max_force = config.gripper_servo.max_force
         self._max_effort = float(gripper_max_effort)
         context = world.CreateDefaultContext()
@@ -89,18 +101,9 @@ class SimulatedMotion:
         self._simulator = Simulator(world, context)
         self._context = self._simulator.get_mutable_context()
         self._station_context = self.station.GetMyContextFromRoot(self._context)
-        arm = self.plant.GetModelInstanceByName(config.arm_model)
-        self._arm_velocities = sorted(
-            self.plant.get_joint_actuator(i).joint().velocity_start()
-            for i in self.plant.GetJointActuatorIndices(arm))
-        self._tcp = self.plant.GetFrameByName("tcp", self.plant.GetModelInstanceByName(
-            config.gripper_model))
         self._feedforward = (self.station.GetSubsystemByName("arm_feedforward")
                              if self.station.HasSubsystemNamed("arm_feedforward") else None)
         self._reference: np.ndarray | None = None  # the last period's joint reference
-        # The end load's torque now on the plant's applied-force input (None: never set,
-        # which the plant takes as zero).
-        self._load_applied: np.ndarray | None = None
         self._simulator.Initialize()
 
     @property
@@ -133,7 +136,7 @@ class SimulatedMotion:
         opening = command.gripper_target
         effort = command.gripper_effort_limit if command.gripper_enabled else 0.0
         force = min(max(effort, 0.0), self._max_effort) / self._max_effort * self._max_force
-        self._applied(self._load_torque(command.load))
+        load = LOAD_MASS.get(command.load, 0.0)
         t0 = self._context.get_time()
         period, end = self.plant.time_step(), t0 + dt
         update = (np.floor(t0 / period + 1e-9) + 1.0) * period
@@ -149,10 +152,11 @@ class SimulatedMotion:
                 # Fixed before the update and advanced just past it: the update sees this
                 # value whichever side of a boundary Drake handles it on.
                 fraction = min((update - t0) / dt, 1.0)
-                self._mailbox.put(start + fraction * (reference - start), opening, force)
+                self._mailbox.put(start + fraction * (reference - start), opening, force,
+                                  load)
                 self._simulator.AdvanceTo(update + PAST_UPDATE)
                 update += period
-            self._mailbox.put(reference, opening, force)
+            self._mailbox.put(reference, opening, force, load)
             if self._context.get_time() < end:
                 self._simulator.AdvanceTo(end)
         except RuntimeError as error:
@@ -179,19 +183,6 @@ class SimulatedMotion:
 
     # The firmware's model ------------------------------------------------------------------------
 
-    def _load_torque(self, load: int) -> np.ndarray:
-        """Generalized forces that carry the set end load's weight at the fingertip."""
-        mass = LOAD_MASS.get(load, 0.0)
-        if mass == 0.0:
-            return np.zeros(self.plant.num_velocities())
-        J = self.plant.CalcJacobianTranslationalVelocity(
-            self.plant_context, JacobianWrtVariable.kV, self._tcp, np.zeros(3),
-            self.plant.world_frame(), self.plant.world_frame())
-        tau = J.T @ np.array([0.0, 0.0, mass * GRAVITY])
-        masked = np.zeros_like(tau)
-        masked[self._arm_velocities] = tau[self._arm_velocities]
-        return masked
-
     def _model_torque(self) -> np.ndarray:
         """The torques the firmware's model expects (its feed-forward), N·m."""
         if self._feedforward is None:
@@ -200,18 +191,6 @@ class SimulatedMotion:
             self._feedforward.GetMyContextFromRoot(self._context)).copy()
 
     # Station I/O -------------------------------------------------------------------------
-
-    def _applied(self, tau: np.ndarray) -> None:
-        """The end load's torque on the plant's applied-force input, when it changed. The
-        simulated station keeps that input inside (it exports no port to connect a source
-        to), so the world's owner sets it between steps; without an end load it is never
-        set and the plant applies nothing."""
-        if self._load_applied is None and not tau.any():
-            return
-        if self._load_applied is not None and np.array_equal(tau, self._load_applied):
-            return
-        self.plant.get_applied_generalized_force_input_port().FixValue(self.plant_context, tau)
-        self._load_applied = tau.copy()
 
     def _output(self, name: str) -> np.ndarray:
         return self.station.GetOutputPort(name).Eval(self._station_context)
