@@ -87,6 +87,7 @@ class BlockBudget:
         return self._started + self._answering + self.limits.total_wall_s
 
     def out_of_wall_time(self, now: float) -> bool:
+        """Whether the block's own wall time has reached limits.total_wall_s at `now`."""
         return self.own_wall_s(now) >= self.limits.total_wall_s
 
     def before_call(self, name: str, motion: bool, now: float,
