@@ -7,6 +7,7 @@ import json
 import pytest
 
 from physcap_drake.agent.llm.base import LLMRequest
+from physcap_drake.agent.reference.naming import ObjectNotInView
 from physcap_drake.agent.reference.reasoner import ReferenceReasoner
 from physcap_drake.agent.reference.task_reading import TaskNotUnderstood, read_task
 from physcap_drake.agent.sandbox import check_code
@@ -149,3 +150,73 @@ def test_lifted_cups_get_their_own_spots_on_the_tray_whatever_the_order():
         spots = {name: _slot(in_view, list(order[:i]), name) for i, name in enumerate(order)}
         assert spots["small cup"] == SMALL_SLOT
         assert {spots["large cup 1"], spots["large cup 2"]} == set(SLOTS)
+
+
+# -- names that changed between views ------------------------------------------------------
+
+AVOCADO_TASK = TASKS["pick_ripe_avocado"].prompt
+
+
+def _avocado(name: str, category: str, color: str, x: float) -> dict:
+    return {"name": name, "category": category, "color": color, "straw": False,
+            "size": "", "image_x": x, "image_y": 120.0, "height_m": 0.06}
+
+
+BEFORE = [_avocado("green avocado 1", "avocado", "green", 100),
+          _avocado("dark avocado 2", "avocado", "dark", 200),
+          _avocado("dark avocado 3", "avocado", "dark", 300)]
+# After the squeeze (a block stopped by a limit): the squeezed avocado, flatter, is a
+# "dark object" now; the others keep their names.
+AFTER = [BEFORE[0], _avocado("dark object", "object", "dark", 203), BEFORE[2]]
+SQUEEZE = {"index": 0, "kind": "explore", "target": "dark avocado 2",
+           "action": "get_stiffness", "ok": False, "error": "wall time limit: ...",
+           "stdout": "", "appeared": ["dark object"], "disappeared": ["dark avocado 2"]}
+RIPE = {"subject": "dark avocado 2", "prop": "stiffness", "value": 1, "unit": "level",
+        "ok": True, "note": ""}
+
+
+def _ask_avocado(mode: str, in_view, history, knowledge=(), **extra) -> dict:
+    context = {"task": AVOCADO_TASK, "objects_in_view": in_view, "knowledge": list(knowledge),
+               "history": history, "mode": mode} | extra
+    request = LLMRequest(role="coder", system="", prompt="", context=context)
+    return json.loads(ReferenceReasoner(seed=0).complete(request).text)
+
+
+def test_the_coder_names_objects_as_the_latest_view_does():
+    """The avocado measured as 'dark avocado 2' is the 'dark object' now: the final block
+    fetches it by its new name, and the planner counts it as measured."""
+    final = _ask_avocado("final", AFTER, [SQUEEZE], [RIPE], reason="")
+    check_code(final["code"])
+    assert 'get_object_pose("dark object")' in final["code"]
+    assert "dark avocado 2" not in final["code"]
+    assert "the dark object's stiffness is level 1" in final["thought"]
+    plan = _ask_avocado("planner", AFTER, [SQUEEZE], [RIPE])
+    assert plan["sufficient"] and "dark object" in plan["reason"]
+
+
+def test_a_rewritten_exploration_follows_its_candidate_to_its_new_name():
+    candidate = _ask_avocado("planner", BEFORE, [])["exploration_candidates"][1]
+    assert candidate["name"] == "dark avocado 2"
+    answer = _ask_avocado("explore", AFTER, [SQUEEZE], candidate=candidate)
+    code = answer["code"]
+    assert "The dark avocado 2 is now seen as the dark object." in answer["thought"]
+    assert 'get_object_pose("dark object")' in code
+    assert 'get_stiffness(position, "dark object")' in code
+
+
+def test_names_stay_as_they_are_while_they_are_in_view():
+    candidate = _ask_avocado("planner", BEFORE, [])["exploration_candidates"][1]
+    code = _ask_avocado("explore", BEFORE, [], candidate=candidate)["code"]
+    assert 'get_stiffness(position, "dark avocado 2")' in code
+
+
+@pytest.mark.parametrize(("in_view", "history", "fragment"), [
+    (AFTER, [], "no code block so far saw it go out of view"),
+    ([BEFORE[0], BEFORE[2]], [dict(SQUEEZE, appeared=[])], "no avocado (or object of unknown"),
+    ([BEFORE[0], AFTER[1], _avocado("dark object 2", "object", "dark", 210)],
+     [dict(SQUEEZE, appeared=["dark object", "dark object 2"])], "2 objects that came into"),
+], ids=["never seen leaving", "nothing in its place", "two in its place"])
+def test_a_name_that_cannot_be_followed_fails_with_the_reason(in_view, history, fragment):
+    with pytest.raises(ObjectNotInView, match="cannot tell which") as caught:
+        _ask_avocado("final", in_view, history, [RIPE], reason="")
+    assert fragment in str(caught.value) and "'dark avocado 2'" in str(caught.value)

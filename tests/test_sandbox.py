@@ -9,6 +9,7 @@ After every test no child process of the test process may be left, running or zo
 
 from __future__ import annotations
 
+import dataclasses as dc
 import os
 import socket
 import tempfile
@@ -19,6 +20,7 @@ import pytest
 
 from physcap_drake.agent.sandbox import (
     ApiFunction,
+    Call,
     CodeOutcome,
     CodeRejected,
     FunctionSpec,
@@ -26,6 +28,7 @@ from physcap_drake.agent.sandbox import (
     Number,
     OrNone,
     SandboxLimits,
+    SandboxSession,
     Text,
     Vector,
     check_code,
@@ -280,15 +283,47 @@ def test_api_call_time_does_not_count_as_compute_time(robot):
     assert outcome.ok, outcome.error
 
 
-def test_total_wall_time_counts_api_calls(robot):
-    """The block's clock starts when the code starts (not at the child's start-up, which a
-    loaded machine may make slow) and is checked before every call: no call starts after
-    0.8 s, so the third sleep never does."""
-    limits = SandboxLimits(cpu_s=2, compute_wall_s=2, total_wall_s=0.8, memory_mb=512)
-    outcome = run("sleep(0.5)\nsleep(0.5)\nsleep(0.5)\n", robot, limits)
-    assert outcome.kind == "wall_limit" and "in total" in outcome.error
-    assert 1 <= len(robot.calls) <= 2
-    assert all(began - robot.call_starts[0] < 0.8 for began in robot.call_starts)
+OWN_WALL = SandboxLimits(cpu_s=10, compute_wall_s=20, total_wall_s=1.0, memory_mb=512)
+OWN_WALL_STOP = "1 s of the block's own wall time (robot calls not counted)"
+
+
+def test_slow_robot_calls_do_not_use_up_the_blocks_own_wall_time(robot):
+    """The parent answering a call (a robot motion simulated on a slow host) is not the
+    code's time: two calls of 0.75 s each outlast the 1 s limit and the block still ends."""
+    outcome = run("sleep(0.75)\nsleep(0.75)\nprint('done')\n", robot, OWN_WALL)
+    assert outcome.ok, outcome.error
+    assert outcome.stdout == "done\n"
+    assert time.monotonic() - robot.call_starts[0] > OWN_WALL.total_wall_s
+
+
+@pytest.mark.parametrize("code", ["while True:\n    pass\n",
+                                  "while True:\n    get_object_pose('cube')\n"],
+                         ids=["busy loop", "loop of quick robot calls"])
+def test_code_that_runs_past_its_own_wall_time_is_stopped(robot, code):
+    limits = dc.replace(OWN_WALL, max_api_calls=10**7)
+    outcome = run(code, robot, limits)
+    assert outcome.kind == "wall_limit", outcome
+    assert OWN_WALL_STOP in outcome.error
+    assert outcome.duration_s >= limits.total_wall_s
+
+
+def test_the_owner_idling_while_the_code_runs_counts_as_the_blocks_time(robot):
+    """Between answering a call and asking for the next one the code runs on: that time is
+    the block's, however the owner spends it; time spent answering is not."""
+    code = "get_object_pose('cube')\nget_object_pose('cube')\nget_object_pose('cube')\n"
+    with SandboxSession(code, robot.api(), OWN_WALL) as session:
+        assert session.start() is None
+        call = session.next_call()
+        time.sleep(1.2)  # answering: not counted
+        assert session.answer(robot.get_object_pose(*call.args)) is None
+        call = session.next_call()
+        assert isinstance(call, Call), call
+        assert session.answer(robot.get_object_pose(*call.args)) is None
+        time.sleep(1.2)  # idling while the code runs: counted
+        outcome = session.next_call()
+    assert outcome.kind == "wall_limit", outcome
+    assert OWN_WALL_STOP in outcome.error
+    assert len(robot.calls) == 2
 
 
 def test_every_common_numpy_path_works_after_the_lockdown(robot):

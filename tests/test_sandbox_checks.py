@@ -190,8 +190,23 @@ def test_api_calls_and_wall_time_are_checked_before_every_call():
     budget.start(now=100.0, robot_time=0.0, knowledge_chars=0)
     assert budget.before_call("home_pose", False, 109.9, 0.0) is None
     stop = budget.before_call("home_pose", False, 110.0, 0.0)
-    assert stop.kind == "wall_limit" and "more than 10 s in total" in stop.message
-    assert budget.after_call(110.5, 0).kind == "wall_limit"
+    assert stop.kind == "wall_limit"
+    assert "10 s of the block's own wall time (robot calls not counted)" in stop.message
+
+
+def test_the_time_spent_answering_calls_is_not_the_blocks_own():
+    budget = BlockBudget(LIMITS)
+    budget.start(now=100.0, robot_time=0.0, knowledge_chars=0)
+    assert budget.before_call("goto_pose", True, 103.0, 0.0) is None
+    budget.call_taken(103.0)
+    assert budget.own_wall_s(500.0) == pytest.approx(3.0) and budget.deadline == math.inf
+    assert budget.after_call(800.0, 0) is None  # the robot took 697 s to answer
+    assert budget.deadline == pytest.approx(807.0)
+    assert budget.before_call("home_pose", False, 806.9, 0.0) is None
+    assert budget.before_call("home_pose", False, 807.0, 0.0).kind == "wall_limit"
+    budget.call_taken(807.0)
+    with pytest.raises(RuntimeError, match="already being answered"):
+        budget.call_taken(807.0)
 
 
 def test_robot_time_is_checked_before_each_motion():

@@ -4,10 +4,12 @@ It answers the planner, prioritizer and coder requests from the request's struct
 context (the same content as the prompt: the task text, the objects in view with their
 visible attributes, the measurements and the steps so far) and nothing else. It reads the
 goal with `task_reading`, judges objects by `priors`, and writes code from the templates in
-`agents/code/`. Its only randomness comes from its seed (the trial's): the vision-only
-coder's guess, and the order of candidates that look equally likely (a random rank per
-object name, the same all episode long), so that ties are not broken by position in the
-image, which would make its interaction count depend on where the answer happens to stand.
+`agents/code/`, naming objects as the latest view names them (`naming`: an object perception
+renamed after a block is followed to its new name; a measurement is kept under it). Its only
+randomness comes from its seed (the trial's): the vision-only coder's guess, and the order
+of candidates that look equally likely (a random rank per object name, the same all episode
+long), so that ties are not broken by position in the image, which would make its
+interaction count depend on where the answer happens to stand.
 """
 
 from __future__ import annotations
@@ -20,6 +22,7 @@ from string import Template
 import numpy as np
 
 from physcap_drake.agent.llm.base import LLMRequest, LLMResponse
+from physcap_drake.agent.reference.naming import ObjectNotInView, current_name
 from physcap_drake.agent.reference.priors import IMPLAUSIBLE, plausibility
 from physcap_drake.agent.reference.task_reading import Goal, read_task
 from physcap_drake.resources import agents_dir
@@ -72,11 +75,17 @@ class ReferenceReasoner:
 
     @staticmethod
     def _measured(context: dict, goal: Goal) -> dict[str, float]:
-        """Latest successful measurement of the goal's property per object."""
+        """Latest successful measurement of the goal's property per object, under the
+        object's name in the latest view (under the name it was measured by when it cannot
+        be found there: the coder then says why it cannot reach it)."""
         values = {}
         for entry in context["knowledge"]:
             if entry["prop"] == goal.kind and entry["ok"]:
-                values[entry["subject"]] = float(entry["value"])
+                try:
+                    name = current_name(entry["subject"], context, goal.subject)
+                except ObjectNotInView:
+                    name = entry["subject"]
+                values[name] = float(entry["value"])
         return values
 
     @staticmethod
@@ -190,8 +199,11 @@ class ReferenceReasoner:
 
     def _explore_code(self, context: dict, goal: Goal) -> dict:
         candidate = context["candidate"]
-        name, action = candidate["name"], candidate["action"]
+        action = candidate["action"]
+        name = current_name(candidate["name"], context, goal.subject)
         thought = f"{candidate['description']} This reveals {candidate['expected_info']}."
+        if name != candidate["name"]:
+            thought += f" The {candidate['name']} is now seen as the {name}."
         if action == "lift_and_look":
             slot = _slot(context["objects_in_view"], self._explored(context, goal), name)
             code = _code("move_to_destination", name=name, thought=thought,
@@ -213,9 +225,12 @@ class ReferenceReasoner:
         answer, reason = self._answer(context, goal)
         if answer is None:
             raise ValueError("asked for the final code, but the evidence singles out no object")
-        return self._move_answer(answer, reason, goal)
+        return self._move_answer(answer, reason, goal, context)
 
-    def _move_answer(self, name: str, reason: str, goal: Goal) -> dict:
+    def _move_answer(self, name: str, reason: str, goal: Goal, context: dict) -> dict:
+        """The block putting `name` on the destination; `name` must be in the latest view
+        (`current_name` says why it cannot be found otherwise)."""
+        name = current_name(name, context, goal.subject)
         thought = f"{reason}; put it on the {goal.destination}"
         return {"thought": thought, "code": _code(
             "move_to_destination", name=name, thought=thought, destination=goal.destination,
@@ -253,7 +268,7 @@ class ReferenceReasoner:
         guess = pool[int(rng.integers(len(pool)))]["name"]
         reason = (f"the camera cannot tell which {goal.subject} it is; the {guess} looks as "
                   "likely as any")
-        return self._move_answer(guess, reason, goal)
+        return self._move_answer(guess, reason, goal, context)
 
     @staticmethod
     def _explored_by_code(context: dict) -> list[str]:

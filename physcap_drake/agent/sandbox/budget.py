@@ -1,12 +1,18 @@
 """The budgets of one code block, checked per call from readings the caller passes in.
 
-`BlockBudget` holds what a block may spend (calls, wall time, robot time, knowledge) and
-checks it at two moments of every API call: `before_call` (before the call is made: the
-call count, the wall time, and, for a motion, the robot time) and `after_call` (after it
-returned: the wall time and what the block added to the scene knowledge). Each check takes
-the readings (monotonic clock, robot time, knowledge size) as arguments and returns a
-`Stop` or None, so any owner of a block (the blocking runner today, an event-driven
-system later) can apply them. Pure: it reads no clock or robot itself.
+`BlockBudget` holds what a block may spend (calls, its own wall time, robot time,
+knowledge) and checks it at two moments of every API call: `before_call` (before the call
+is made: the call count, the own wall time, and, for a motion, the robot time) and
+`after_call` (after it returned: the own wall time and what the block added to the scene
+knowledge). Each check takes the readings (monotonic clock, robot time, knowledge size) as
+arguments and returns a `Stop` or None, so any owner of a block (the blocking runner, the
+event-driven AgentSystem) can apply them. Pure: it reads no clock or robot itself.
+
+The block's own wall time is the wall time since the code started minus the time the
+parent spent answering its calls (from `call_taken`, when the parent took a call, to
+`after_call`, when its answer is about to be sent): the robot's motions, and the simulation
+of them, however slow the host is, do not count; the code computing, printing, or the parent
+idling while the code runs, do.
 """
 
 from __future__ import annotations
@@ -46,22 +52,43 @@ class BlockBudget:
     def __init__(self, limits: SandboxLimits, robot_time_s: float = math.inf):
         self.limits = limits
         self.robot_time_s = min(robot_time_s, limits.robot_time_s)
-        self._deadline = math.inf
+        self._started = math.inf
+        self._answering = 0.0  # s spent answering calls that were answered
+        self._taken_at: float | None = None  # when the call being answered was taken
         self._robot_time_at_start = 0.0
         self._knowledge_at_start = 0
         self.calls = 0
 
     def start(self, now: float, robot_time: float, knowledge_chars: int) -> None:
-        """The code starts now: the wall clock of total_wall_s starts, and the robot time
-        and knowledge the block adds are counted from these readings."""
-        self._deadline = now + self.limits.total_wall_s
+        """The code starts now: its own wall time starts, and the robot time and knowledge
+        the block adds are counted from these readings."""
+        self._started = now
         self._robot_time_at_start = robot_time
         self._knowledge_at_start = knowledge_chars
 
+    def call_taken(self, now: float) -> None:
+        """The parent took a call at `now` and answers it: until `after_call`, the block's
+        own wall time stands still."""
+        if self._taken_at is not None:
+            raise RuntimeError("a call is already being answered")
+        self._taken_at = now
+
+    def own_wall_s(self, now: float) -> float:
+        """The block's own wall time at `now` (s; see the module docstring)."""
+        end = now if self._taken_at is None else self._taken_at
+        return end - self._started - self._answering
+
     @property
     def deadline(self) -> float:
-        """When the block's wall time runs out (monotonic clock, s)."""
-        return self._deadline
+        """When the block's own wall time runs out if no call is taken before (monotonic
+        clock, s); infinite while a call is being answered."""
+        if self._taken_at is not None:
+            return math.inf
+        return self._started + self._answering + self.limits.total_wall_s
+
+    def out_of_wall_time(self, now: float) -> bool:
+        """Whether the block's own wall time has reached limits.total_wall_s at `now`."""
+        return self.own_wall_s(now) >= self.limits.total_wall_s
 
     def before_call(self, name: str, motion: bool, now: float,
                     robot_time: float) -> Stop | None:
@@ -70,7 +97,7 @@ class BlockBudget:
         if self.calls > self.limits.max_api_calls:
             return Stop("api_call_limit", f"the code made more than {self.limits.max_api_calls}"
                         f" robot API calls and was stopped (at a call of {name})")
-        if now >= self._deadline:
+        if self.out_of_wall_time(now):
             return self.wall_stop()
         spent = robot_time - self._robot_time_at_start
         if motion and spent >= self.robot_time_s:
@@ -80,17 +107,21 @@ class BlockBudget:
         return None
 
     def after_call(self, now: float, knowledge_chars: int) -> Stop | None:
-        """Whether the block may go on after a call returned."""
+        """Whether the block may go on after a call returned; its answer is sent at `now`
+        (the interval since `call_taken`, if it was called, is not the block's own)."""
+        if self._taken_at is not None:
+            self._answering += now - self._taken_at
+            self._taken_at = None
         added = knowledge_chars - self._knowledge_at_start
         if added > self.limits.knowledge_chars:
             return Stop("knowledge_limit", f"the code added {added} characters to the scene "
                         f"knowledge (at most {self.limits.knowledge_chars} per block) and was "
                         "stopped; measure fewer things per block, under short names")
-        if now >= self._deadline:
+        if self.out_of_wall_time(now):
             return self.wall_stop()
         return None
 
     def wall_stop(self) -> Stop:
-        return Stop("wall_limit", f"wall time limit: the block took more than "
-                    f"{self.limits.total_wall_s:g} s in total (robot API calls included); "
-                    "the code was stopped")
+        return Stop("wall_limit", f"wall time limit: the code used up its "
+                    f"{self.limits.total_wall_s:g} s of the block's own wall time (robot "
+                    "calls not counted) and was stopped")

@@ -15,9 +15,12 @@ class SandboxLimits:
     cpu_s: CPU time of the code (an rlimit the child sets on itself).
     compute_wall_s: wall time the code may spend between and around API calls (time spent
         serving a call is not counted).
-    total_wall_s: wall time of the whole block from the moment the code starts (after the
-        child's start-up, which has `startup_s` of its own), API calls included; checked
-        before each call and after each call returns (a call in progress is not interrupted).
+    total_wall_s: the block's own wall time: wall time from the moment the code starts
+        (after the child's start-up, which has `startup_s` of its own), less the time the
+        parent spends answering its API calls (the robot moving, however slowly the host
+        simulates it); the code computing or waiting for anything else counts. A block that
+        loops forever is stopped whatever else it does; checked while the code runs, before
+        each call and after each call returns.
     memory_mb: address space of the child (an rlimit).
     max_output_chars: printed text kept; beyond it the output is cut (not an error).
     max_api_calls: calls the code may make; one more ends the block.

@@ -15,8 +15,9 @@ same outcome). Nothing the child sends is used before `messages.read_message` ch
 a call whose arguments do not fit its function's signature is answered with a TypeError or
 ValueError here, without reaching the owner. The block's budgets (`budget.BlockBudget`)
 are checked before and after every call, from the owner's `Meters`. Time spent between
-`next_call` returning a call and its answer is the owner's (not counted as the code's
-computing time; counted in the block's total wall time).
+`next_call` returning a call and its answer is the owner's: it counts neither as the code's
+computing time nor as the block's own wall time (`budget`), so a slow simulation of the
+robot's motions cannot use up the code's budgets.
 
 What the parent sends is its own responsibility: the start message has room for any code the
 static check accepts (a larger one, possible only without the check, is rejected with that
@@ -207,9 +208,11 @@ class SandboxSession:
             else:
                 motion = isinstance(message, Call) and message.motion
                 self._calls.append((message.name, message.summary()))
+                now = time.monotonic()
                 self._stop_if(self._budget.before_call(
-                    message.name, motion, time.monotonic(), self._meters.robot_time()))
+                    message.name, motion, now, self._meters.robot_time()))
                 if isinstance(message, Call):
+                    self._budget.call_taken(now)
                     self._pending = message
                     return message
                 self._send(raise_reply(message.refused.error_type, message.refused.message))
@@ -255,7 +258,7 @@ class SandboxSession:
         if not self._running:
             return (f"the sandboxed process did not start within {self._limits.startup_s:g} s "
                     "(the machine may be overloaded); the code did not run")
-        if time.monotonic() >= self._budget.deadline:
+        if self._budget.out_of_wall_time(time.monotonic()):
             return self._budget.wall_stop().message
         return (f"wall time limit: the code computed for more than "
                 f"{self._limits.compute_wall_s:g} s (not counting robot API calls); "
