@@ -26,8 +26,8 @@ FILES = sorted(OBJECTS_DIR.glob("*.sdf"))
 CUBE_URL = "package://physcap_models/scene/cube_5cm.sdf"
 
 CAN_HEIGHT = 0.122
-EXPECTED_COLLISIONS = {"can_": 1, "libero_cup_": 1, "avocado_": 1, "paper_cup_": 29,
-                       "basket": 9}
+EXPECTED_COLLISIONS = {"can_": 1, "libero_cup_": 1, "avocado_": 1, "paper_cup_large": 29,
+                       "paper_cup_small": 37, "basket": 9}
 
 
 def _load(*urls: str) -> tuple[MultibodyPlant, SceneGraph]:

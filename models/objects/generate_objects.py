@@ -23,10 +23,10 @@ Objects:
 - Paper cups standing upside down (mouth on the table), hollow: a ring of 16 thin boxes
   along the tapered wall plus a disk for the closed top (walls 5 mm thick), lined inside
   by a collision-only grip band that makes the wall 15 mm thick where the fingers hold it
-  (above 54 mm in the large cup, clear of a cube), so the pads cannot sink through it; the
-  band is an octagon of 8 boxes. The collision walls stop 1 mm above the table: the cup
-  stands on 4 small collision-only spheres in its rim (4 point contacts instead of 16). The
-  large one (mouth Ø 98 mm,
+  (above 54 mm in the large cup, clear of a cube), so the pads cannot sink through it; in
+  the large cup the band is an octagon of 8 boxes. The collision walls stop 1 mm above the
+  table: the cup stands on 4 small collision-only spheres in its rim (4 point contacts
+  instead of 16). The large one (mouth Ø 98 mm,
   top Ø 78 mm, 100 mm high) covers a 5 cm cube with a few mm to spare; the small one
   (mouth Ø 56 mm, top Ø 44 mm, 66 mm high) cannot.
 - A wicker basket, 0.24 x 0.18 x 0.07 m outer, 4 mm floor and walls, 0.5 kg.
@@ -84,11 +84,13 @@ CUP_WALL, CUP_SEGMENTS, CUP_RGB, CUP_MU = 0.005, 16, "0.95 0.95 0.92", 0.6
 # the closed top: in the large cup from 54 mm (clear of a 5 cm cube under it), in the small
 # one (too small to cover anything) from 5 mm.
 CUP_BAND = 0.010
-# The band is an octagon of CUP_BAND_SEGMENTS boxes, each flush with the inner face of every
-# other wall box and wide enough to reach into the walls between (the wall is 12 to 15 mm
-# thick there, depending on the yaw): a 16-box band made each cup 16 more collision
-# geometries whose overlapping bounding boxes the plant's broad phase sorts out every step.
-CUP_BAND_SEGMENTS = 8
+# Boxes in the band (a divisor of CUP_SEGMENTS): a 16-box band makes a cup 16 more collision
+# geometries whose overlapping bounding boxes the plant's broad phase sorts out every step. In
+# the large cup the pads stop in the 5 mm wall, and an octagon of 8 boxes will do: each box is
+# flush with the inner face of every other wall box and wide enough to reach into the walls
+# between (the wall is 12 to 15 mm thick there, depending on the yaw). In the small cup the
+# pads sink into the band itself (the fingers stop 32 to 33 mm apart on its 50 mm), so its
+# band keeps one box per wall and the grasp is the same from every yaw.
 # Collision-only feet: the wall boxes (collision) end CUP_FOOT_GAP above the mouth, and the cup
 # stands on CUP_FEET spheres of radius CUP_FOOT_RADIUS in the mouth's rim, one under every
 # (CUP_SEGMENTS / CUP_FEET)-th wall. Each wall touching the table was one point contact the
@@ -97,9 +99,10 @@ CUP_BAND_SEGMENTS = 8
 # tips as before. The gap lets nothing through: a cube is 50 mm, a finger pad 15 mm. The
 # visuals reach the table.
 CUP_FEET, CUP_FOOT_RADIUS, CUP_FOOT_GAP = 4, 0.002, 0.001
-PAPER_CUPS = {  # name: (mouth (bottom) diameter, closed top diameter, height, mass, band start)
-    "paper_cup_large": (0.098, 0.078, 0.100, 0.015, 0.054),
-    "paper_cup_small": (0.056, 0.044, 0.066, 0.008, 0.005),
+PAPER_CUPS = {  # name: (mouth (bottom) diameter, closed top diameter, height, mass, band start,
+    #                boxes in the band)
+    "paper_cup_large": (0.098, 0.078, 0.100, 0.015, 0.054, 8),
+    "paper_cup_small": (0.056, 0.044, 0.066, 0.008, 0.005, 16),
 }
 
 BASKET_SIZE, BASKET_WALL, BASKET_MASS, BASKET_MU = (0.24, 0.18, 0.07), 0.004, 0.5, 0.6
@@ -276,7 +279,7 @@ def soda_can(colour: str, rgb: str, is_open: bool) -> None:
 
 
 def paper_cup(name: str, mouth_d: float, top_d: float, height: float, mass: float,
-              band_from: float) -> None:
+              band_from: float, band_boxes: int) -> None:
     """An upside-down paper cup. Each wall box is tilted by the taper angle alpha so that
     its outer face lies on the cone through the nominal mouth and top circles (the
     nominal radii are the 16-gon's apothems, so the inside clearance does not depend on
@@ -305,7 +308,7 @@ def paper_cup(name: str, mouth_d: float, top_d: float, height: float, mass: floa
                               CUP_MU)
         elements += visual(f"wall_visual_{k:02d}", at, box(t, width, length), CUP_RGB)
     elements += cup_feet(r_mouth, alpha)
-    elements += grip_band(rho, alpha, length, height, band_from)
+    elements += grip_band(rho, alpha, length, height, band_from, band_boxes)
     elements += collision("top_collision", pose(z=top_z), cylinder(r_top, t), CUP_MU)
     elements += visual("top_visual", pose(z=top_z), cylinder(r_top, t), CUP_RGB)
     r_mean = (r_mouth + r_top) / 2
@@ -323,7 +326,7 @@ def paper_cup(name: str, mouth_d: float, top_d: float, height: float, mass: floa
         f"  Collision: the same, but the wall boxes end {CUP_FOOT_GAP * 1000:g} mm above the"
         f" mouth; the cup stands on\n  {CUP_FEET} spheres Ø {CUP_FOOT_RADIUS * 2000:g} mm in"
         " the rim (fewer point contacts with the table).\n"
-        f"  Collision only: a grip band of {CUP_BAND_SEGMENTS} boxes {CUP_BAND * 1000:g} mm"
+        f"  Collision only: a grip band of {band_boxes} boxes {CUP_BAND * 1000:g} mm"
         " thick lining the wall"
         f" inside from\n  {band_from * 1000:g} mm up, so finger pads (which sink a few mm"
         " into point contacts) cannot\n  pass through the wall and hang the cup on a finger.\n"
@@ -354,16 +357,16 @@ def cup_feet(r_mouth: float, alpha: float) -> str:
     return out
 
 
-def grip_band(rho: float, alpha: float, length: float, height: float, band_from: float) -> str:
-    """Collision boxes (no visuals) of the grip band: CUP_BAND_SEGMENTS boxes CUP_BAND thick,
-    each against the inner face of every (CUP_SEGMENTS / CUP_BAND_SEGMENTS)-th wall box,
-    reaching from band_from (m) above the mouth to the top end of the wall box, as wide as
-    the side of a CUP_BAND_SEGMENTS-gon around the wall's inner face at mid-height (so its
-    edges reach into the wall boxes between). Wall-box frame: x out of the wall (normal),
-    z up along it."""
-    t, b, n = CUP_WALL, CUP_BAND, CUP_BAND_SEGMENTS
+def grip_band(rho: float, alpha: float, length: float, height: float, band_from: float,
+              n: int) -> str:
+    """Collision boxes (no visuals) of the grip band: n boxes CUP_BAND thick, each against
+    the inner face of every (CUP_SEGMENTS / n)-th wall box, reaching from band_from (m) above
+    the mouth to the top end of the wall box, as wide as the side of an n-gon around the
+    wall's inner face at mid-height (with n < CUP_SEGMENTS, its edges reach into the wall
+    boxes between). Wall-box frame: x out of the wall (normal), z up along it."""
+    t, b = CUP_WALL, CUP_BAND
     if CUP_SEGMENTS % n:
-        raise ValueError(f"CUP_BAND_SEGMENTS={n} must divide CUP_SEGMENTS={CUP_SEGMENTS}")
+        raise ValueError(f"the band's {n} boxes must divide CUP_SEGMENTS={CUP_SEGMENTS}")
     s_low = (band_from - height / 2) / math.cos(alpha)  # along the wall from its centre
     band_length = length / 2 - s_low
     s_mid = s_low + band_length / 2
