@@ -3,7 +3,8 @@
 Every model parses, has one body named like its file with a valid spatial inertia, stands
 on z = 0 (the lowest point of its collision geometry, computed from the shapes and their
 poses), and its straws and lids are visual only. The large paper cup covers a 5 cm cube
-without touching it; the small one cannot.
+without touching it; the small one cannot. The cups, the cube and the tray rest on four small
+feet only.
 """
 
 from __future__ import annotations
@@ -26,8 +27,8 @@ FILES = sorted(OBJECTS_DIR.glob("*.sdf"))
 CUBE_URL = "package://physcap_models/scene/cube_5cm.sdf"
 
 CAN_HEIGHT = 0.122
-EXPECTED_COLLISIONS = {"can_": 1, "libero_cup_": 1, "avocado_": 1, "paper_cup_": 33,
-                       "basket": 9}
+EXPECTED_COLLISIONS = {"can_": 1, "libero_cup_": 1, "avocado_": 1, "paper_cup_large": 29,
+                       "paper_cup_small": 37, "basket": 9}
 
 
 def _load(*urls: str) -> tuple[MultibodyPlant, SceneGraph]:
@@ -114,6 +115,32 @@ def test_model(path: Path):
         assert max(highs) == pytest.approx(0.0827, abs=1e-4)
     else:
         assert not straws
+
+
+FEET = {  # model URL under physcap_models/: (body, the only geometries touching the table)
+    "objects/paper_cup_large.sdf": ("paper_cup_large",
+                                    [f"foot_collision_{k:02d}" for k in (0, 4, 8, 12)]),
+    "objects/paper_cup_small.sdf": ("paper_cup_small",
+                                    [f"foot_collision_{k:02d}" for k in (0, 4, 8, 12)]),
+    "scene/cube_5cm.sdf": ("cube_5cm", [f"corner_bottom_{c}" for c in
+                                        ("nx_ny", "nx_py", "px_ny", "px_py")]),
+    "scene/tray.sdf": ("tray", [f"foot_{c}" for c in ("nx_ny", "nx_py", "px_ny", "px_py")]),
+}
+
+
+@pytest.mark.parametrize("url", sorted(FEET))
+def test_rests_on_four_small_feet(url: str):
+    """Only four small spheres reach the table; every other collision geometry stays at least
+    0.9 mm above it (each geometry touching the table is a point contact the plant builds and
+    solves every step)."""
+    body_name, feet = FEET[url]
+    plant, scene_graph = _load(f"package://physcap_models/{url}")
+    collisions = list(_geometries(plant, scene_graph, plant.GetBodyByName(body_name),
+                                  Role.kProximity))
+    lows = {name: _z_extent(shape, X)[0] for name, shape, X in collisions}
+    touching = sorted(name for name, low in lows.items() if low < 0.9e-3)
+    assert touching == sorted(feet)
+    assert all(abs(lows[name]) < 1e-9 for name in touching)
 
 
 def _cup_over_cube(cup: str) -> tuple[float, int]:

@@ -23,7 +23,10 @@ Objects:
 - Paper cups standing upside down (mouth on the table), hollow: a ring of 16 thin boxes
   along the tapered wall plus a disk for the closed top (walls 5 mm thick), lined inside
   by a collision-only grip band that makes the wall 15 mm thick where the fingers hold it
-  (above 54 mm in the large cup, clear of a cube), so the pads cannot sink through it. The large one (mouth Ø 98 mm,
+  (above 54 mm in the large cup, clear of a cube), so the pads cannot sink through it; in
+  the large cup the band is an octagon of 8 boxes. The collision walls stop 1 mm above the
+  table: the cup stands on 4 small collision-only spheres in its rim (4 point contacts
+  instead of 16). The large one (mouth Ø 98 mm,
   top Ø 78 mm, 100 mm high) covers a 5 cm cube with a few mm to spare; the small one
   (mouth Ø 56 mm, top Ø 44 mm, 66 mm high) cannot.
 - A wicker basket, 0.24 x 0.18 x 0.07 m outer, 4 mm floor and walls, 0.5 kg.
@@ -81,9 +84,25 @@ CUP_WALL, CUP_SEGMENTS, CUP_RGB, CUP_MU = 0.005, 16, "0.95 0.95 0.92", 0.6
 # the closed top: in the large cup from 54 mm (clear of a 5 cm cube under it), in the small
 # one (too small to cover anything) from 5 mm.
 CUP_BAND = 0.010
-PAPER_CUPS = {  # name: (mouth (bottom) diameter, closed top diameter, height, mass, band start)
-    "paper_cup_large": (0.098, 0.078, 0.100, 0.015, 0.054),
-    "paper_cup_small": (0.056, 0.044, 0.066, 0.008, 0.005),
+# Boxes in the band (a divisor of CUP_SEGMENTS): a 16-box band makes a cup 16 more collision
+# geometries whose overlapping bounding boxes the plant's broad phase sorts out every step. In
+# the large cup the pads stop in the 5 mm wall, and an octagon of 8 boxes will do: each box is
+# flush with the inner face of every other wall box and wide enough to reach into the walls
+# between (the wall is 12 to 15 mm thick there, depending on the yaw). In the small cup the
+# pads sink into the band itself (the fingers stop 32 to 33 mm apart on its 50 mm), so its
+# band keeps one box per wall and the grasp is the same from every yaw.
+# Collision-only feet: the wall boxes (collision) end CUP_FOOT_GAP above the mouth, and the cup
+# stands on CUP_FEET spheres of radius CUP_FOOT_RADIUS in the mouth's rim, one under every
+# (CUP_SEGMENTS / CUP_FEET)-th wall. Each wall touching the table was one point contact the
+# plant built and solved every step (16 a cup). Tilted past about 4° (1 mm over the 13 mm
+# between the rim and a chord through two feet) the cup rests on its walls' rim again, so it
+# tips as before. The gap lets nothing through: a cube is 50 mm, a finger pad 15 mm. The
+# visuals reach the table.
+CUP_FEET, CUP_FOOT_RADIUS, CUP_FOOT_GAP = 4, 0.002, 0.001
+PAPER_CUPS = {  # name: (mouth (bottom) diameter, closed top diameter, height, mass, band start,
+    #                boxes in the band)
+    "paper_cup_large": (0.098, 0.078, 0.100, 0.015, 0.054, 8),
+    "paper_cup_small": (0.056, 0.044, 0.066, 0.008, 0.005, 16),
 }
 
 BASKET_SIZE, BASKET_WALL, BASKET_MASS, BASKET_MU = (0.24, 0.18, 0.07), 0.004, 0.5, 0.6
@@ -260,7 +279,7 @@ def soda_can(colour: str, rgb: str, is_open: bool) -> None:
 
 
 def paper_cup(name: str, mouth_d: float, top_d: float, height: float, mass: float,
-              band_from: float) -> None:
+              band_from: float, band_boxes: int) -> None:
     """An upside-down paper cup. Each wall box is tilted by the taper angle alpha so that
     its outer face lies on the cone through the nominal mouth and top circles (the
     nominal radii are the 16-gon's apothems, so the inside clearance does not depend on
@@ -276,13 +295,20 @@ def paper_cup(name: str, mouth_d: float, top_d: float, height: float, mass: floa
     rho = r_mouth - height / 2 * math.tan(alpha) - t / (2 * math.cos(alpha))  # box centre
     inner_mouth = r_mouth - t / math.cos(alpha)
     top_z = height - t / 2
+    # The collision wall: the visual wall without its lowest CUP_FOOT_GAP (the box shortened
+    # at its bottom end, its centre moved up along the wall's axis).
+    shorten = CUP_FOOT_GAP / math.cos(alpha)
+    rho_c, z_c = rho - shorten / 2 * math.sin(alpha), (height + CUP_FOOT_GAP) / 2
     elements = ""
     for k in range(n):
         yaw = 2 * math.pi * k / n
         at = pose(rho * math.cos(yaw), rho * math.sin(yaw), height / 2, 0.0, -alpha, yaw)
-        elements += collision(f"wall_collision_{k:02d}", at, box(t, width, length), CUP_MU)
+        at_c = pose(rho_c * math.cos(yaw), rho_c * math.sin(yaw), z_c, 0.0, -alpha, yaw)
+        elements += collision(f"wall_collision_{k:02d}", at_c, box(t, width, length - shorten),
+                              CUP_MU)
         elements += visual(f"wall_visual_{k:02d}", at, box(t, width, length), CUP_RGB)
-    elements += grip_band(rho, alpha, length, height, band_from)
+    elements += cup_feet(r_mouth, alpha)
+    elements += grip_band(rho, alpha, length, height, band_from, band_boxes)
     elements += collision("top_collision", pose(z=top_z), cylinder(r_top, t), CUP_MU)
     elements += visual("top_visual", pose(z=top_z), cylinder(r_top, t), CUP_RGB)
     r_mean = (r_mouth + r_top) / 2
@@ -290,14 +316,18 @@ def paper_cup(name: str, mouth_d: float, top_d: float, height: float, mass: floa
         f"  Paper cup standing upside down (mouth on the table), hollow: mouth (bottom)\n"
         f"  Ø {mouth_d * 1000:g} mm, closed top Ø {top_d * 1000:g} mm, {height * 1000:g} mm high,"
         f" {t * 1000:g} mm wall.\n"
-        f"  Collision = visual: a ring of {n} boxes {t * 1000:g} x {width * 1000:.2f} x"
+        f"  Visual: a ring of {n} boxes {t * 1000:g} x {width * 1000:.2f} x"
         f" {length * 1000:.2f} mm, each tilted\n"
         f"  {math.degrees(alpha):.2f}° to follow the taper (outer faces on the cone through the"
         " nominal circles,\n"
         "  which are the 16-gon's apothems), plus a disk of the top's diameter and the wall's\n"
         f"  thickness as the closed top. Inside: {inner_mouth * 2000:.1f} mm across at the"
         f" mouth, {(height - t) * 1000:g} mm high.\n"
-        f"  Collision only: a grip band of {n} boxes {CUP_BAND * 1000:g} mm thick lining the wall"
+        f"  Collision: the same, but the wall boxes end {CUP_FOOT_GAP * 1000:g} mm above the"
+        f" mouth; the cup stands on\n  {CUP_FEET} spheres Ø {CUP_FOOT_RADIUS * 2000:g} mm in"
+        " the rim (fewer point contacts with the table).\n"
+        f"  Collision only: a grip band of {band_boxes} boxes {CUP_BAND * 1000:g} mm"
+        " thick lining the wall"
         f" inside from\n  {band_from * 1000:g} mm up, so finger pads (which sink a few mm"
         " into point contacts) cannot\n  pass through the wall and hang the cup on a finger.\n"
         f"  Mass {mass:g} kg; inertia of a thin conical shell approximated by a thin-walled open\n"
@@ -310,21 +340,43 @@ def paper_cup(name: str, mouth_d: float, top_d: float, height: float, mass: floa
                       elements))
 
 
-def grip_band(rho: float, alpha: float, length: float, height: float, band_from: float) -> str:
-    """Collision boxes (no visuals) of the grip band: one per wall box, CUP_BAND thick,
-    against the wall box's inner face, reaching from band_from (m) above the mouth to the
-    top end of the wall box. Wall-box frame: x out of the wall (normal), z up along it."""
-    t, b, n = CUP_WALL, CUP_BAND, CUP_SEGMENTS
+def cup_feet(r_mouth: float, alpha: float) -> str:
+    """Collision spheres (no visuals) the cup stands on: CUP_FEET of radius CUP_FOOT_RADIUS,
+    touching z = 0, centred in the wall's thickness under every (CUP_SEGMENTS / CUP_FEET)-th
+    wall box."""
+    if CUP_SEGMENTS % CUP_FEET:
+        raise ValueError(f"CUP_FEET={CUP_FEET} must divide CUP_SEGMENTS={CUP_SEGMENTS}")
+    r_f, t = CUP_FOOT_RADIUS, CUP_WALL
+    radial = r_mouth - t / (2 * math.cos(alpha)) - r_f * math.tan(alpha)  # wall's mid-plane
+    out = ""
+    for k in range(0, CUP_SEGMENTS, CUP_SEGMENTS // CUP_FEET):
+        yaw = 2 * math.pi * k / CUP_SEGMENTS
+        out += collision(f"foot_collision_{k:02d}",
+                         pose(radial * math.cos(yaw), radial * math.sin(yaw), r_f),
+                         sphere(r_f), CUP_MU)
+    return out
+
+
+def grip_band(rho: float, alpha: float, length: float, height: float, band_from: float,
+              n: int) -> str:
+    """Collision boxes (no visuals) of the grip band: n boxes CUP_BAND thick, each against
+    the inner face of every (CUP_SEGMENTS / n)-th wall box, reaching from band_from (m) above
+    the mouth to the top end of the wall box, as wide as the side of an n-gon around the
+    wall's inner face at mid-height (with n < CUP_SEGMENTS, its edges reach into the wall
+    boxes between). Wall-box frame: x out of the wall (normal), z up along it."""
+    t, b = CUP_WALL, CUP_BAND
+    if CUP_SEGMENTS % n:
+        raise ValueError(f"the band's {n} boxes must divide CUP_SEGMENTS={CUP_SEGMENTS}")
     s_low = (band_from - height / 2) / math.cos(alpha)  # along the wall from its centre
     band_length = length / 2 - s_low
     s_mid = s_low + band_length / 2
     x_mid = -(t + b) / 2  # inward of the wall's centre plane
     radial = rho + x_mid * math.cos(alpha) - s_mid * math.sin(alpha)
     z = height / 2 + x_mid * math.sin(alpha) + s_mid * math.cos(alpha)
-    width = 2 * (rho - t / 2) * math.tan(math.pi / n)  # the inner side of the 16-gon
+    width = 2 * (rho - t / 2) * math.tan(math.pi / n)  # side of the n-gon at mid-height
     out = ""
-    for k in range(n):
-        yaw = 2 * math.pi * k / n
+    for k in range(0, CUP_SEGMENTS, CUP_SEGMENTS // n):
+        yaw = 2 * math.pi * k / CUP_SEGMENTS
         at = pose(radial * math.cos(yaw), radial * math.sin(yaw), z, 0.0, -alpha, yaw)
         out += collision(f"band_collision_{k:02d}", at, box(b, width, band_length), CUP_MU)
     return out
