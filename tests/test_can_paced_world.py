@@ -184,18 +184,25 @@ def test_a_world_that_is_behind_follows_the_references_it_missed_in_order():
     speed = 1.5  # rad/s
     corner = 0.3 / speed
     start = time.monotonic()
+    sent = []  # when each reference was given (s since start)
     try:
         while (elapsed := time.monotonic() - start) < 2 * corner + 1.0:
             q = np.zeros(6)
             q[0] = min(elapsed, corner) * speed
             q[1] = min(max(elapsed - corner, 0.0), corner) * speed
             world.step(MotionCommand(q, np.ones(6, dtype=bool), 0.05, 1.0, True), PERIOD)
+            sent.append(elapsed)
             time.sleep(PERIOD)
     finally:
         world.stop()
     given = np.array(slow.references)
-    # On the path: joint 2 moves only once joint 1 is out (within a step of the corner).
-    assert np.all((given[:, 1] <= 1e-9) | (given[:, 0] >= 0.3 - 1e-9))
+    # On the path: joint 2 moves only once joint 1 is out. The firmware's own references
+    # are samples of the path PERIOD apart, or further apart when this test's thread slept
+    # longer on a loaded machine: the two around the corner cut it by at most the distance
+    # the path runs between two of them (a world that went straight to the newest reference
+    # would cut it by a whole world step's worth of the path, 4 to 10 times more).
+    cut = speed * np.diff(sent).max() + 1e-9
+    assert np.all((given[:, 1] <= cut) | (given[:, 0] >= 0.3 - cut))
     # No jumps: consecutive references within the top joint speed over the step's time.
     jumps = np.abs(np.diff(given, axis=0)).max(axis=1)
     assert np.all(jumps <= DEFAULT_MAX_SPEED * np.array(slow.steps[1:]) + 1e-9)

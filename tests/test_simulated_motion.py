@@ -60,17 +60,22 @@ def test_a_can_rolling_off_the_table_lands_on_the_floor_and_stays_finite():
         w=[0.0, 0.12 / radius, 0.0], v=[0.12, 0.0, 0.0]))
     q0, _ = motion.initial_state()
     command = MotionCommand(q0, np.ones(6, bool), 0.05, 1.2, True)
-    for _ in range(400):  # 2 s of world time
+    # The centre of mass's vertical speed over the last 0.5 s of 2 s of world time, m/s.
+    # (Not the body frame's: it sits on the bottom face, off the axis the can rolls about,
+    # and the can wobbles as it rolls on with point contact.)
+    sinking = []
+    for step in range(400):
         reading = motion.step(command, 0.005)
+        if step >= 300:
+            sinking.append(can.CalcCenterOfMassTranslationalVelocityInWorld(context)[2])
     assert np.isfinite(reading.q).all()
     assert np.isfinite(plant.GetPositionsAndVelocities(context)).all()
     X_WC = plant.EvalBodyPoseInWorld(context, can)
-    V_WC = plant.EvalBodySpatialVelocityInWorld(context, can)
     assert X_WC.translation()[0] > 0.55  # past the table's edge
     # Lying on the floor: the body frame (the bottom face's centre) a radius above it, less
     # the few mm a lying can sinks in with point contact (on the table top as well).
     assert FLOOR_Z + radius - 0.01 < X_WC.translation()[2] < FLOOR_Z + radius + 0.002
-    assert abs(V_WC.translational()[2]) < 0.05
+    assert np.max(np.abs(sinking)) < 0.05  # it no longer falls (it still rolls along)
     np.testing.assert_allclose(reading.q, q0, atol=2e-3)  # the arm held where it was
 
 
