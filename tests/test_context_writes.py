@@ -24,7 +24,10 @@ ROOT = Path(physcap_drake.__file__).parent
 #: value, a body's mass parameter, the time, or taking the simulator's (or the clock's)
 #: root context, or a subsystem's part of a root context, to write into.
 WRITES = frozenset({"FixValue", "SetMass", "get_mutable_context", "SetTime",
-                    "mutable_context", "GetMyMutableContextFromRoot"})
+                    "mutable_context", "GetMyMutableContextFromRoot",
+                    # Posing a plant: a scratch model's positions, or a world's state.
+                    "SetPositions", "SetPositionsAndVelocities", "SetFreeBodyPose",
+                    "SetFreeBodySpatialVelocity"})
 
 #: file (relative to physcap_drake/) -> {call: why this module may make it}.
 ALLOWED = {
@@ -59,12 +62,18 @@ ALLOWED = {
                                        "a calibration run's own station)",
     },
     "station/can_scene.py": {
+        "SetPositionsAndVelocities": ("its private scratch copy of the emulated world, set from "
+                                      "the latched state"),
         "GetMyMutableContextFromRoot": "the scene's private scratch copy of the emulated "
                                        "world, set from its own latched state (or, for "
                                        "readers outside the diagram, the published world) "
                                        "before each use",
     },
     "control/planning_model.py": {
+        "SetPositions": ("the planning model's own scratch contexts (the workcell's, and "
+                         "ModelAtPositions' of a robot-only plant, which the mass estimator reads "
+                         "its Jacobians and gravity torques from): set in full from the arguments "
+                         "of each query"),
         "GetMyMutableContextFromRoot": "the planning model's own scratch context",
     },
     "control/ik.py": {
@@ -72,9 +81,24 @@ ALLOWED = {
                                        "each solve",
     },
     "app/replay.py": {
+        "SetFreeBodyPose": ("the recorded pose of each body, in the replay's own never-simulated "
+                            "context"),
         "SetTime": "the replay viewer's own scratch context of a rebuilt diagram, never "
                    "simulated: each recorded sample is drawn from it",
         "GetMyMutableContextFromRoot": "the plant's part of that scratch context",
+    },
+    "can/emulator_process.py": {
+        "SetPositionsAndVelocities": ("set_world: an operator placing things in the emulated "
+                                      "world, between two steps of the world's own simulator "
+                                      "(which stands for the real world behind the CAN bus)"),
+    },
+    "perception/camera_calibration.py": {
+        "SetFreeBodyPose": ("the calibration board placed for each view in a station context the "
+                            "run built for rendering and never simulates"),
+    },
+    "perception/hand_eye_calibration.py": {
+        "SetPositions": ("the arm posed for each view in a station context the run built for "
+                         "rendering and never simulates"),
     },
 }
 

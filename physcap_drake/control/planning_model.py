@@ -11,6 +11,7 @@ import numpy as np
 from pydrake.geometry import SceneGraph
 from pydrake.math import RigidTransform
 from pydrake.multibody.plant import MultibodyPlant
+from pydrake.multibody.tree import BodyIndex
 
 from physcap_drake.station.robot_model import RobotModel, moving_joints, robot_model
 
@@ -63,6 +64,14 @@ class PlanningModel:
         q[self.finger_position_indices] = 0.5 * opening
         return q
 
+    def body_poses(self, q_arm: np.ndarray, opening: float) -> list[RigidTransform]:
+        """World poses of every body of `plant`, by BodyIndex, at arm joints `q_arm` (rad)
+        and gripper `opening` (m)."""
+        plant = self.plant
+        plant.SetPositions(self._plant_context, self.full_positions(q_arm, opening))
+        return [plant.EvalBodyPoseInWorld(self._plant_context, plant.get_body(BodyIndex(i)))
+                for i in range(plant.num_bodies())]
+
     def tcp_pose(self, q_arm: np.ndarray) -> RigidTransform:
         """World pose of the fingertip frame at arm joints `q_arm` (rad)."""
         self.plant.SetPositions(self._plant_context, self.full_positions(q_arm, 0.0))
@@ -82,3 +91,19 @@ class PlanningModel:
         names = " and ".join(inspector.GetName(inspector.GetFrameId(g))
                              for g in (closest.id_A, closest.id_B))
         return closest.distance, names
+
+
+class ModelAtPositions:
+    """A robot-only model plant (no scene, e.g. RobotModel.controller_plant) evaluated at
+    given positions: `at(q)` sets all of the plant's positions (rad, m) in a scratch
+    context this object owns, never a running diagram's, and returns it to read (poses,
+    Jacobians, gravity). Each call replaces the previous positions, so every computation
+    is a function of the positions it was given."""
+
+    def __init__(self, plant: MultibodyPlant):
+        self.plant = plant
+        self._context = plant.CreateDefaultContext()
+
+    def at(self, q: np.ndarray):
+        self.plant.SetPositions(self._context, q)
+        return self._context

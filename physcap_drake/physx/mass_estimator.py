@@ -13,6 +13,7 @@ from pydrake.multibody.plant import MultibodyPlant
 from pydrake.multibody.tree import JacobianWrtVariable
 from pydrake.systems.framework import Context, LeafSystem, State
 
+from physcap_drake.control.planning_model import ModelAtPositions
 from physcap_drake.immutable_state import Immutable
 from physcap_drake.station import ports
 
@@ -143,9 +144,8 @@ class MassEstimator(LeafSystem):
         self._rate = float(sample_rate)
         gain = np.ones(ports.NUM_ARM_JOINTS) if torque_gain is None else torque_gain
         self._gain = as_gain(gain)
-        # Scratch context of our model, this object's own and never a running diagram's:
-        # set from the arguments of each computation (a pure function of them).
-        self._scratch = controller_plant.CreateDefaultContext()
+        # Our model, evaluated at the arguments of each computation (a pure function of them).
+        self._model = ModelAtPositions(controller_plant)
         self._tcp = controller_plant.GetFrameByName(tcp_frame_name)
         self._q_index = [j.position_start() for j in arm_joints]
         self._v_index = [j.velocity_start() for j in arm_joints]
@@ -205,21 +205,22 @@ class MassEstimator(LeafSystem):
 
     # Our own model of the arm ---------------------------------------------------------------
 
-    def _set_arm(self, q_arm: np.ndarray) -> None:
+    def _at_arm(self, q_arm: np.ndarray) -> Context:
+        """The model's context with the arm at `q_arm` (rad), the fingers at 0, to read."""
         q = np.zeros(self._plant.num_positions())
         q[self._q_index] = q_arm
-        self._plant.SetPositions(self._scratch, q)
+        return self._model.at(q)
 
     def fingertip_jacobian(self, q_arm: np.ndarray, offset_xy=(0.0, 0.0)) -> np.ndarray:
         """The fingertip point's spatial velocity Jacobian over the arm joints at `q_arm`
         (rows ωx, ωy, ωz in rad/rad, vx, vy, vz in m/rad; world frame), for the point
         `offset_xy` (m, world frame) beside the fingertip — from the robot's model."""
-        self._set_arm(q_arm)
+        model = self._at_arm(q_arm)
         world = self._plant.world_frame()
-        X_WT = self._tcp.CalcPoseInWorld(self._scratch)
+        X_WT = self._tcp.CalcPoseInWorld(model)
         offset_in_tcp = X_WT.rotation().inverse().multiply([*offset_xy, 0.0])
         jacobian = self._plant.CalcJacobianSpatialVelocity(
-            self._scratch, JacobianWrtVariable.kV, self._tcp, offset_in_tcp, world, world)
+            model, JacobianWrtVariable.kV, self._tcp, offset_in_tcp, world, world)
         return jacobian[:, self._v_index]
 
     def vertical_jacobian(self, q_arm: np.ndarray, offset_xy=(0.0, 0.0)) -> np.ndarray:
@@ -229,8 +230,7 @@ class MassEstimator(LeafSystem):
 
     def arm_gravity_torque(self, q_arm: np.ndarray) -> np.ndarray:
         """Torques (N·m) that hold the unloaded arm at `q_arm`, from the robot's model."""
-        self._set_arm(q_arm)
-        return -self._plant.CalcGravityGeneralizedForces(self._scratch)[self._v_index]
+        return -self._plant.CalcGravityGeneralizedForces(self._at_arm(q_arm))[self._v_index]
 
     def estimate_mass(self, empty: TorqueWindow, loaded: TorqueWindow) -> float:
         """The held mass (kg) from an empty and a loaded window at the same commanded pose:

@@ -82,11 +82,8 @@ class McapRecorder(LeafSystem):
         self._time_base = time_base
         self._joint_names = [*joint_names, GRIPPER_JOINT]
         self._kinematics = kinematics
-        if kinematics is not None:
+        if kinematics is not None:  # its forward kinematics gives the poses
             plant, scene_graph = kinematics.plant, kinematics.scene_graph
-            # A workspace for forward kinematics (set fully before every use), not state:
-            # the recorder's own scratch context, never a running diagram's.
-            self._fk_context = plant.CreateDefaultContext()
         self._plant, self._scene_graph = plant, scene_graph
         self._camera_frame = camera_frame
         self._vectors = {name: self.DeclareVectorInputPort(name, size)
@@ -151,11 +148,8 @@ class McapRecorder(LeafSystem):
             return self._body_poses.Eval(context)
         if self._kinematics is None:
             return None
-        plant = self._plant
-        plant.SetPositions(self._fk_context, self._kinematics.full_positions(
-            joints[ports.ARM_POSITION_MEASURED], joints[ports.GRIPPER_POSITION_MEASURED][0]))
-        return [plant.EvalBodyPoseInWorld(self._fk_context, plant.get_body(index))
-                for index in (BodyIndex(i) for i in range(plant.num_bodies()))]
+        return self._kinematics.body_poses(joints[ports.ARM_POSITION_MEASURED],
+                                           joints[ports.GRIPPER_POSITION_MEASURED][0])
 
     def _write_image(self, context: Context) -> EventStatus:
         at = self._sink.stamp(context.get_time())
