@@ -18,6 +18,7 @@ from physcap_drake.commands import (
     arm,
     bench,
     calibrate,
+    compare,
     demo,
     emulate,
     evaluate,
@@ -54,6 +55,7 @@ app = typer.Typer(
 app.command("sim")(sim.sim)
 app.command("run")(run.run)
 app.command("eval")(evaluate.evaluate)
+app.command("compare")(compare.compare)
 app.command("replay")(replay.replay)
 app.command("recover")(recover.recover)
 app.command("emulate-piper", short_help="Emulate a PiPER arm on a CAN bus.")(

@@ -48,6 +48,7 @@ BAD_INPUTS = [
     (["emulate-piper", "--channel", "x", "--interface", "virtual", "--scenario", "{missing}"],
      "no such file"),
     (["eval", "--llm", "replay:{missing}", "--out", "{missing}"], "no such file"),
+    (["compare", "{missing}", "{missing}"], "no evaluation folder"),
     # files of the wrong kind
     (["run", "--task", "identify_empty_can", "--llm", "replay:" + README], "not a call record"),
     (["run", "--task", "identify_empty_can", "--llm", "replay:{mcap}"], "not a JSON Lines"),
@@ -56,6 +57,7 @@ BAD_INPUTS = [
     (["replay", README], "is not an MCAP recording"),
     (["replay", "{mcap}"], "physcap.episode"),
     (["recover", README], "is not an MCAP recording"),
+    (["compare", "tests", "tests"], "holds no finished episode"),
     (["sim", "--scenario", NOT_A_SCENARIO], "are not known"),
     (["sim", "--scenario", README], "README.md"),
     (["demo", "pick-place", "--scenario", NOT_A_SCENARIO], "are not known"),
