@@ -50,6 +50,8 @@ ALLOWED = {
     "station/simulated_motion.py": {
         "get_mutable_context": "the emulated world owns its simulator (it stands for the "
                                "real world behind the CAN bus)",
+        "SetPositionsAndVelocities": ("set_world: an operator placing things in the emulated "
+                                      "world, between two steps of its own simulator"),
         "GetMyMutableContextFromRoot": "the emulated world's plant context, in the context "
                                        "its simulator owns: its hidden masses before the "
                                        "first step and an operator's moves (set_world) "
@@ -60,6 +62,10 @@ ALLOWED = {
                                        "part of a root context its caller owns and no "
                                        "simulator holds yet (an episode's initial masses, "
                                        "a calibration run's own station)",
+        "SetFreeBodyPose": ("pose_scene: a calibration board placed for each view in a "
+                            "station context the run built for rendering and never simulates"),
+        "SetPositions": ("pose_scene: the arm posed for each view (hand-eye calibration) in "
+                         "such a never-simulated context"),
     },
     "station/can_scene.py": {
         "SetPositionsAndVelocities": ("its private scratch copy of the emulated world, set from "
@@ -74,11 +80,9 @@ ALLOWED = {
                          "ModelAtPositions' of a robot-only plant, which the mass estimator reads "
                          "its Jacobians and gravity torques from): set in full from the arguments "
                          "of each query"),
-        "GetMyMutableContextFromRoot": "the planning model's own scratch context",
-    },
-    "control/ik.py": {
-        "GetMyMutableContextFromRoot": "a fresh scratch context of the planning model for "
-                                       "each solve",
+        "GetMyMutableContextFromRoot": "the planning model's own scratch contexts (and a "
+                                       "fresh one per inverse-kinematics solve, "
+                                       "fresh_plant_context)",
     },
     "app/replay.py": {
         "SetFreeBodyPose": ("the recorded pose of each body, in the replay's own never-simulated "
@@ -86,19 +90,6 @@ ALLOWED = {
         "SetTime": "the replay viewer's own scratch context of a rebuilt diagram, never "
                    "simulated: each recorded sample is drawn from it",
         "GetMyMutableContextFromRoot": "the plant's part of that scratch context",
-    },
-    "can/emulator_process.py": {
-        "SetPositionsAndVelocities": ("set_world: an operator placing things in the emulated "
-                                      "world, between two steps of the world's own simulator "
-                                      "(which stands for the real world behind the CAN bus)"),
-    },
-    "perception/camera_calibration.py": {
-        "SetFreeBodyPose": ("the calibration board placed for each view in a station context the "
-                            "run built for rendering and never simulates"),
-    },
-    "perception/hand_eye_calibration.py": {
-        "SetPositions": ("the arm posed for each view in a station context the run built for "
-                         "rendering and never simulates"),
     },
 }
 

@@ -227,9 +227,9 @@ def _answer(emulator, kind: str, args) -> tuple[str, object]:
     if kind == "set_world":
         (state,) = args
         motion = emulator.motion
-        if not hasattr(motion, "plant"):
+        if not hasattr(motion, "set_world"):
             return "error", "the kinematic emulated arm has no simulated world to set"
         with getattr(motion, "lock", emulator.lock):
-            motion.plant.SetPositionsAndVelocities(motion.plant_context, state)
+            motion.set_world(state)
         return "ok", None
     return "error", f"unknown request {kind!r}"

@@ -57,6 +57,12 @@ class PlanningModel:
         self._context = self.diagram.CreateDefaultContext()
         self._plant_context = plant.GetMyMutableContextFromRoot(self._context)
 
+    def fresh_plant_context(self):
+        """(diagram context, plant context) of a new scratch context of the workcell, for a
+        solver that keeps its own (e.g. InverseKinematics); nothing else holds it."""
+        diagram_context = self.diagram.CreateDefaultContext()
+        return diagram_context, self.plant.GetMyMutableContextFromRoot(diagram_context)
+
     def full_positions(self, q_arm: np.ndarray, opening: float) -> np.ndarray:
         """Positions of `plant` for arm joints `q_arm` (rad) and a gripper `opening` (m)."""
         q = np.zeros(self.plant.num_positions())

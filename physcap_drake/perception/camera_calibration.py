@@ -24,7 +24,7 @@ from pydrake.multibody.parsing import AddModel, ModelDirective
 
 from physcap_drake.perception import charuco
 from physcap_drake.perception.camera_geometry import CameraGeometry
-from physcap_drake.station import MakeStation, close_station, scene_ground_truth
+from physcap_drake.station import MakeStation, close_station, pose_scene
 from physcap_drake.station.realsense.calibration_file import CameraCalibration, Intrinsics
 
 BOARD_MODEL = "package://physcap_models/calibration/charuco_board/charuco_board.sdf"
@@ -132,8 +132,7 @@ def calibrate_in_simulation(scenario, camera_name: str = "camera",
         views = []
         for index, placement in enumerate(placements):
             X_WB = board_pose(*placement)
-            with scene_ground_truth(station, context) as (plant, plant_context):
-                plant.SetFreeBodyPose(plant_context, plant.GetBodyByName(BOARD_BODY), X_WB)
+            pose_scene(station, context, free_bodies={BOARD_BODY: X_WB})
             rgb = station.GetOutputPort(f"{camera_name}.rgb").Eval(context).data
             views.append(view_of(rgb, X_WB))
             if on_view is not None:

@@ -32,7 +32,7 @@ from physcap_drake.perception.camera_calibration import (
     calibration_of,
 )
 from physcap_drake.perception.camera_geometry import CameraGeometry
-from physcap_drake.station import MakeStation, close_station, scene_ground_truth
+from physcap_drake.station import MakeStation, close_station, pose_scene
 from physcap_drake.station.ports import ARM_POSITION_MEASURED
 
 #: The flange frame the joint angles' forward kinematics gives (the PiPER's link6).
@@ -119,9 +119,8 @@ def calibrate_hand_eye_in_simulation(scenario, camera_name: str = "camera",
         context = station.CreateDefaultContext()
         views = []
         for index, q in enumerate(poses):
-            with scene_ground_truth(station, context) as (plant, plant_context):
-                plant.SetPositions(plant_context, plant.GetModelInstanceByName("piper"),
-                                   np.asarray(q, dtype=float))
+            pose_scene(station, context,
+                       instance_positions={"piper": np.asarray(q, dtype=float)})
             reported = station.GetOutputPort(ARM_POSITION_MEASURED).Eval(context)
             rgb = station.GetOutputPort(f"{camera_name}.rgb").Eval(context).data
             views.append(view_at(reported, rgb))

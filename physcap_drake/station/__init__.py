@@ -83,6 +83,19 @@ def scene_ground_truth(station: Diagram, root_context: Context):
         yield world
 
 
+def pose_scene(station: Diagram, root_context: Context, *, free_bodies=None,
+               instance_positions=None) -> None:
+    """Poses the sim station's simulated world in `root_context`, a context the caller
+    built only to render or read from and never simulates (a calibration's views):
+    free_bodies maps a body name to its pose in the world (RigidTransform);
+    instance_positions maps a model instance name to its positions (rad or m)."""
+    with scene_ground_truth(station, root_context) as (plant, plant_context):
+        for name, X_WB in (free_bodies or {}).items():
+            plant.SetFreeBodyPose(plant_context, plant.GetBodyByName(name), X_WB)
+        for name, q in (instance_positions or {}).items():
+            plant.SetPositions(plant_context, plant.GetModelInstanceByName(name), q)
+
+
 def scene_snapshot(station: Diagram, root_context: Context):
     """(plant, plant context) of the simulated world now, to read: the sim station's live
     context (its time stands still between calls), or a copy of the emulated world's (the

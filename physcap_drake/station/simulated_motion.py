@@ -116,6 +116,12 @@ class SimulatedMotion:
         """The plant's part of the live context (read it holding the emulator's lock)."""
         return self.plant.GetMyMutableContextFromRoot(self._context)
 
+    def set_world(self, state: np.ndarray) -> None:
+        """An operator's move of the world between two steps: every position and velocity
+        of the plant (the layout of `plant.GetPositionsAndVelocities`); hold the emulator's
+        lock."""
+        self.plant.SetPositionsAndVelocities(self.plant_context, state)
+
     def initial_state(self) -> tuple[np.ndarray, float]:
         return (self._output(ports.ARM_POSITION_MEASURED).copy(),
                 float(self._output(ports.GRIPPER_POSITION_MEASURED)[0]))
