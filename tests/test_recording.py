@@ -238,10 +238,20 @@ _CODE_ENTRY = re.compile(r"^code \(block (\d+), robot time ([\d.]+) s\)$")
 
 
 def _start_run(folder: Path) -> subprocess.Popen:
+    """Starts `physcap run` as a child whose SIGINT does what Ctrl-C does at a terminal.
+
+    A shell without job control starts background commands with SIGINT ignored, and an
+    ignored signal stays ignored across exec (Python then installs no KeyboardInterrupt
+    handler); the suite run as such a background job would otherwise see the run ignore
+    the test's SIGINT and finish normally."""
     env = {**os.environ, "PYTHONUNBUFFERED": "1"}
     return subprocess.Popen([sys.executable, "-m", "physcap_drake.cli", *_RUN, "--out",
                              str(folder)], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                            text=True, env=env)
+                            text=True, env=env, preexec_fn=_default_sigint)
+
+
+def _default_sigint() -> None:
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
 
 
 def _wait_for_code_block(child: subprocess.Popen, index: int) -> float:
