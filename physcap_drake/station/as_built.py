@@ -1,6 +1,6 @@
 """Building the simulated world as built rather than as drawn (`station.as_built`).
 
-The arm's links get the masses and centres of mass of `as_built.links`: a copy of its model
+The arm's links get the masses and centres of mass of `as_built.links`: the text of its model
 file with those values in place of the drawn ones is parsed (the controller's and the estimators'
 own models keep the file as it is). Joint damping goes on the plant's joints, and the
 compliant geometries of named models get their hydroelastic modulus scaled. All of it
@@ -9,34 +9,23 @@ happens while the plant is built, before it is finalized.
 
 from __future__ import annotations
 
-import tempfile
 import xml.etree.ElementTree as ET
-from pathlib import Path
 
 from pydrake.geometry import ProximityProperties, RoleAssign
-from pydrake.multibody.parsing import (
-    FlattenModelDirectives,
-    ModelDirectives,
-    Parser,
-    ProcessModelDirectives,
-)
+from pydrake.multibody.parsing import FlattenModelDirectives, ModelDirectives
 from pydrake.multibody.plant import MultibodyPlant
 
-from physcap_drake.resources import add_model_packages, make_package_map
+from physcap_drake.resources import make_package_map
+from physcap_drake.station.directive_loader import load_directives, sdf_text
 from physcap_drake.station.sim_config import AsBuilt
-
-#: Drake's SDF extensions keep their `drake:` prefix when the text is written back.
-ET.register_namespace("drake", "http://drake.mit.edu")
 
 
 def add_directives_as_built(plant: MultibodyPlant, directives: list, arm_model: str,
                             as_built: AsBuilt) -> None:
     """Adds the models of `directives` to `plant` like `robot_model.add_directives`, the arm
     model `arm_model` with the link deviations of `as_built`."""
-    parser = Parser(plant)
-    add_model_packages(parser.package_map())
     if not as_built.links:
-        ProcessModelDirectives(ModelDirectives(directives=directives), plant, parser)
+        load_directives(plant, directives)
         return
     flat = FlattenModelDirectives(ModelDirectives(directives=directives), make_package_map())
     arm = [d.add_model for d in flat.directives
@@ -45,15 +34,11 @@ def add_directives_as_built(plant: MultibodyPlant, directives: list, arm_model: 
         raise ValueError(f"station.as_built.links: no model named {arm_model!r} in the "
                          "scenario's directives")
     path = make_package_map().ResolveUrl(arm[0].file)
-    with open(path) as source:
-        text = deviate_links(source.read(), as_built, path)
-    # The deviated model is parsed from a file of its own (the arm's model has no meshes
-    # or other relative references); the file is gone once the plant holds the model.
-    with tempfile.TemporaryDirectory(prefix="physcap_as_built_") as folder:
-        deviated = Path(folder) / Path(path).name
-        deviated.write_text(text)
-        arm[0].file = deviated.as_uri()
-        ProcessModelDirectives(flat, plant, parser)
+    text = sdf_text(path)
+    if text is None:
+        raise ValueError(f"station.as_built.links: the arm's model {path} includes other "
+                         "files; as-built links need a model in one file")
+    load_directives(plant, directives, texts={arm_model: deviate_links(text, as_built, path)})
 
 
 def deviate_links(sdf: str, as_built: AsBuilt, label: str) -> str:

@@ -4,11 +4,11 @@ The controller model holds only the arm and its gripper, as a controller on the 
 knows them: no table, no objects, no payload. Gravity compensation, inverse kinematics and
 the mass estimator's Jacobians are computed from it, never from the simulated world.
 
-Parsing models is slow (about 0.2 s a plant), so the robot's model is built once per robot
-set-up (the directives that add the arm, its gripper and the fixed workcell) and shared by
-every system and check that needs it: `robot_model(...)` returns the same `RobotModel` for
-the same set-up. Finalized plants are only ever read (through each user's own context), so
-sharing them is safe, also across threads.
+Parsing models takes time (tens of milliseconds a model), so the robot's model is built
+once per robot set-up (the directives that add the arm, its gripper and the fixed workcell)
+and shared by every system and check that needs it: `robot_model(...)` returns the same
+`RobotModel` for the same set-up. Finalized plants are only ever read (through each user's
+own context), so sharing them is safe, also across threads.
 """
 
 from __future__ import annotations
@@ -18,24 +18,18 @@ import threading
 import numpy as np
 from pydrake.common.yaml import yaml_dump_typed
 from pydrake.geometry import SceneGraph
-from pydrake.multibody.parsing import (
-    FlattenModelDirectives,
-    ModelDirectives,
-    Parser,
-    ProcessModelDirectives,
-)
+from pydrake.multibody.parsing import FlattenModelDirectives, ModelDirectives
 from pydrake.multibody.plant import AddMultibodyPlantSceneGraph, MultibodyPlant
 from pydrake.multibody.tree import ModelInstanceIndex
 from pydrake.systems.framework import Diagram, DiagramBuilder
 
-from physcap_drake.resources import add_model_packages, make_package_map
+from physcap_drake.resources import make_package_map
+from physcap_drake.station.directive_loader import load_directives
 
 
 def add_directives(plant: MultibodyPlant, directives: list) -> None:
     """Adds the models of `directives` to `plant` (with `package://physcap_models/`)."""
-    parser = Parser(plant)
-    add_model_packages(parser.package_map())
-    ProcessModelDirectives(ModelDirectives(directives=directives), plant, parser)
+    load_directives(plant, directives)
 
 
 def _scoped_model(name: str) -> str:
