@@ -84,13 +84,6 @@ ALLOWED = {
                                        "fresh one per inverse-kinematics solve, "
                                        "fresh_plant_context)",
     },
-    "app/replay.py": {
-        "SetFreeBodyPose": ("the recorded pose of each body, in the replay's own never-simulated "
-                            "context"),
-        "SetTime": "the replay viewer's own scratch context of a rebuilt diagram, never "
-                   "simulated: each recorded sample is drawn from it",
-        "GetMyMutableContextFromRoot": "the plant's part of that scratch context",
-    },
 }
 
 

@@ -19,12 +19,21 @@ from browser import find_chromium, meshcat_scene_tree, meshcat_visibility
 from jsonschema import Draft202012Validator
 from mcap.reader import NonSeekingReader, make_reader
 from pydrake.geometry import Meshcat
+from pydrake.multibody.tree import BodyIndex
 
 from physcap_drake.agent.llm import load_jsonl
 from physcap_drake.app.episode_folder import record_episode
-from physcap_drake.app.replay import ReplayError, replay_in_meshcat, transcript_markdown
+from physcap_drake.app.replay import (
+    ReplayError,
+    ReplayScene,
+    replay_in_meshcat,
+    replay_samples,
+    transcript_markdown,
+)
+from physcap_drake.clock import Clock
 from physcap_drake.recording import topics
 from physcap_drake.recording.reading import read_recording
+from physcap_drake.recording.scene_geometry import body_frame_name
 from physcap_drake.recording.time_base import KIND, SIMULATED, START_DATE_NS, TIME_METADATA
 
 TASK, SEED = "identify_empty_can", 0
@@ -218,6 +227,40 @@ def test_replay_rebuilds_the_motion_from_the_mcap(episode_folder, recording):
         len(replayed.moved_objects) >= 4
     text = transcript_markdown(replayed.recording)
     assert "# Code block 0" in text
+
+
+def test_the_replayed_scene_stands_where_the_recording_says(recording):
+    """The replay's diagram, run to the last sample, poses every recorded frame it knows
+    where /tf put it then, read from SceneGraph's query: the cans and the tray exactly (it is posed
+    from /tf), the arm's links within what the measured joint states (from which they are
+    posed) differ from the simulated truth /tf records (a few mrad)."""
+    samples = replay_samples(recording)
+    scene = ReplayScene(TASK, SEED)
+    moved: set[str] = set()
+    diagram = scene.diagram([s.time_s for s in samples],
+                            [scene.positions(s, moved) for s in samples], Meshcat())
+    clock = Clock(diagram)
+    clock.run_for(samples[-1].time_s - clock.time)
+    plant = scene.plant
+    query = scene.scene_graph.get_query_output_port().Eval(
+        scene.scene_graph.GetMyContextFromRoot(clock.context))
+    frames = {body_frame_name(plant, plant.get_body(BodyIndex(i))): plant.get_body(BodyIndex(i))
+              for i in range(1, plant.num_bodies())}
+    checked = []
+    for transform in samples[-1].transforms:
+        body = frames.get(transform.child_frame_id)
+        if body is None or transform.parent_frame_id != "world":
+            continue
+        exact = transform.child_frame_id in moved
+        X = query.GetPoseInWorld(plant.GetBodyFrameIdOrThrow(body.index()))
+        p, q = transform.translation, transform.rotation
+        assert X.translation() == pytest.approx([p.x, p.y, p.z], abs=1e-6 if exact else 3e-3)
+        w, x, y, z = X.rotation().ToQuaternion().wxyz()
+        angle = 2 * np.arccos(min(1.0, abs(w * q.w + x * q.x + y * q.y + z * q.z)))
+        assert angle < (1e-6 if exact else 0.01), (transform.child_frame_id, angle)
+        checked.append(transform.child_frame_id)
+    assert len(moved) >= 5 and moved <= set(checked)  # the cans and the tray
+    assert sum(name.startswith("piper::link") for name in checked) >= 6, checked
 
 
 def test_replay_refuses_a_file_that_is_not_an_episode(tmp_path):

@@ -1,9 +1,11 @@
 """Replaying a recorded episode's motion in Meshcat, from its MCAP file alone.
 
 The recording's metadata names the task and seed; the scene is rebuilt from them (geometry
-only: nothing is simulated), then each recorded sample poses it: the arm's joints and the
-gripper's fingers from `/piper/joint_states`, every free object from `/tf`. The samples go into
-a Meshcat animation, which the browser plays (and `save_meshcat_html` can keep as one file).
+only: its plant is never simulated), and each recorded sample becomes the scene's positions:
+the arm's joints and the gripper's fingers from `/piper/joint_states`, every free object from
+`/tf`. A small diagram plays them (a TrajectorySource holding each sample until the next,
+posing the geometry through MultibodyPositionToGeometryPose) into a Meshcat animation, which
+the browser plays (and `save_meshcat_html` can keep as one file); the clock runs it.
 The animation runs on the episode's axis: log times minus the recorded start date (simulated
 time, or wall-clock time since the start for an episode on the CAN station; see
 `reading.Recording.time_base_note`).
@@ -14,18 +16,33 @@ from __future__ import annotations
 import dataclasses as dc
 from pathlib import Path
 
-from pydrake.common.eigen_geometry import Quaternion
-from pydrake.geometry import Meshcat
-from pydrake.math import RigidTransform, RotationMatrix
+import numpy as np
+from pydrake.geometry import (
+    Meshcat,
+    MeshcatVisualizer,
+    MeshcatVisualizerParams,
+    Role,
+    SceneGraph,
+)
+from pydrake.multibody.plant import MultibodyPlant
+from pydrake.multibody.tree import QuaternionFloatingJoint
+from pydrake.systems.framework import DiagramBuilder
+from pydrake.systems.primitives import TrajectorySource
+from pydrake.systems.rendering import MultibodyPositionToGeometryPose
+from pydrake.trajectories import PiecewisePolynomial
+from pydrake.visualization import VisualizationConfig
 
 from physcap_drake.agent.transcript import Transcript, TranscriptEntry
-from physcap_drake.app.episode import make_episode
+from physcap_drake.clock import Clock
 from physcap_drake.recording import topics
 from physcap_drake.recording.mcap_recorder import GRIPPER_JOINT
 from physcap_drake.recording.reading import Recording, read_recording
 from physcap_drake.recording.scene_geometry import body_frame_name
+from physcap_drake.resources import stations_dir
+from physcap_drake.scenario import load_scenario
+from physcap_drake.station.directive_loader import load_directives
 from physcap_drake.station.robot_model import moving_joints
-from physcap_drake.tasks.registry import TASKS
+from physcap_drake.tasks.registry import TASKS, get_task
 
 
 class ReplayError(ValueError):
@@ -84,48 +101,105 @@ def replay_in_meshcat(path: str | Path, meshcat: Meshcat) -> ReplayedEpisode:
     recording = read_recording(path)
     task, seed = episode_particulars(recording)
     samples = replay_samples(recording)
-    episode = make_episode(task, seed, meshcat=meshcat)
-    diagram = episode.robot.diagram
-    # The viewer's own scratch context of the rebuilt diagram, never simulated: each
-    # recorded sample is set into it and drawn (ForcedPublish).
-    context = diagram.CreateDefaultContext()
-    plant = episode.plant
-    plant_context = plant.GetMyMutableContextFromRoot(context)
-    joints = {joint.name(): joint for joint in
-              (plant.get_joint(i) for i in plant.GetJointIndices())}
-    fingers = [joints[j.name()] for j in _finger_joints(plant, episode.scenario)]
-    free_bodies = {body_frame_name(plant, plant.get_body(i)): plant.get_body(i)
-                   for i in plant.GetFloatingBaseBodies()}
+    scene = ReplayScene(task, seed)
     moved: set[str] = set()
+    positions = [scene.positions(sample, moved) for sample in samples]
+    diagram = scene.diagram([s.time_s for s in samples], positions, meshcat)
+    clock = Clock(diagram)
     meshcat.StartRecording(frames_per_second=32.0, set_visualizations_while_recording=False)
-    for sample in samples:
-        context.SetTime(sample.time_s)
-        for name, position in sample.joints.items():
-            if name == GRIPPER_JOINT:
-                for finger in fingers:
-                    finger.set_translation(plant_context, 0.5 * position)
-            elif name in joints:
-                joints[name].set_angle(plant_context, position)
-        for transform in sample.transforms:
-            body = free_bodies.get(transform.child_frame_id)
-            if body is not None:
-                plant.SetFreeBodyPose(plant_context, body, _rigid_transform(transform))
-                moved.add(transform.child_frame_id)
-        diagram.ForcedPublish(context)
+    clock.run_for(max(samples[-1].time_s - clock.time, 0.0))
+    diagram.ForcedPublish(clock.context)  # the last sample, whatever the frame rate
     meshcat.StopRecording()
     meshcat.PublishRecording()
     return ReplayedEpisode(recording, task, seed, len(samples), tuple(sorted(moved)),
                            samples[-1].time_s)
 
 
-def _finger_joints(plant, scenario) -> list:
-    return moving_joints(plant, plant.GetModelInstanceByName(scenario.station.gripper_model))
+class ReplayScene:
+    """The task's scene as laid out for the seed: geometry only, in a plant that is never
+    simulated; each recorded sample becomes a vector of its positions."""
+
+    def __init__(self, task: str, seed: int):
+        scenario = load_scenario(stations_dir() / get_task(task).scenario_file)
+        get_task(task).instance(seed, scenario.task.answer).add_to(scenario)
+        self.scenario = scenario
+        self.builder = DiagramBuilder()
+        self.scene_graph = self.builder.AddNamedSystem("scene_graph", SceneGraph())
+        plant = MultibodyPlant(time_step=0.0)
+        plant.RegisterAsSourceForSceneGraph(self.scene_graph)
+        load_directives(plant, scenario.directives)
+        plant.Finalize()
+        self.plant = plant
+        self.default = plant.GetPositions(plant.CreateDefaultContext())
+        self.joints = {joint.name(): joint for joint in
+                       (plant.get_joint(i) for i in plant.GetJointIndices())
+                       if joint.num_positions() == 1}
+        self.fingers = moving_joints(plant, plant.GetModelInstanceByName(
+            scenario.station.gripper_model))
+        floating = {plant.get_joint(i).child_body().index(): plant.get_joint(i)
+                    for i in plant.GetJointIndices()
+                    if plant.get_joint(i).type_name() == QuaternionFloatingJoint.kTypeName}
+        self.free_bodies = {body_frame_name(plant, plant.get_body(i)): floating[i]
+                            for i in plant.GetFloatingBaseBodies()}
+
+    def positions(self, sample: ReplaySample, moved: set[str]) -> np.ndarray:
+        """The plant's positions at the sample (the default where nothing was recorded):
+        joints in rad, fingers in m, each free body's quaternion floating joint as
+        (qw, qx, qy, qz, x, y, z) in the world frame. Adds the frames it posed to `moved`."""
+        q = self.default.copy()
+        for name, position in sample.joints.items():
+            if name == GRIPPER_JOINT:
+                for finger in self.fingers:
+                    q[finger.position_start()] = 0.5 * position
+            elif name in self.joints:
+                q[self.joints[name].position_start()] = position
+        for transform in sample.transforms:
+            joint = self.free_bodies.get(transform.child_frame_id)
+            if joint is not None:
+                r, p = transform.rotation, transform.translation
+                start = joint.position_start()
+                q[start:start + 7] = [r.w, r.x, r.y, r.z, p.x, p.y, p.z]
+                moved.add(transform.child_frame_id)
+        return q
+
+    def diagram(self, times: list[float], positions: list[np.ndarray], meshcat: Meshcat):
+        """The replay's diagram: the positions held from each sample to the next (a sample
+        logged at the same time as the one before it replaces it) pose the scene's
+        geometry, drawn in `meshcat` as the scenario's visualization would."""
+        kept: dict[float, np.ndarray] = dict(zip(times, positions, strict=True))
+        breaks = sorted(kept)
+        # A zero-order hold's last break only ends the segment before it: one more break
+        # after the last sample makes the last sample a segment of its own.
+        values = np.column_stack([kept[t] for t in breaks] + [kept[breaks[-1]]])
+        trajectory = PiecewisePolynomial.ZeroOrderHold([*breaks, breaks[-1] + 1.0], values)
+        builder = self.builder
+        source = builder.AddNamedSystem("recorded_positions", TrajectorySource(trajectory))
+        to_pose = builder.AddNamedSystem("to_geometry_pose",
+                                         MultibodyPositionToGeometryPose(self.plant))
+        builder.Connect(source.get_output_port(), to_pose.get_input_port())
+        builder.Connect(to_pose.get_output_port(),
+                        self.scene_graph.get_source_pose_port(self.plant.get_source_id()))
+        _add_visualizers(builder, self.scene_graph, meshcat, self.scenario.visualization)
+        return builder.Build()
 
 
-def _rigid_transform(transform):
-    q, p = transform.rotation, transform.translation
-    return RigidTransform(RotationMatrix(Quaternion(w=q.w, x=q.x, y=q.y, z=q.z)),
-                          [p.x, p.y, p.z])
+def _add_visualizers(builder: DiagramBuilder, scene_graph: SceneGraph, meshcat: Meshcat,
+                     config: VisualizationConfig) -> None:
+    """Meshcat's views of the geometry as `config` asks for them: the illustration shown,
+    the proximity geometry hidden in its own folder (no contact forces: nothing is
+    simulated)."""
+    common = dict(publish_period=config.publish_period,
+                  delete_on_initialization_event=config.delete_on_initialization_event,
+                  enable_alpha_slider=config.enable_alpha_sliders)
+    if config.publish_illustration:
+        MeshcatVisualizer.AddToBuilder(builder, scene_graph, meshcat, MeshcatVisualizerParams(
+            role=Role.kIllustration, prefix="illustration",
+            default_color=config.default_illustration_color, **common))
+    if config.publish_proximity:
+        MeshcatVisualizer.AddToBuilder(builder, scene_graph, meshcat, MeshcatVisualizerParams(
+            role=Role.kProximity, prefix="proximity", visible_by_default=False,
+            default_color=config.default_proximity_color,
+            initial_alpha_slider_value=config.initial_proximity_alpha, **common))
 
 
 def transcript_markdown(recording: Recording) -> str:
