@@ -8,6 +8,8 @@ from __future__ import annotations
 import dataclasses as dc
 import json
 import math
+import os
+import tempfile
 import time
 
 import numpy as np
@@ -21,6 +23,7 @@ from physcap_drake.agent.agent_system import CLIENT, PROGRESS_PORT, AgentSystem
 from physcap_drake.agent.llm.base import LLMResponse
 from physcap_drake.agent.loop import AgentLoop, AgentMind
 from physcap_drake.agent.sandbox import SandboxLimits
+from physcap_drake.agent.sandbox.child_process import children_of
 from physcap_drake.agent.transcript import Transcript
 from physcap_drake.agent.variant import AgentVariant
 from physcap_drake.app.agent_episode import run_agent
@@ -138,7 +141,8 @@ class NoObjects:
 
 class Coder:
     """A coder model that writes the given blocks in turn (the last completes the task),
-    taking `delay` s of wall time per answer."""
+    taking `delay` s of wall time per answer; a block that is an exception is raised
+    instead."""
 
     name, model = "scripted", "scripted-1"
 
@@ -149,6 +153,8 @@ class Coder:
         self.calls += 1
         time.sleep(self.delay)
         done = self.calls == len(self.blocks)
+        if isinstance(self.blocks[self.calls - 1], BaseException):
+            raise self.blocks[self.calls - 1]
         return LLMResponse(json.dumps({"thought": "t", "code": self.blocks[self.calls - 1],
                                        "task_complete": done}), self.model)
 
@@ -298,6 +304,52 @@ def test_an_arm_fault_while_the_code_waits_for_the_robot_ends_the_episode_at_onc
     assert rig.agent.mind(context).phase == "executing"  # the Context was left as it stood
     server = rig.agent.state(context).block.server
     assert server.outcome is not None and server.outcome.kind == "fault"  # the child is gone
+
+
+TWO_MOTIONS = ["goto_pose([0.3, 0.0, 0.2])\n", "goto_pose([0.3, 0.0, 0.25])"]
+
+
+@pytest.fixture
+def sandbox_folders(tmp_path, monkeypatch):
+    """Where the sandbox's private folders go during the test (empty at its start)."""
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))
+    return tmp_path
+
+
+def running_block(rig: Rig, index: int):
+    """The condition: the agent runs its block `index` (0 first)."""
+    def holds(root) -> bool:
+        state = rig.agent.state(rig.agent_context())
+        return state.block is not None and len(state.mind.steps) == index
+    return holds
+
+
+def test_each_block_runs_in_a_child_started_ahead_and_none_outlives_the_episode(
+        sandbox_folders):
+    rig = make_rig(TWO_MOTIONS)
+    assert rig.clock.run_until(running_block(rig, 0), timeout=5.0)
+    spare = rig.agent.state(rig.agent_context()).spare
+    waiting = spare.pid  # the next block's child waits while this block runs
+    assert waiting in children_of(os.getpid())
+    assert rig.clock.run_until(running_block(rig, 1), timeout=5.0)
+    # The second block took that child over: it still runs, no longer a spare.
+    assert spare.pid is None and waiting in children_of(os.getpid())
+    assert rig.run_episode().phase == "done"
+    assert children_of(os.getpid()) == [] and list(sandbox_folders.iterdir()) == []
+
+
+@pytest.mark.parametrize("at_call", [1, 2])
+def test_ctrl_c_while_the_agent_decides_leaves_no_child_behind(sandbox_folders, at_call):
+    """At the first decision the spare was started in the interrupted event itself; at the
+    second it waits in the Context."""
+    blocks: list = [*TWO_MOTIONS]
+    blocks.insert(at_call - 1, KeyboardInterrupt())
+    rig = make_rig(blocks)
+    _RIGS.remove(rig)  # run_agent releases the agent itself
+    with pytest.raises(KeyboardInterrupt):
+        run_agent(rig.clock, rig.agent, rig.agent_context(), rig.loop, timeout=10.0)
+    assert rig.coder.calls == at_call
+    assert children_of(os.getpid()) == [] and list(sandbox_folders.iterdir()) == []
 
 
 def test_the_agents_phases_are_enums_that_read_as_their_words():

@@ -17,13 +17,13 @@ unrestricted-update event moves the agent on as far as it can without the robot:
   start-up check found a problem (given to `attach`);
 - "deciding": the event looks through the camera ports and the policy decides and writes the
   next code block (`AgentLoop.think`); the mind goes to "executing";
-- "executing": the event starts the block's child process (`AgentLoop.open_block`) and
-  serves its calls (`sandbox.CallServer`): a call that needs no robot (get_object_pose, the
-  knowledge) is answered within the event; a robot call's request is published on `request`,
-  and the event that finds it finished on `status` answers the child (the result, or the
-  SkillRefused / SkillFailed the code may catch) and takes its next call. When the code
-  ends, a failed block holds the arm still (a Wait request) before the mind takes in what
-  the block did and goes back to "deciding".
+- "executing": the event starts the block (`AgentLoop.open_block`) in the child process
+  started ahead for it (see below) and serves its calls (`sandbox.CallServer`): a call that
+  needs no robot (get_object_pose, the knowledge) is answered within the event; a robot
+  call's request is published on `request`, and the event that finds it finished on
+  `status` answers the child (the result, or the SkillRefused / SkillFailed the code may
+  catch) and takes its next call. When the code ends, a failed block holds the arm still
+  (a Wait request) before the mind takes in what the block did and goes back to "deciding".
 
 Model calls: with `background=False` (the simulated station) `think` runs inside the event,
 so simulated time stands still while models answer and robot time and metrics are
@@ -32,10 +32,18 @@ reproducible. With `background=True` (the real arm, paced at real time) the even
 the arm holds, the recorder logs, and a fault ends the run while the model is still thinking.
 The child's own computing between calls is waited for inside the events on either station.
 
-Resources, not state: the running block's child process (its CallServer) and the worker
-thread of a thought are held in the Context as handles, inside the same immutable cell as
-the mind; an event replaces the cell, and only the events (and `release`, when the episode
-ends) act on the handles.
+Each block's child process is started ahead (`sandbox.SpareChild`): the first when the
+episode starts, each next one as soon as the block before it runs, so the interpreter is up
+and its imports done when the code arrives (simulated time stands still while a child
+starts: the wait is pure wall time). It is still a fresh process with its own folder for each
+block, locked down only once it has the code, and its idle wait counts against no budget.
+The spare left when the episode ends is killed with its folder.
+
+Resources, not state: the running block's child process (its CallServer), the child
+waiting for the next block and the worker thread of a thought are held in the Context as
+handles, inside the same immutable cell as the mind; an event replaces the cell, and only
+the events (and `release`, when the episode ends) act on the handles. An event that ends
+with an error closes the handles it reached (the next block's child, a started block).
 
 An arm fault (the station raises ArmFault from inside the simulator's advance) ends the run
 where it surfaces, outside any event: the episode's owner calls `release(context, fault)`,
@@ -58,7 +66,7 @@ from pydrake.systems.sensors import ImageDepth32F, ImageLabel16I, ImageRgba8U
 from physcap_drake.agent.loop import AgentLoop, AgentMind, BlockEnd
 from physcap_drake.agent.observation import Observation, observe
 from physcap_drake.agent.phases import Phase
-from physcap_drake.agent.sandbox import CallServer, CodeOutcome, Waiting
+from physcap_drake.agent.sandbox import CallServer, CodeOutcome, SpareChild, Waiting
 from physcap_drake.control.requests import RobotRequest, SkillStatus
 from physcap_drake.control.skill_executor import MONITOR_PERIOD, REQUEST_PORT, STATUS_PORT
 from physcap_drake.immutable_state import Immutable
@@ -108,12 +116,14 @@ class RunningBlock(Immutable):
 @dc.dataclass(frozen=True)
 class AgentState(Immutable):
     """The AgentSystem's state: the mind, the latest request it published, the block it runs
-    (None between blocks) and the thought computing on a worker thread (None unless one
-    does; `background` only)."""
+    (None between blocks), the child started for the next block (None before the episode
+    starts and once it is over) and the thought computing on a worker thread (None unless
+    one does; `background` only)."""
 
     mind: AgentMind = AgentMind()
     request: RobotRequest = RobotRequest()
     block: RunningBlock | None = None
+    spare: SpareChild | None = None
     thought: Thought | None = None
 
 
@@ -204,10 +214,13 @@ class AgentSystem(LeafSystem):
     def release(self, context: Context, fault: ArmFault | None = None) -> AgentMind:
         """Ends what the agent has running when the episode's run stops (see the module
         docstring): the child of a running block is stopped (as by `fault`, if given, which
-        then ends the episode the way a fault inside the block does), a thought is given up
-        on. Returns the final mind; nothing is written into `context`."""
+        then ends the episode the way a fault inside the block does), the child waiting for
+        the next block is killed, a thought is given up on. Returns the final mind; nothing
+        is written into `context`."""
         state = self.state(context)
         mind = state.mind
+        if state.spare is not None:
+            state.spare.close()
         if state.thought is not None:
             state.thought.give_up()
         block = state.block
@@ -243,6 +256,9 @@ class AgentSystem(LeafSystem):
             _close(reached[0])
             updated = AgentState(self._policy.internal_failure(reached[0].mind, error),
                                  reached[0].request)
+        except BaseException:  # e.g. KeyboardInterrupt: the run ends, no child is left behind
+            _close(reached[0])
+            raise
         if updated is not current:
             state.get_mutable_abstract_state(self._state).set_value(updated)
 
@@ -259,8 +275,10 @@ class AgentSystem(LeafSystem):
                     return s
                 s = dc.replace(s, mind=s.thought.future.result(), thought=None)
             elif mind.phase == Phase.IDLE:
-                s = dc.replace(s, mind=policy.stop_before_start(self._start_problem)
-                               if self._start_problem else AgentMind(phase=Phase.DECIDING))
+                if self._start_problem:
+                    s = dc.replace(s, mind=policy.stop_before_start(self._start_problem))
+                else:  # the first block's child starts while the agent decides
+                    s = dc.replace(s, mind=AgentMind(phase=Phase.DECIDING), spare=SpareChild())
             elif mind.phase == Phase.DECIDING:
                 observation, robot_time = self.observation(context), self._robot_time()
                 if self._background:
@@ -268,15 +286,21 @@ class AgentSystem(LeafSystem):
                                                          robot_time))
                 s = dc.replace(s, mind=policy.think(mind, observation, robot_time))
             elif s.block is None:
-                s = reached[0] = dc.replace(s, block=RunningBlock(policy.open_block(mind),
-                                                                  self._robot_time()))
-                s = self._after(s, s.block.server.start())
+                # The block takes over the spare child; the next block's starts once it runs.
+                block = RunningBlock(policy.open_block(mind, s.spare), self._robot_time())
+                s = reached[0] = dc.replace(s, block=block, spare=None)
+                event = block.server.start()
+                s = reached[0] = dc.replace(s, spare=SpareChild())
+                s = self._after(s, event)
             elif not status.finished(s.request):
                 return s
             elif s.block.end is None:
                 s = self._after(s, s.block.server.resume(status))
             else:
                 s = self._holding(s, _send(s.block.hold, status))
+        if s.spare is not None:  # the episode is over: no block will take it
+            s.spare.close()
+            s = dc.replace(s, spare=None)
         return s
 
     def _after(self, s: AgentState, event: Waiting | CodeOutcome) -> AgentState:
@@ -314,6 +338,8 @@ def _send(steps: Generator, value):
 def _close(state: AgentState) -> None:
     if state.block is not None:
         state.block.server.close()
+    if state.spare is not None:
+        state.spare.close()
     if state.thought is not None:
         state.thought.give_up()
 

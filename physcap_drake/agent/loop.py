@@ -69,6 +69,7 @@ from physcap_drake.agent.sandbox import (
     Meters,
     SandboxLimits,
     SandboxSession,
+    SpareChild,
     run_sandboxed,
 )
 from physcap_drake.agent.schemas import (
@@ -354,10 +355,11 @@ class AgentLoop:
                 "robot_time_s": max(self._robot_time_limit - api.robot_time, 0.0),
                 "fatal": (ArmFault,)}
 
-    def open_block(self, mind: AgentMind) -> CallServer:
+    def open_block(self, mind: AgentMind, spare: SpareChild | None = None) -> CallServer:
         """The pending code block, ready to be served call by call by an owner that waits
         for the robot on its own (`CallServer.start`): its robot calls are steps whose
-        actions are requests for the robot (see `RobotAPI.stepwise`)."""
+        actions are requests for the robot (see `RobotAPI.stepwise`). `spare`: a child
+        started ahead, which the block's start takes over (see `sandbox.SpareChild`)."""
         if mind.phase != Phase.EXECUTING or mind.pending is None:
             raise ValueError(f"no code block to run (phase {mind.phase!r})")
         if self._stepwise is None:
@@ -365,7 +367,8 @@ class AgentLoop:
         self._interactions.reset()
         budget = self._block_budget()
         session = SandboxSession(mind.pending.answer.code, self._stepwise, self._limits,
-                                 meters=budget["meters"], robot_time_s=budget["robot_time_s"])
+                                 meters=budget["meters"], robot_time_s=budget["robot_time_s"],
+                                 spare=spare)
         return CallServer(session, budget["fatal"])
 
     def block_stopped(self, mind: AgentMind, outcome: CodeOutcome,

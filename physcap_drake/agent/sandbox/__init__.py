@@ -5,8 +5,8 @@
 for an owner that drives it event by event (both runners share it).
 The parent trusts nothing the child sends: `messages` checks every message, `signatures`
 every call's arguments, `budget` the block's budgets per call. `child` is the child's side,
-`ast_check` and `policy` the filters, `lockdown` and `seccomp` the process wall, `protocol`
-the frames between the two.
+`spare` a child started ahead of its block, `ast_check` and `policy` the filters, `lockdown`
+and `seccomp` the process wall, `protocol` the frames between the two.
 """
 
 from .ast_check import CodeRejected, check_code
@@ -27,8 +27,9 @@ from .signatures import (
     Text,
     Vector,
 )
+from .spare import SpareChild
 
 __all__ = ["ApiFunction", "BlockBudget", "Call", "CallServer", "CodeOutcome", "CodeRejected",
            "FunctionSpec", "Meters", "Number", "OrNone", "OutcomeKind", "ParameterKind",
-           "PlainValue", "Refused", "SandboxLimits", "SandboxSession", "Stop", "Text", "Vector",
-           "Waiting", "check_code", "run_sandboxed", "then"]
+           "PlainValue", "Refused", "SandboxLimits", "SandboxSession", "SpareChild", "Stop",
+           "Text", "Vector", "Waiting", "check_code", "run_sandboxed", "then"]

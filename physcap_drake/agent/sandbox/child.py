@@ -6,8 +6,11 @@ library, numpy, pyseccomp (for the syscall filter) and the sandbox's own small m
 
 1. Move the protocol pipes off fds 0 and 1 and put /dev/null there, so nothing that writes to
    stdout (numpy's own print calls, C code) can corrupt the protocol.
-2. Read the start message: the code, the robot API's function names, the limits.
-3. Import numpy (with its allowed submodules) and math, while files can still be opened.
+2. Import numpy (with its allowed submodules) and math and touch what numpy loads on first
+   use, while files can still be opened. Nothing here depends on the start message, so a
+   child started ahead of its code block (`spare`) has done it all before the code arrives.
+3. Read the start message: the code, the robot API's function names, the limits (the
+   test-only "raw" runs import a few more modules now).
 4. Lock down (see `lockdown` and `seccomp`). If a PID namespace was made, fork: the new
    process (the namespace's first) runs the code, this one only waits for it and exits with
    its status (128 + signal number if it was killed).
@@ -50,6 +53,7 @@ def main() -> None:
     """Run one piece of generated code as the parent asks; never returns."""
     proto_in, proto_out = _claim_pipes()
     try:
+        _load_modules()
         session = _Session(proto_in, proto_out,
                            protocol.read_message(proto_in, protocol.MAX_START_BYTES))
         session.lock_down()
@@ -92,10 +96,8 @@ class _Session:
         self._isolation: list[str] = []
 
     def lock_down(self) -> None:
-        """Import what the code may use, then build the wall (see the module docstring)."""
-        for name in sorted(policy.ALLOWED_MODULES) + list(_SUPPORT_MODULES):
-            importlib.import_module(name)
-        _warm_up_numpy()
+        """Build the wall (see the module docstring); what the code may use was loaded
+        before the start message (`_load_modules`)."""
         if self._raw:
             for name in _RAW_PREIMPORTS:
                 importlib.import_module(name)
@@ -204,6 +206,13 @@ class _Session:
             return protocol.read_message(self._in)
         except (OSError, EOFError, protocol.ProtocolError):
             os._exit(protocol.EXIT_PARENT_GONE)
+
+
+def _load_modules() -> None:
+    """Import every module the code may use, and the modules numpy loads on first use."""
+    for name in sorted(policy.ALLOWED_MODULES) + list(_SUPPORT_MODULES):
+        importlib.import_module(name)
+    _warm_up_numpy()
 
 
 def _warm_up_numpy() -> None:

@@ -208,13 +208,18 @@ class ChildProcess:
         return sum(int(value) for value in fields[11:15]) / ticks
 
     def terminate(self) -> None:
-        """Kill the code's process, then the whole group; reap the child. Idempotent."""
+        """Kill the code's process, then the whole group; reap the child. Idempotent.
+        The child is given up to half a second to reap a killed code's process (and exit
+        with its status); a child that made none (it never read its start message, as a
+        spare) is killed at once."""
         if self._reaped:
             return
-        for pid in _children_of(self.pid):
+        code_processes = children_of(self.pid)
+        for pid in code_processes:
             with contextlib.suppress(OSError):
                 os.kill(pid, signal.SIGKILL)
-        self.exit_status(wait_s=0.5)
+        if code_processes:
+            self.exit_status(wait_s=0.5)
         with contextlib.suppress(OSError):
             os.killpg(self.pid, signal.SIGKILL)
         self._popen.wait()
@@ -234,7 +239,7 @@ def _stat_fields(pid: int) -> list[str] | None:
     return text[text.rfind(")") + 2:].split()
 
 
-def _children_of(parent: int) -> list[int]:
+def children_of(parent: int) -> list[int]:
     """Pids whose parent is `parent` (a scan of /proc: the kernel may not list children)."""
     children = []
     try:

@@ -29,7 +29,9 @@ class SandboxLimits:
         (e.g. to what is left of the episode's budget).
     knowledge_chars: how much the block may add to the scene knowledge (characters of the
         entries' text), checked after each call.
-    startup_s: wall time the child may take to start and lock itself down.
+    startup_s: wall time the child may take to start and lock itself down, counted from the
+        moment the session starts it, or takes over a child started ahead (a spare's idle
+        wait before that is not counted).
     """
 
     cpu_s: float = 20.0

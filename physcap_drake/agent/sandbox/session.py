@@ -3,7 +3,8 @@
 A `SandboxSession` is driven by its owner in explicit steps, so the same object serves a
 blocking caller (`runner.run_sandboxed`) and an event-driven one:
 
-    session.start()          static check, start the child with the code, wait for "ready"
+    session.start()          static check, start the child (or take the spare child
+                             given) and send it the code, wait for "ready"
     session.next_call()      the next checked API call the code makes, or how the run ended
     session.answer(value)    reply to that call with its result ...
     session.answer_error(e)  ... or with the error it raised (the code can catch it)
@@ -32,7 +33,6 @@ import keyword
 import math
 import shutil
 import signal
-import tempfile
 import time
 from collections.abc import Callable, Mapping
 from typing import Any
@@ -44,6 +44,7 @@ from .child_process import ChildGone, ChildProcess, Deadline
 from .limits import SandboxLimits
 from .outcome import CodeOutcome, OutcomeKind
 from .signatures import ApiFunction, Call, api_table
+from .spare import SpareChild, spawn_child
 
 _EXIT_WAIT_S = 2.0
 #: Names the sandbox itself gives the code; API functions may not hide them.
@@ -65,15 +66,18 @@ class SandboxSession:
 
     limits: SandboxLimits() if not given. meters: where robot time and knowledge size are
     read for the budgets. robot_time_s:
-    the robot time this block may spend, if less than limits.robot_time_s.
+    the robot time this block may spend, if less than limits.robot_time_s. spare: a child
+    started ahead (`spare.SpareChild`), which the session owns from now on: `start` takes
+    it over instead of starting a child, `close` kills it if it was never taken (the code
+    was rejected).
     `skip_ast_check` and `real_builtins` are for tests only: they switch off the static
     check and the restricted builtins, so tests can attack the process wall directly.
     """
 
     def __init__(self, code: str, api: Mapping[str, Callable[..., Any] | ApiFunction],
                  limits: SandboxLimits | None = None, *, meters: Meters | None = None,
-                 robot_time_s: float = math.inf, skip_ast_check: bool = False,
-                 real_builtins: bool = False):
+                 robot_time_s: float = math.inf, spare: SpareChild | None = None,
+                 skip_ast_check: bool = False, real_builtins: bool = False):
         _check_api_names(api)
         limits = limits or SandboxLimits()
         self._code = code
@@ -82,6 +86,7 @@ class SandboxSession:
         self._limits = limits
         self._meters = meters or Meters()
         self._budget = BlockBudget(limits, robot_time_s)
+        self._spare = spare
         self._skip_ast_check = skip_ast_check
         self._raw = real_builtins
         self._started = time.monotonic()
@@ -130,7 +135,6 @@ class SandboxSession:
             return self._end("rejected", f"code rejected: the code is too large to hand to the "
                              f"sandbox ({error}; characters beyond ASCII take 6 to 12 bytes "
                              "each); write a shorter block")
-        self._home = tempfile.mkdtemp(prefix="physcap-sandbox-")
         return self._step(self._start_child, frame)
 
     def next_call(self) -> Call | CodeOutcome:
@@ -161,7 +165,11 @@ class SandboxSession:
         return self._end(kind, message)
 
     def close(self) -> None:
-        """Kill and reap the child, delete its folder. Idempotent."""
+        """Kill and reap the child (and a spare never taken), delete its folder.
+        Idempotent."""
+        if self._spare is not None:
+            self._spare.close()
+            self._spare = None
         if self._child is not None:
             self._child.terminate()
         if self._home is not None:
@@ -185,7 +193,10 @@ class SandboxSession:
             return self._end(*self._why_gone())
 
     def _start_child(self, frame: bytes) -> None:
-        self._child = ChildProcess.start(self._home)
+        """Start the child (or take the spare), send the start frame, wait for "ready".
+        The start-up deadline runs from now: a spare's idle wait does not count."""
+        spare, self._spare = self._spare, None
+        self._child, self._home = spare.take() if spare is not None else spawn_child()
         deadline = time.monotonic() + self._limits.startup_s
         self._child.send(frame, deadline)
         ready = self._read(self._child.receive(deadline))
