@@ -222,16 +222,16 @@ def footprint_rectangle(points: np.ndarray, percent: float = 2.0) -> np.ndarray:
     degrees when an object standing in a tray hides part of its floor."""
     xy = points[:, :2]
     mean = xy.mean(axis=0)
-    best = None
-    for heading in np.radians(np.arange(0.0, 90.0, 1.0)):
-        axes = np.array([[np.cos(heading), np.sin(heading)],
-                         [-np.sin(heading), np.cos(heading)]])
-        along = (xy - mean) @ axes.T
-        low, high = np.percentile(along, [percent, 100 - percent], axis=0)
-        area = float(np.prod(high - low))
-        if best is None or area < best[0]:
-            best = (area, axes, low, high)
-    _, axes, low, high = best
+    headings = np.radians(np.arange(0.0, 90.0, 1.0))
+    sides = np.stack([np.array([[np.cos(h), np.sin(h)], [-np.sin(h), np.cos(h)]])
+                      for h in headings])
+    # Every heading's two sides in one product and one percentile call (the same numbers
+    # as heading by heading): column 2k is along heading k's first side, 2k + 1 its second.
+    along = (xy - mean) @ sides.reshape(-1, 2).T
+    lows, highs = np.percentile(along, [percent, 100 - percent], axis=0)
+    areas = [float(np.prod(extent)) for extent in (highs - lows).reshape(-1, 2)]
+    best = int(np.argmin(areas))  # the first of equal areas, as the smallest heading
+    axes, low, high = sides[best], lows[2 * best:2 * best + 2], highs[2 * best:2 * best + 2]
     corners = np.array([[low[0], low[1]], [high[0], low[1]], [high[0], high[1]],
                         [low[0], high[1]]])
     return mean + corners @ axes
