@@ -326,6 +326,7 @@ def running_block(rig: Rig, index: int):
 
 def test_each_block_runs_in_a_child_started_ahead_and_none_outlives_the_episode(
         sandbox_folders):
+    before = set(children_of(os.getpid()))  # e.g. a Ray instance other tests left running
     rig = make_rig(TWO_MOTIONS)
     assert rig.clock.run_until(running_block(rig, 0), timeout=5.0)
     spare = rig.agent.state(rig.agent_context()).spare
@@ -335,13 +336,14 @@ def test_each_block_runs_in_a_child_started_ahead_and_none_outlives_the_episode(
     # The second block took that child over: it still runs, no longer a spare.
     assert spare.pid is None and waiting in children_of(os.getpid())
     assert rig.run_episode().phase == "done"
-    assert children_of(os.getpid()) == [] and list(sandbox_folders.iterdir()) == []
+    assert set(children_of(os.getpid())) <= before and list(sandbox_folders.iterdir()) == []
 
 
 @pytest.mark.parametrize("at_call", [1, 2])
 def test_ctrl_c_while_the_agent_decides_leaves_no_child_behind(sandbox_folders, at_call):
     """At the first decision the spare was started in the interrupted event itself; at the
     second it waits in the Context."""
+    before = set(children_of(os.getpid()))
     blocks: list = [*TWO_MOTIONS]
     blocks.insert(at_call - 1, KeyboardInterrupt())
     rig = make_rig(blocks)
@@ -349,7 +351,7 @@ def test_ctrl_c_while_the_agent_decides_leaves_no_child_behind(sandbox_folders, 
     with pytest.raises(KeyboardInterrupt):
         run_agent(rig.clock, rig.agent, rig.agent_context(), rig.loop, timeout=10.0)
     assert rig.coder.calls == at_call
-    assert children_of(os.getpid()) == [] and list(sandbox_folders.iterdir()) == []
+    assert set(children_of(os.getpid())) <= before and list(sandbox_folders.iterdir()) == []
 
 
 def test_the_agents_phases_are_enums_that_read_as_their_words():

@@ -1,7 +1,7 @@
 """A child started ahead of its code block (`SpareChild`): the block runs in it behind the
 same wall as in a child started for it, its idle wait counts against no budget, it serves one
 block only, and one nobody uses is killed, reaped and its folder deleted.
-After every test no child process of the test process may be left, running or zombie."""
+After every test no child process the test started may be left, running or zombie."""
 
 from __future__ import annotations
 
@@ -31,8 +31,12 @@ ATTACKS = ("import os\n"
 
 @pytest.fixture(autouse=True)
 def no_leftover_processes():
+    """No child process (or zombie) the test started is left; children that other tests of
+    the session left running (e.g. a Ray instance) are not this test's."""
+    before = set(children_of(os.getpid()))
     yield
-    assert children_of(os.getpid()) == [], "a sandbox process (or zombie) was left behind"
+    left = set(children_of(os.getpid())) - before
+    assert not left, f"a sandbox process (or zombie) was left behind: {sorted(left)}"
 
 
 def run(code: str, spare: SpareChild | None = None, **private):
