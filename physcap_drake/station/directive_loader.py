@@ -17,13 +17,14 @@ one `add_model` at a time: the same result, at the file loader's speed.
 
 from __future__ import annotations
 
+import dataclasses as dc
 import functools
 import os
 import xml.etree.ElementTree as ET
 from collections.abc import Mapping
 from pathlib import Path
 
-from pydrake.geometry import CollisionFilterDeclaration, GeometrySet
+from pydrake.geometry import CollisionFilterDeclaration
 from pydrake.multibody.parsing import (
     FlattenModelDirectives,
     ModelDirective,
@@ -90,12 +91,14 @@ def load_directives(plant: MultibodyPlant, directives: list,
         _exclude_collisions(plant, parser, groups)
 
 
+@dc.dataclass(frozen=True)
 class _FilterGroup:
     """One `add_collision_filter_group`: its bodies (scoped names), the groups it contains
     and the groups whose collisions with it are ignored."""
 
-    def __init__(self, members: list[str], member_groups: list[str], ignored: list[str]):
-        self.members, self.member_groups, self.ignored = members, member_groups, ignored
+    members: list[str]
+    member_groups: list[str]
+    ignored: list[str]
 
 
 def _add_model(plant: MultibodyPlant, parser: Parser, model, text: str | None, package_map,
@@ -149,13 +152,13 @@ def _exclude_collisions(plant: MultibodyPlant, parser: Parser,
 
     manager = parser.scene_graph().collision_filter_manager()
     for name, group in groups.items():
-        mine = _geometries(plant, bodies(name))
+        mine = plant.CollectRegisteredGeometries(bodies(name))
         for other in group.ignored:
             if other == name:
                 manager.Apply(CollisionFilterDeclaration().ExcludeWithin(mine))
             else:
                 manager.Apply(CollisionFilterDeclaration().ExcludeBetween(
-                    mine, _geometries(plant, bodies(other))))
+                    mine, plant.CollectRegisteredGeometries(bodies(other))))
 
 
 def _body(plant: MultibodyPlant, scoped: str, group: str):
@@ -164,10 +167,6 @@ def _body(plant: MultibodyPlant, scoped: str, group: str):
         raise ValueError(f"add_collision_filter_group {group!r}: member {scoped!r} names no "
                          "model (use model::body)")
     return plant.GetBodyByName(body, plant.GetModelInstanceByName(model))
-
-
-def _geometries(plant: MultibodyPlant, bodies: list) -> GeometrySet:
-    return plant.CollectRegisteredGeometries(bodies)
 
 
 def sdf_text(path: str) -> str | None:
