@@ -16,6 +16,7 @@ import pytest
 from pydrake.common.schema import Transform
 from pydrake.geometry import GeometrySet, Role
 from pydrake.multibody.parsing import (
+    AddFrame,
     AddModel,
     ModelDirective,
     ModelDirectives,
@@ -127,6 +128,16 @@ def test_a_pose_in_another_frame_is_refused_by_name():
         default_free_body_pose={"cube_5cm": pose}))]
     with pytest.raises(ValueError, match=r"add_model 'cube': default_free_body_pose\.cube_5cm"
                                          r"\.base_frame 'cube_5cm'"):
+        _plant(directives, load_directives)
+
+
+def test_a_directive_the_loader_does_not_take_is_refused_by_kind_and_place():
+    frame = AddFrame(name="tcp", X_PF=Transform())
+    frame.X_PF.base_frame = "world"
+    directives = [ModelDirective(add_model=AddModel(
+        name="cube", file="package://physcap_models/scene/cube_5cm.sdf")),
+        ModelDirective(add_frame=frame)]
+    with pytest.raises(ValueError, match="directive 1: add_frame is not taken"):
         _plant(directives, load_directives)
 
 
