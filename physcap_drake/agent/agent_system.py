@@ -218,9 +218,14 @@ class AgentSystem(LeafSystem):
         the next block is killed, a thought is given up on. Returns the final mind; nothing
         is written into `context`."""
         state = self.state(context)
+        try:
+            return self._stop(state, fault)
+        finally:  # the spare's child goes last: it is no part of how the episode ended
+            if state.spare is not None:
+                state.spare.close()
+
+    def _stop(self, state: AgentState, fault: ArmFault | None) -> AgentMind:
         mind = state.mind
-        if state.spare is not None:
-            state.spare.close()
         if state.thought is not None:
             state.thought.give_up()
         block = state.block
