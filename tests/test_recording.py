@@ -237,8 +237,8 @@ def test_the_replayed_scene_stands_where_the_recording_says(recording):
     samples = replay_samples(recording)
     scene = ReplayScene(TASK, SEED)
     moved: set[str] = set()
-    diagram = scene.diagram([s.time_s for s in samples],
-                            [scene.positions(s, moved) for s in samples], Meshcat())
+    diagram = scene.diagram([s.time_s for s in samples], scene.all_positions(samples, moved),
+                            Meshcat())
     clock = Clock(diagram)
     clock.run_for(samples[-1].time_s - clock.time)
     plant = scene.plant
@@ -261,6 +261,28 @@ def test_the_replayed_scene_stands_where_the_recording_says(recording):
         checked.append(transform.child_frame_id)
     assert len(moved) >= 5 and moved <= set(checked)  # the cans and the tray
     assert sum(name.startswith("piper::link") for name in checked) >= 6, checked
+
+
+def test_a_sample_without_frames_leaves_the_objects_where_the_one_before_put_them():
+    """Joint states logged without /tf at the same moment: the objects stay put (they do not
+    jump back to the layout's poses for that sample)."""
+    from types import SimpleNamespace as Fields
+
+    from physcap_drake.app.replay import ReplaySample
+
+    scene = ReplayScene(TASK, SEED)
+    can = next(name for name in scene.free_bodies if name.startswith("red_can::"))
+    lifted = Fields(child_frame_id=can, parent_frame_id="world",
+                    translation=Fields(x=0.3, y=0.1, z=0.2),
+                    rotation=Fields(w=1.0, x=0.0, y=0.0, z=0.0))
+    moved: set[str] = set()
+    first, second = scene.all_positions([ReplaySample(0.0, {"joint1": 0.1}, (lifted,)),
+                                         ReplaySample(0.1, {"joint1": 0.2}, ())], moved)
+    start = scene.free_bodies[can].position_start()
+    assert list(second[start:start + 7]) == [1.0, 0.0, 0.0, 0.0, 0.3, 0.1, 0.2]
+    assert list(first[start:start + 7]) == list(second[start:start + 7])
+    joint1 = scene.joints["joint1"].position_start()
+    assert (first[joint1], second[joint1]) == (0.1, 0.2) and moved == {can}
 
 
 def test_replay_refuses_a_file_that_is_not_an_episode(tmp_path):

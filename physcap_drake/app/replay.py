@@ -103,7 +103,7 @@ def replay_in_meshcat(path: str | Path, meshcat: Meshcat) -> ReplayedEpisode:
     samples = replay_samples(recording)
     scene = ReplayScene(task, seed)
     moved: set[str] = set()
-    positions = [scene.positions(sample, moved) for sample in samples]
+    positions = scene.all_positions(samples, moved)
     diagram = scene.diagram([s.time_s for s in samples], positions, meshcat)
     clock = Clock(diagram)
     meshcat.StartRecording(frames_per_second=32.0, set_visualizations_while_recording=False)
@@ -142,11 +142,23 @@ class ReplayScene:
         self.free_bodies = {body_frame_name(plant, plant.get_body(i)): floating[i]
                             for i in plant.GetFloatingBaseBodies()}
 
-    def positions(self, sample: ReplaySample, moved: set[str]) -> np.ndarray:
-        """The plant's positions at the sample (the default where nothing was recorded):
-        joints in rad, fingers in m, each free body's quaternion floating joint as
-        (qw, qx, qy, qz, x, y, z) in the world frame. Adds the frames it posed to `moved`."""
-        q = self.default.copy()
+    def all_positions(self, samples: list[ReplaySample], moved: set[str]) -> list[np.ndarray]:
+        """The plant's positions at each sample: what the sample recorded, the rest as at
+        the sample before (the scene's default before the first). Adds the frames posed from
+        the recording to `moved`."""
+        positions, previous = [], self.default
+        for sample in samples:
+            previous = self.positions(sample, moved, previous)
+            positions.append(previous)
+        return positions
+
+    def positions(self, sample: ReplaySample, moved: set[str],
+                  previous: np.ndarray | None = None) -> np.ndarray:
+        """The plant's positions at the sample, starting from `previous` (default: the
+        scene's default) where it recorded nothing: joints in rad, fingers in m, each free
+        body's quaternion floating joint as (qw, qx, qy, qz, x, y, z) in the world frame.
+        Adds the frames it posed to `moved`."""
+        q = (self.default if previous is None else previous).copy()
         for name, position in sample.joints.items():
             if name == GRIPPER_JOINT:
                 for finger in self.fingers:
