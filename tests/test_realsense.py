@@ -116,11 +116,13 @@ def test_a_recording_plays_back_through_the_driver_as_it_was_recorded(tmp_path):
     A pipeline playing a file, like one streaming from a device, may drop a frame while it
     starts (librealsense plays the first frames in real time until the driver turns that
     off), so frames are matched by their frame number (the emulated camera's n-th frame is
-    number n) and most, not all, must come back."""
+    number n) and a third of them, not all, must come back."""
     recording = tmp_path / "frames.db3"
     station = MakeStation(_emulated_scenario(record_to=str(recording)))
     emulated = station.GetSubsystemByName("realsense_camera")
-    live = _frames(station, [0.0, 0.1, 0.2, 0.3, 0.4, 0.5])
+    # Twelve frames, 0.1 s apart: a start slow enough to drop the first few (seen: 4 of 6
+    # on a busy machine) still leaves most of them.
+    live = _frames(station, [0.1 * k for k in range(12)])
     close_station(station)  # finishes the recording
     source = PipelineRealSense(RealSense(name="camera", width=W, height=H,
                                          recording=str(recording)))
@@ -139,7 +141,7 @@ def test_a_recording_plays_back_through_the_driver_as_it_was_recorded(tmp_path):
                 assert np.array_equal(frame.rgb, rgb[:, :, :3]), frame.frame_number
                 assert np.abs(frame.depth - depth[:, :, 0]).max() <= 0.001, frame.frame_number
                 numbers.append(frame.frame_number)
-        assert numbers == sorted(set(numbers)) and len(numbers) >= 3, numbers
+        assert numbers == sorted(set(numbers)) and len(numbers) >= 4, numbers
         assert source.intrinsics == pytest.approx(emulated.device.intrinsics)
     finally:
         driver.close()
