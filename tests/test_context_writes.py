@@ -60,12 +60,7 @@ ALLOWED = {
     "station/__init__.py": {
         "GetMyMutableContextFromRoot": "scene_ground_truth on the sim station: the plant's "
                                        "part of a root context its caller owns and no "
-                                       "simulator holds yet (an episode's initial masses, "
-                                       "a calibration run's own station)",
-        "SetFreeBodyPose": ("pose_scene: a calibration board placed for each view in a "
-                            "station context the run built for rendering and never simulates"),
-        "SetPositions": ("pose_scene: the arm posed for each view (hand-eye calibration) in "
-                         "such a never-simulated context"),
+                                       "simulator holds yet (an episode's initial masses)",
     },
     "station/can_scene.py": {
         "SetPositionsAndVelocities": ("its private scratch copy of the emulated world, set from "

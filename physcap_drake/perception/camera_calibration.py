@@ -24,7 +24,7 @@ from pydrake.multibody.parsing import AddModel, ModelDirective
 
 from physcap_drake.perception import charuco
 from physcap_drake.perception.camera_geometry import CameraGeometry
-from physcap_drake.station import MakeStation, close_station, pose_scene
+from physcap_drake.station import station_at_rest
 from physcap_drake.station.realsense.calibration_file import CameraCalibration, Intrinsics
 
 BOARD_MODEL = "package://physcap_models/calibration/charuco_board/charuco_board.sdf"
@@ -122,23 +122,20 @@ def calibrate_in_simulation(scenario, camera_name: str = "camera",
     view taken. The scenario is changed (the board is added)."""
     entry = next(c for c in scenario.cameras if c.name == camera_name)
     camera = CameraGeometry.from_entry(entry)
-    scenario.directives.append(ModelDirective(add_model=AddModel(name=BOARD_BODY,
-                                                                 file=BOARD_MODEL)))
-    station = MakeStation(scenario)
-    try:
-        # The run's own context of a station it built, never simulated (scratch use): the
-        # board is placed in the station's simulated world and rendered from it.
-        context = station.CreateDefaultContext()
-        views = []
-        for index, placement in enumerate(placements):
-            X_WB = board_pose(*placement)
-            pose_scene(station, context, free_bodies={BOARD_BODY: X_WB})
+    scene = list(scenario.directives)
+    views = []
+    for index, placement in enumerate(placements):
+        # Each view is the scene built with the board lying at the placement (its default
+        # pose), rendered from the station's default context: nothing is posed or simulated.
+        X_WB = board_pose(*placement)
+        scenario.directives = [*scene, ModelDirective(add_model=AddModel(
+            name=BOARD_BODY, file=BOARD_MODEL,
+            default_free_body_pose={BOARD_BODY: Transform(X_WB)}))]
+        with station_at_rest(scenario) as (station, context):
             rgb = station.GetOutputPort(f"{camera_name}.rgb").Eval(context).data
-            views.append(view_of(rgb, X_WB))
-            if on_view is not None:
-                on_view(index)
-    finally:
-        close_station(station)
+        views.append(view_of(rgb, X_WB))
+        if on_view is not None:
+            on_view(index)
     fit = solve(views, camera)
     serial = "emulated" if getattr(entry, "emulate", False) else ""
     return CalibrationRun(views, fit, calibration_of(fit, camera, len(views), name=camera_name,

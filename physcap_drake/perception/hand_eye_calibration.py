@@ -32,7 +32,7 @@ from physcap_drake.perception.camera_calibration import (
     calibration_of,
 )
 from physcap_drake.perception.camera_geometry import CameraGeometry
-from physcap_drake.station import MakeStation, close_station, pose_scene
+from physcap_drake.station import station_at_rest
 from physcap_drake.station.ports import ARM_POSITION_MEASURED
 
 #: The flange frame the joint angles' forward kinematics gives (the PiPER's link6).
@@ -114,20 +114,17 @@ def calibrate_hand_eye_in_simulation(scenario, camera_name: str = "camera",
         ModelDirective(add_weld=AddWeld(parent=f"piper::{FLANGE_BODY}",
                                         child=f"{BOARD_BODY}::{BOARD_BODY}",
                                         X_PC=Transform(SIMULATED_MOUNT)))]
-    station = MakeStation(scenario)
-    try:
-        context = station.CreateDefaultContext()
-        views = []
-        for index, q in enumerate(poses):
-            pose_scene(station, context,
-                       instance_positions={"piper": np.asarray(q, dtype=float)})
+    views = []
+    for index, q in enumerate(poses):
+        # Each view is the station built with the arm resting at the pose (its initial
+        # position), read and rendered from its default context: nothing is posed.
+        scenario.station.initial_arm_position = [float(v) for v in q]
+        with station_at_rest(scenario) as (station, context):
             reported = station.GetOutputPort(ARM_POSITION_MEASURED).Eval(context)
             rgb = station.GetOutputPort(f"{camera_name}.rgb").Eval(context).data
-            views.append(view_at(reported, rgb))
-            if on_view is not None:
-                on_view(index)
-    finally:
-        close_station(station)
+        views.append(view_at(reported, rgb))
+        if on_view is not None:
+            on_view(index)
     serial = "emulated" if getattr(entry, "emulate", False) else ""
     return _run(views, camera, name=camera_name, serial=serial, true_X_WC=camera.X_WC,
                 true_X_GB=SIMULATED_MOUNT)

@@ -69,10 +69,10 @@ def scene_ground_truth(station: Diagram, root_context: Context):
     """Yields (plant, plant context) of the simulated world behind `station`, to set up
     before it runs or to move things in, never for agents: the sim station's plant in
     `root_context` (a root context the caller owns and no simulator holds yet: an
-    episode's initial masses, a calibration run's own context), or an emulated CAN
-    station's emulated world (the positions the block changes are written to it when the
-    block ends; its masses are set at its start, see `Scenario.body_masses`). Raises
-    RuntimeError for the real arm, which has no simulated world."""
+    episode's initial masses), or an emulated CAN station's emulated world (the positions
+    the block changes are written to it when the block ends; its masses are set at its
+    start, see `Scenario.body_masses`). Raises RuntimeError for the real arm, which has no
+    simulated world."""
     from physcap_drake.station.can_station import SCENE
 
     plant = scene_plant(station)
@@ -83,17 +83,17 @@ def scene_ground_truth(station: Diagram, root_context: Context):
         yield world
 
 
-def pose_scene(station: Diagram, root_context: Context, *, free_bodies=None,
-               instance_positions=None) -> None:
-    """Poses the sim station's simulated world in `root_context`, a context the caller
-    built only to render or read from and never simulates (a calibration's views):
-    free_bodies maps a body name to its pose in the world (RigidTransform);
-    instance_positions maps a model instance name to its positions (rad or m)."""
-    with scene_ground_truth(station, root_context) as (plant, plant_context):
-        for name, X_WB in (free_bodies or {}).items():
-            plant.SetFreeBodyPose(plant_context, plant.GetBodyByName(name), X_WB)
-        for name, q in (instance_positions or {}).items():
-            plant.SetPositions(plant_context, plant.GetModelInstanceByName(name), q)
+@contextmanager
+def station_at_rest(scenario):
+    """Yields (station, its default context) for `scenario`: the world exactly as the scenario
+    lays it out (objects at their default poses, the arm at `initial_arm_position`), to render
+    or read from, never simulated and never written to; the station is closed on exit. A
+    calibration view is one such station, with the board or the arm placed in the scenario."""
+    station = MakeStation(scenario)
+    try:
+        yield station, station.CreateDefaultContext()
+    finally:
+        close_station(station)
 
 
 def scene_snapshot(station: Diagram, root_context: Context):
