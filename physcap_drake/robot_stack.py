@@ -52,8 +52,8 @@ from physcap_drake.physx.stiffness_estimator import (
 from physcap_drake.physx.stiffness_levels import load_thresholds
 from physcap_drake.physx.stiffness_probe import StiffnessProbe
 from physcap_drake.scenario import Scenario
-from physcap_drake.station import MakeStation, ports, scene_ground_truth
-from physcap_drake.station.body_masses import set_body_masses
+from physcap_drake.station import MakeStation, ports
+from physcap_drake.station.body_masses import set_station_masses
 from physcap_drake.station.robot_model import RobotModel, robot_model
 
 #: The robot stack's request path, when its client is outside the diagram.
@@ -89,12 +89,11 @@ class RobotStack:
     # With build_robot_stack(..., make_recorder=...): the recorder of the station's outputs.
     recorder: LeafSystem | None = None
 
-    def make_clock(self, set_up: Callable[[Context], None] | None = None) -> Clock:
+    def make_clock(self) -> Clock:
         """The diagram's clock: an initialized simulator configured by the scenario, with
         no request on `robot.request` yet and the scenario's `body_masses` in a simulated
-        station's world. `set_up(root context)` sets further initial conditions on the root
-        context, created here once, before any
-        simulator holds it: nothing changes the diagram's state from outside once it runs."""
+        station's world, both set in the root context created here, before any simulator
+        holds it: nothing changes the diagram's state from outside once it runs."""
         context = self.diagram.CreateDefaultContext()
         if self.request_input is not None:
             self.put_request(context, RobotRequest())
@@ -102,10 +101,7 @@ class RobotStack:
             # The simulated station's world is in this diagram: a task's hidden masses are
             # initial parameters of its fresh context. (An emulated arm's world was given
             # them in its scenario when the station started it, before its simulator ran.)
-            with scene_ground_truth(self.station, context) as (plant, plant_context):
-                set_body_masses(plant, plant_context, self.scenario.body_masses)
-        if set_up is not None:
-            set_up(context)
+            set_station_masses(self.station, context, self.scenario.body_masses)
         return Clock(self.diagram, self.scenario.simulator_config, context)
 
     def put_request(self, root: Context, request: RobotRequest) -> None:

@@ -45,7 +45,9 @@ ALLOWED = {
     "station/body_masses.py": {
         "SetMass": "a simulated world's hidden masses are initial parameters, set in the "
                    "fresh context its simulator is then created with (the emulated world's "
-                   "in SimulatedMotion, the sim station's in RobotStack.make_clock's set_up)",
+                   "in SimulatedMotion, the sim station's in RobotStack.make_clock)",
+        "GetMyMutableContextFromRoot": "set_station_masses: the sim station's plant part of "
+                                       "that fresh root context",
     },
     "station/simulated_motion.py": {
         "get_mutable_context": "the emulated world owns its simulator (it stands for the "
@@ -56,11 +58,6 @@ ALLOWED = {
                                        "its simulator owns: its hidden masses before the "
                                        "first step and an operator's moves (set_world) "
                                        "between steps",
-    },
-    "station/__init__.py": {
-        "GetMyMutableContextFromRoot": "scene_ground_truth on the sim station: the plant's "
-                                       "part of a root context its caller owns and no "
-                                       "simulator holds yet (an episode's initial masses)",
     },
     "station/can_scene.py": {
         "SetPositionsAndVelocities": ("its private scratch copy of the emulated world, set from "

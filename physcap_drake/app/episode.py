@@ -2,7 +2,7 @@
 
 The scene is simulated either by the sim station or, with `station: !PiperCan {emulate:
 true}`, by the emulator behind the CAN station; the objects, their hidden masses and the
-success check live in that simulated world (`station.scene_ground_truth`). The hidden
+success check live in that simulated world (`Episode.ground_truth`). The hidden
 masses are the scenario's `body_masses` (the task's layout puts them there): set in the
 sim station's fresh context before its clock runs, or by the emulated arm's world when it
 is built in the emulator's process.

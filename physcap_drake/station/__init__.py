@@ -48,7 +48,8 @@ def close_station(station: Diagram) -> None:
 
 
 def scene_plant(station: Diagram):
-    """The plant of the simulated world behind `station` (see scene_ground_truth)."""
+    """The plant of the simulated world behind `station`: the sim station's, or an emulated
+    CAN station's copy of its emulated world. Raises RuntimeError for the real arm."""
     from physcap_drake.station.can_scene import EmulatedScene
     from physcap_drake.station.can_station import SCENE
 
@@ -62,25 +63,6 @@ def scene_plant(station: Diagram):
 
 NO_WORLD = ("this station has no simulated world (the real arm over CAN): ground truth "
             "such as body poses does not exist")
-
-
-@contextmanager
-def scene_ground_truth(station: Diagram, root_context: Context):
-    """Yields (plant, plant context) of the simulated world behind `station`, to set up
-    before it runs or to move things in, never for agents: the sim station's plant in
-    `root_context` (a root context the caller owns and no simulator holds yet: an
-    episode's initial masses), or an emulated CAN station's emulated world (the positions
-    the block changes are written to it when the block ends; its masses are set at its
-    start, see `Scenario.body_masses`). Raises RuntimeError for the real arm, which has no
-    simulated world."""
-    from physcap_drake.station.can_station import SCENE
-
-    plant = scene_plant(station)
-    if station.HasSubsystemNamed("plant"):
-        yield plant, plant.GetMyMutableContextFromRoot(root_context)
-        return
-    with station.GetSubsystemByName(SCENE).ground_truth() as world:
-        yield world
 
 
 @contextmanager

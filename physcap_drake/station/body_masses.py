@@ -5,8 +5,9 @@ it once the model is parsed; a different mass is a parameter of one context. The
 owner sets it in the fresh context its simulator is then created with, so the world has it
 from its first step on and nothing changes it while the world runs: the emulated arm's
 world (`simulated_motion.SimulatedMotion`) and an episode's clock on the simulated station
-(`RobotStack.make_clock(set_up)`). Nothing else holds that context: an emulated world's
-masses never reach the CAN station's side (its scene copy keeps the model files' masses).
+(`RobotStack.make_clock`, through `set_station_masses`). Nothing else holds that context:
+an emulated world's masses never reach the CAN station's side (its scene copy keeps the
+model files' masses).
 """
 
 from __future__ import annotations
@@ -14,7 +15,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 
 from pydrake.multibody.plant import MultibodyPlant
-from pydrake.systems.framework import Context
+from pydrake.systems.framework import Context, Diagram
 
 
 def set_body_masses(plant: MultibodyPlant, plant_context: Context,
@@ -30,6 +31,15 @@ def set_body_masses(plant: MultibodyPlant, plant_context: Context,
             raise ValueError(f"body_masses[{name!r}] must be a positive mass in kg; got {kg}")
     for body, kg, _ in bodies:
         body.SetMass(plant_context, kg)
+
+
+def set_station_masses(station: Diagram, root_context: Context,
+                       masses: Mapping[str, float]) -> None:
+    """`set_body_masses` for the simulated station's world (its subsystem "plant") in
+    `root_context`: the station's diagram's fresh root context, before any simulator holds
+    it."""
+    plant = station.GetSubsystemByName("plant")
+    set_body_masses(plant, plant.GetMyMutableContextFromRoot(root_context), masses)
 
 
 def _body(plant: MultibodyPlant, name: str):
