@@ -14,6 +14,7 @@ from typing import Annotated
 
 import typer
 
+from physcap_drake import allocator
 from physcap_drake.commands import (
     arm,
     bench,
@@ -75,7 +76,7 @@ def version_text() -> str:
             return "not installed"
 
     return (f"physcap {of('physcap-drake')} (drake {of('drake')}, Python "
-            f"{platform.python_version()})")
+            f"{platform.python_version()}, allocator {allocator.in_use()})")
 
 
 def _print_version(wanted: bool) -> None:
@@ -123,5 +124,6 @@ def main(argv: list[str] | None = None) -> None:
     sys.exit(code or 0)
 
 
-if __name__ == "__main__":
+if __name__ == "__main__":  # `python -m physcap_drake.cli`, as the `physcap` command
+    allocator.use_tcmalloc()
     main()

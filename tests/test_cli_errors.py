@@ -102,7 +102,8 @@ def test_bad_input_is_one_line_on_stderr_and_exit_2(capsys, tmp_path, other_mcap
 def test_version(capsys):
     code, out, _ = run_cli(capsys, ["--version"])
     assert code == 0
-    assert re.fullmatch(r"physcap \d+\.\d+\.\d+\S* \(drake 1\.\d+\.\d+, Python 3\.\d+\.\d+\)\n",
+    assert re.fullmatch(r"physcap \d+\.\d+\.\d+\S* \(drake 1\.\d+\.\d+, Python 3\.\d+\.\d+, "
+                        r"allocator (tcmalloc|system)\)\n",
                         out), out
 
 

@@ -53,10 +53,14 @@ def test_bench_episode_adds_up_each_tasks_seeds(tmp_path, monkeypatch):
     out = tmp_path / "bench.json"
     result = runner.invoke(app, ["bench", "episode", "--json", str(out)])
     assert result.exit_code == 0, result.output
-    assert ran == [(task, seed) for task in episode_bench.TASKS for seed in (0, 1, 2)]
+    first = episode_bench.TASKS[0]  # the untimed warm-up, then each task's seeds
+    assert ran == [(first, 0)] + [(task, seed) for task in episode_bench.TASKS
+                                  for seed in (0, 1, 2)]
+    assert f"warm-up: {first} seed 0, not counted" in result.output
     rows = json.loads(out.read_text())
     assert [row["task"] for row in rows] == list(episode_bench.TASKS)
     for row in rows:
+        assert row["allocator"] in ("tcmalloc", "system")
         assert row["robot_time_s"] == 33.0  # 10 + 11 + 12 s
         assert row["wall_time_s"] >= 0.03
         assert row["rtf"] == pytest.approx(33.0 / row["wall_time_s"], rel=0.02)
@@ -74,7 +78,7 @@ def test_bench_episode_counts_the_cpu_time_of_the_episodes_child_processes(tmp_p
     monkeypatch.setattr(episode_bench, "run_agent_episode", fake_episode)
     out = tmp_path / "bench.json"
     result = runner.invoke(app, ["bench", "episode", "--tasks", "empty_cup", "--seeds", "0",
-                                 "--json", str(out)])
+                                 "--no-warmup", "--json", str(out)])
     assert result.exit_code == 0, result.output
     [row] = json.loads(out.read_text())
     assert 0.3 <= row["child_cpu_time_s"] < 1.5
@@ -95,7 +99,8 @@ def test_bench_episode_runs_only_the_tasks_and_seeds_asked_for(tmp_path, monkeyp
     result = runner.invoke(app, ["bench", "episode", "--tasks", "empty_cup,find_blue_cube",
                                  "--seeds", "3,5", "--json", str(out)])
     assert result.exit_code == 0, result.output
-    assert ran == [("empty_cup", 3), ("empty_cup", 5), ("find_blue_cube", 3),
+    assert ran == [("empty_cup", 3),  # the warm-up: the first task's first seed
+                   ("empty_cup", 3), ("empty_cup", 5), ("find_blue_cube", 3),
                    ("find_blue_cube", 5)]
     rows = json.loads(out.read_text())
     assert [(row["task"], row["robot_time_s"]) for row in rows] == [

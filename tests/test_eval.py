@@ -90,7 +90,7 @@ def test_grid_names_are_checked():
 def _physcap(*args: str) -> subprocess.CompletedProcess:
     """The command line in a process of its own (its worker pool and multiprocessing's
     resource tracker end with it, not with the test process)."""
-    return subprocess.run([sys.executable, "-m", "physcap_drake.cli", *args],
+    return subprocess.run([sys.executable, "-m", "physcap_drake", *args],
                           capture_output=True, text=True, timeout=600, check=False,
                           env={**os.environ, "COLUMNS": "200"})
 

@@ -30,7 +30,7 @@ GRID = ["eval", "--tasks", "identify_empty_can", "--agents", "cap", "--trials", 
 def _physcap(*args: str) -> subprocess.Popen:
     """The command line in a process of its own (its Ray instance ends with it)."""
     env = {k: v for k, v in os.environ.items() if k != "RAY_ADDRESS"}
-    return subprocess.Popen([sys.executable, "-m", "physcap_drake.cli", *args], text=True,
+    return subprocess.Popen([sys.executable, "-m", "physcap_drake", *args], text=True,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                             env={**env, "COLUMNS": "200"})
 

@@ -19,7 +19,8 @@ ROOT = Path(physcap_drake.__file__).parent
 #: From the bottom up. Within a layer, packages may import each other, but not round a cycle.
 LAYERS = (
     # Plain helpers with no robot in them.
-    ("scenario_errors", "config_checks", "resources", "immutable_state", "kinematics", "clock"),
+    ("scenario_errors", "config_checks", "resources", "immutable_state", "kinematics", "clock",
+     "allocator"),
     # The arm's bus: protocol, link, emulated firmware.
     ("can",),
     # The station (simulated or over CAN) and its ports.
@@ -40,7 +41,9 @@ LAYERS = (
     # Programs: evaluation grids, benchmarks, the command line.
     ("eval", "bench", "station_commands"),
     ("commands",),
-    ("cli", "__init__", "__main__"),
+    ("cli", "__init__"),
+    # The console command: picks the memory allocator, then runs the command line.
+    ("launch", "__main__"),
 )
 LAYER_OF = {name: index for index, names in enumerate(LAYERS) for name in names}
 

@@ -310,7 +310,7 @@ def _start_run(folder: Path) -> subprocess.Popen:
     handler); the suite run as such a background job would otherwise see the run ignore
     the test's SIGINT and finish normally."""
     env = {**os.environ, "PYTHONUNBUFFERED": "1"}
-    return subprocess.Popen([sys.executable, "-m", "physcap_drake.cli", *_RUN, "--out",
+    return subprocess.Popen([sys.executable, "-m", "physcap_drake", *_RUN, "--out",
                              str(folder)], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                             text=True, env=env, preexec_fn=_default_sigint)
 
@@ -373,7 +373,7 @@ def test_a_killed_run_leaves_files_every_reader_opens_up_to_the_kill(tmp_path):
     assert len(coder_calls) >= len(announced)
     assert not (tmp_path / "summary.json").exists()
     # `physcap recover` turns it into a complete file with the same messages.
-    assert subprocess.run([sys.executable, "-m", "physcap_drake.cli", "recover",
+    assert subprocess.run([sys.executable, "-m", "physcap_drake", "recover",
                            str(tmp_path)], capture_output=True, check=True).returncode == 0
     assert read_recording(mcap_file).complete
     with mcap_file.open("rb") as stream:

@@ -8,6 +8,12 @@ system) spent on it: this process's, and its child processes' (the sandboxed cod
 figures that a machine loaded by other work disturbs less than wall time. `cpu_rtf` is the
 robot time per CPU second of both, what `rtf` would be on an idle machine were nothing
 waited for.
+
+The figures are those of a worker that has run an episode before, as every episode of an
+evaluation but each worker's first: an untimed warm-up episode (the first task's first seed)
+runs first and pays what a process pays once (importing the agent, the perception and the
+planners, parsing the models, starting the renderer). Each result names the memory
+allocator the process ran with (`physcap_drake.allocator`).
 """
 
 from __future__ import annotations
@@ -17,6 +23,7 @@ import os
 import time
 from collections.abc import Callable
 
+from physcap_drake import allocator
 from physcap_drake.app.agent_episode import run_agent_episode
 
 TASKS = ("find_blue_cube", "identify_empty_can", "pick_ripe_avocado", "empty_cup")
@@ -29,7 +36,7 @@ class EpisodeBenchResult:
     """One task's episodes: `rtf` = robot_time_s / wall_time_s; cpu_time_s: this process's
     CPU time, child_cpu_time_s: its child processes'; `cpu_rtf` = robot_time_s / (both).
     load_average: the machine's 1-minute load average when the task's first episode
-    started."""
+    started; allocator: "tcmalloc" or "system" (glibc's)."""
 
     task: str
     robot_time_s: float
@@ -41,6 +48,7 @@ class EpisodeBenchResult:
     load_average: float
     child_cpu_time_s: float = 0.0
     cpu_rtf: float = 0.0
+    allocator: str = ""
 
 
 def _ratio(robot: float, cpu: float) -> float:
@@ -53,11 +61,20 @@ def _children_cpu_time() -> float:
     return times.children_user + times.children_system
 
 
+def warm_up(tasks=TASKS, seeds=SEEDS) -> float:
+    """Runs the first task's first seed once, untimed by the bench; returns its wall time, s."""
+    start = time.perf_counter()
+    run_agent_episode(tasks[0], seeds[0], agent=AGENT, llm="reference")
+    return time.perf_counter() - start
+
+
 def run_episode_bench(tasks=TASKS, seeds=SEEDS,
                       on_episode: Callable[[str, int, dict], None] | None = None
                       ) -> list[EpisodeBenchResult]:
-    """Runs the episodes; `on_episode(task, seed, summary)` hears each one as it ends."""
+    """Runs the episodes (after `warm_up`, if the caller wants the figures of a warm
+    process); `on_episode(task, seed, summary)` hears each one as it ends."""
     results = []
+    memory = allocator.in_use()
     for task in tasks:
         load = os.getloadavg()[0]
         robot = wall = cpu = children = 0.0
@@ -77,5 +94,5 @@ def run_episode_bench(tasks=TASKS, seeds=SEEDS,
         results.append(EpisodeBenchResult(task, round(robot, 3), round(wall, 3),
                                           round(robot / wall, 3), round(cpu, 3), len(seeds),
                                           successes, load, round(children, 3),
-                                          _ratio(robot, cpu + children)))
+                                          _ratio(robot, cpu + children), memory))
     return results

@@ -11,7 +11,7 @@ from rich.table import Table
 
 from physcap_drake.bench.can_loop_bench import run_can_loop
 from physcap_drake.bench.episode_bench import TASKS as EPISODE_TASKS
-from physcap_drake.bench.episode_bench import run_episode_bench
+from physcap_drake.bench.episode_bench import run_episode_bench, warm_up
 from physcap_drake.bench.perception_bench import bench_episode
 from physcap_drake.bench.perception_bench import summarize as summarize_perception
 from physcap_drake.bench.pick_place_bench import run_trial, summarize
@@ -110,13 +110,18 @@ def episode(
     tasks: Annotated[str, typer.Option("--tasks", help="Comma-separated tasks, or all.")
                      ] = "all",
     seeds: Annotated[str, typer.Option("--seeds", help="Layout seeds, e.g. 0-2.")] = "0-2",
+    warmup: Annotated[bool, typer.Option(
+        "--warmup/--no-warmup",
+        help="First run the first task's first seed once, untimed, as a worker that has "
+             "run an episode before.")] = True,
 ) -> None:
     """Measure how fast agent episodes run.
 
     Runs the physcap variant with the reference reasoner on seeds 0-2 of each task (or the
-    tasks and seeds given), one after the other in this process, and prints robot time,
-    wall time, robot time per wall-clock second (rtf), CPU time (this process and the
-    code blocks' child processes) and robot time per CPU second (cpu rtf) per task."""
+    tasks and seeds given), one after the other in this process, after an untimed warm-up
+    episode, and prints robot time, wall time, robot time per wall-clock second (rtf), CPU
+    time (this process and the code blocks' child processes) and robot time per CPU
+    second (cpu rtf) per task, and the memory allocator it ran with."""
     names = EPISODE_TASKS if tasks == "all" else tuple(tasks.split(","))
     unknown = [name for name in names if name not in EPISODE_TASKS]
     if unknown:
@@ -126,10 +131,16 @@ def episode(
         seed_list = tuple(parse_seeds(seeds))
     except ValueError as error:
         raise typer.BadParameter(str(error), param_hint="--seeds") from None
+    warmup_s = None
+    if warmup:
+        console.print(f"warm-up: {names[0]} seed {seed_list[0]}, not counted")
+        warmup_s = warm_up(names, seed_list)
     with trial_progress("bench episode", len(names) * len(seed_list)) as advance:
         results = run_episode_bench(names, seed_list, on_episode=lambda task, seed, summary:
                                     advance(summary["success"]))
-    table = Table(title=f"physcap bench episode (physcap, reference reasoner, seeds {seeds})")
+    warmed = f"after a {warmup_s:.1f} s warm-up episode" if warmup else "no warm-up"
+    table = Table(title=f"physcap bench episode (physcap, reference reasoner, seeds {seeds}; "
+                        f"{warmed}; allocator {results[0].allocator})")
     for column in ("task", "robot time (s)", "wall time (s)", "rtf", "cpu time (s)",
                    "child cpu (s)", "cpu rtf", "successes", "load"):
         table.add_column(column, justify="right")
