@@ -16,6 +16,7 @@ import numpy as np
 from physcap_drake.perception.camera_geometry import CameraGeometry
 from physcap_drake.perception.footprint import footprint_outline
 from physcap_drake.perception.grasp import grasp_point_from_points
+from physcap_drake.perception.mask_pixels import mask_pixels
 from physcap_drake.perception.offline_pointer import OfflinePointer
 from physcap_drake.perception.regions import footprint_rectangle
 from physcap_drake.perception.seen_object import SeenObject
@@ -38,13 +39,14 @@ class LabelPerception:
         """The catalogued objects in view, left to right, with their grasp points."""
         label = np.asarray(images[ports.CAMERA_LABEL])
         depth = np.asarray(images[ports.CAMERA_DEPTH]).reshape(label.shape[:2])
+        measured = np.isfinite(depth) & (depth > 0)
         seen = []
         for visible, mask, column in self.pointer.visible(label):
-            rows, cols = np.nonzero(mask & np.isfinite(depth) & (depth > 0))
+            rows, cols = mask_pixels(mask & measured)
             points = self.camera.back_project(cols, rows, depth[rows, cols])
             grasp, top = grasp_point_from_points(points)
             area = footprint_rectangle(points) if visible.category in CONTAINERS else None
-            seen.append(SeenObject(visible, mask, column, float(np.nonzero(mask)[0].mean()),
+            seen.append(SeenObject(visible, mask, column, float(mask_pixels(mask)[0].mean()),
                                    grasp, top, footprint_outline(points), area))
         return seen
 

@@ -13,6 +13,7 @@ import dataclasses as dc
 
 import numpy as np
 
+from physcap_drake.perception.mask_pixels import mask_pixels
 from physcap_drake.perception.phrases import PointingError, resolve
 from physcap_drake.perception.visible_objects import VisibleObject
 
@@ -51,7 +52,7 @@ class OfflinePointer:
         for label, obj in self.catalog.items():
             mask = labels == label
             if mask.sum() >= MIN_PIXELS:
-                found.append((obj, mask, float(np.nonzero(mask)[1].mean())))
+                found.append((obj, mask, float(mask_pixels(mask)[1].mean())))
         return sorted(found, key=lambda item: item[2])
 
     def point(self, label_image: np.ndarray, phrase: str) -> PointResult:

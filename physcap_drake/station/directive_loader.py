@@ -191,10 +191,20 @@ def _sdf_text(path: str, _mtime_ns: int, _size: int) -> str | None:
 
 def _renamed(text: str, name: str, where: str) -> str:
     """The SDFormat text with its one model renamed `name` (the directive's model name)."""
+    renamed, models = _renamed_text(text, name)
+    if renamed is None:
+        raise ValueError(f"{where}: add_model {name!r}: the file must hold exactly one "
+                         f"<model> (found {models})")
+    return renamed
+
+
+@functools.lru_cache(maxsize=128)
+def _renamed_text(text: str, name: str) -> tuple[str | None, int]:
+    """(`text` with its one model renamed `name`, or None; the number of models). Made once
+    per process and (text, name): each episode adds the same models under the same names."""
     root = ET.fromstring(text)
     models = root.findall("model")
     if len(models) != 1 or root.find("world") is not None:
-        raise ValueError(f"{where}: add_model {name!r}: the file must hold exactly one "
-                         f"<model> (found {len(models)})")
+        return None, len(models)
     models[0].set("name", name)
-    return ET.tostring(root, encoding="unicode")
+    return ET.tostring(root, encoding="unicode"), 1
