@@ -79,22 +79,49 @@ ALLOWED = {
 }
 
 
-def _calls(path: Path) -> list[tuple[int, str]]:
-    """(line, name) of every call or attribute named in WRITES in `path`."""
+#: Calls that set a model's defaults: what every Context made from the plant later starts
+#: from. They write into no Context (none exists while a plant is built), but they decide
+#: what a Context holds, so they too are allowed only where a model is built.
+DEFAULTS = frozenset({"SetDefaultPositions", "set_default_positions", "set_default_damping",
+                      "SetDefaultFloatingBaseBodyPose", "SetDefaultFreeBodyPose",
+                      "set_default_translation", "set_default_rotation",
+                      "SetDefaultState", "SetDefaultContext", "SetDefaultParameters"})
+
+#: file -> {call: why this module sets a model default}. All of them run while the plant is
+#: built, before Finalize, as Drake's own parser sets the defaults a file declares.
+ALLOWED_DEFAULTS = {
+    "station/directive_loader.py": {
+        "set_default_positions": "a directive's default_joint_positions, as Drake's "
+                                 "ProcessModelDirectives sets them",
+        "SetDefaultFloatingBaseBodyPose": "a directive's default_free_body_pose (the task "
+                                          "layout's placements), as ProcessModelDirectives "
+                                          "sets it",
+    },
+    "station/sim_station.py": {
+        "SetDefaultPositions": "the scenario's initial arm position and gripper opening",
+    },
+    "station/as_built.py": {
+        "set_default_damping": "the as-built arm's joint damping (N·m·s/rad)",
+    },
+}
+
+
+def _calls(path: Path, names: frozenset[str] = WRITES) -> list[tuple[int, str]]:
+    """(line, name) of every call or attribute named in `names` in `path`."""
     tree = ast.parse(path.read_text(), filename=str(path))
     found = []
     for node in ast.walk(tree):
-        if isinstance(node, ast.Attribute) and node.attr in WRITES:
+        if isinstance(node, ast.Attribute) and node.attr in names:
             found.append((node.lineno, node.attr))
-        elif isinstance(node, ast.FunctionDef) and node.name in WRITES:
+        elif isinstance(node, ast.FunctionDef) and node.name in names:
             found.append((node.lineno, node.name))
     return sorted(found)
 
 
-def _writes() -> dict[str, list[tuple[int, str]]]:
+def _writes(names: frozenset[str] = WRITES) -> dict[str, list[tuple[int, str]]]:
     writes = {}
     for path in sorted(ROOT.rglob("*.py")):
-        calls = _calls(path)
+        calls = _calls(path, names)
         if calls:
             writes[path.relative_to(ROOT).as_posix()] = calls
     return writes
@@ -117,8 +144,23 @@ def test_every_allowance_is_still_needed():
     assert not stale, f"ALLOWED lists calls these files no longer make: {stale}"
 
 
+def test_only_the_model_builders_set_model_defaults():
+    writes = _writes(DEFAULTS)
+    unexpected = [f"physcap_drake/{file}:{line}: {name}"
+                  for file, calls in writes.items() for line, name in calls
+                  if name not in ALLOWED_DEFAULTS.get(file, {})]
+    assert not unexpected, ("these set a model's defaults outside the modules that build "
+                            "models (set it where the plant is built, or list the file in "
+                            "ALLOWED_DEFAULTS with its reason):\n" + "\n".join(unexpected))
+    stale = [f"{file}: {name}" for file, names in ALLOWED_DEFAULTS.items() for name in names
+             if name not in {n for _, n in writes.get(file, [])}]
+    assert not stale, f"ALLOWED_DEFAULTS lists calls these files no longer make: {stale}"
+
+
 def test_the_check_sees_calls_inside_functions(tmp_path):
     source = tmp_path / "module.py"
     source.write_text("def f(port, ctx):\n    def g():\n        port.FixValue(ctx, 1)\n"
                       "    ctx.SetTime(2.0)\n    return g\n")
     assert _calls(source) == [(3, "FixValue"), (4, "SetTime")]
+    source.write_text("def f(plant, arm, q):\n    plant.SetDefaultPositions(arm, q)\n")
+    assert _calls(source, DEFAULTS) == [(2, "SetDefaultPositions")]
