@@ -14,7 +14,7 @@ from typing import Annotated
 
 import typer
 
-from physcap_drake import allocator
+from physcap_drake import allocator, blas_threads
 from physcap_drake.commands import (
     arm,
     bench,
@@ -76,7 +76,8 @@ def version_text() -> str:
             return "not installed"
 
     return (f"physcap {of('physcap-drake')} (drake {of('drake')}, Python "
-            f"{platform.python_version()}, allocator {allocator.in_use()})")
+            f"{platform.python_version()}, allocator {allocator.in_use()}, BLAS threads "
+            f"{blas_threads.in_use() or 'unknown'})")
 
 
 def _print_version(wanted: bool) -> None:
@@ -125,5 +126,6 @@ def main(argv: list[str] | None = None) -> None:
 
 
 if __name__ == "__main__":  # `python -m physcap_drake.cli`, as the `physcap` command
+    blas_threads.limit()  # NumPy is loaded already: this reaches the restart and children
     allocator.use_tcmalloc()
     main()

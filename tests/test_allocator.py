@@ -58,14 +58,14 @@ def test_physcap_restarts_itself_with_tcmalloc():
         f"{allocator.LIBRARY} is missing: `./run setup` installs {allocator.PACKAGE}")
     done = _version()
     assert done.returncode == 0, done.stderr
-    assert done.stdout.strip().endswith("allocator tcmalloc)"), done.stdout
+    assert "allocator tcmalloc," in done.stdout, done.stdout
     assert done.stderr == ""
 
 
 def test_physcap_keeps_glibcs_allocator_when_asked():
     done = _version(PHYSCAP_ALLOCATOR="system")
     assert done.returncode == 0, done.stderr
-    assert done.stdout.strip().endswith("allocator system)"), done.stdout
+    assert "allocator system," in done.stdout, done.stdout
 
 
 def test_a_bad_allocator_choice_is_one_error_line_and_exit_2():

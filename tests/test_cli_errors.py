@@ -103,7 +103,7 @@ def test_version(capsys):
     code, out, _ = run_cli(capsys, ["--version"])
     assert code == 0
     assert re.fullmatch(r"physcap \d+\.\d+\.\d+\S* \(drake 1\.\d+\.\d+, Python 3\.\d+\.\d+, "
-                        r"allocator (tcmalloc|system)\)\n",
+                        r"allocator (tcmalloc|system), BLAS threads (\d+|unknown)\)\n",
                         out), out
 
 

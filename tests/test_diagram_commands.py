@@ -11,6 +11,7 @@ import time
 import pytest
 from typer.testing import CliRunner
 
+from physcap_drake import blas_threads
 from physcap_drake.bench import episode_bench
 from physcap_drake.cli import app
 from physcap_drake.resources import stations_dir
@@ -61,6 +62,7 @@ def test_bench_episode_adds_up_each_tasks_seeds(tmp_path, monkeypatch):
     assert [row["task"] for row in rows] == list(episode_bench.TASKS)
     for row in rows:
         assert row["allocator"] in ("tcmalloc", "system")
+        assert row["blas_threads"] == blas_threads.in_use()
         assert row["robot_time_s"] == 33.0  # 10 + 11 + 12 s
         assert row["wall_time_s"] >= 0.03
         assert row["rtf"] == pytest.approx(33.0 / row["wall_time_s"], rel=0.02)

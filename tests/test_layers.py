@@ -20,7 +20,7 @@ ROOT = Path(physcap_drake.__file__).parent
 LAYERS = (
     # Plain helpers with no robot in them.
     ("scenario_errors", "config_checks", "resources", "immutable_state", "kinematics", "clock",
-     "allocator"),
+     "allocator", "blas_threads"),
     # The arm's bus: protocol, link, emulated firmware.
     ("can",),
     # The station (simulated or over CAN) and its ports.
@@ -42,7 +42,8 @@ LAYERS = (
     ("eval", "bench", "station_commands"),
     ("commands",),
     ("cli", "__init__"),
-    # The console command: picks the memory allocator, then runs the command line.
+    # The console command: limits NumPy's BLAS threads, picks the memory allocator, then
+    # runs the command line.
     ("launch", "__main__"),
 )
 LAYER_OF = {name: index for index, names in enumerate(LAYERS) for name in names}

@@ -13,7 +13,8 @@ The figures are those of a worker that has run an episode before, as every episo
 evaluation but each worker's first: an untimed warm-up episode (the first task's first seed)
 runs first and pays what a process pays once (importing the agent, the perception and the
 planners, parsing the models, starting the renderer). Each result names the memory
-allocator the process ran with (`physcap_drake.allocator`).
+allocator the process ran with (`physcap_drake.allocator`) and the number of threads of
+NumPy's BLAS (`physcap_drake.blas_threads`).
 """
 
 from __future__ import annotations
@@ -23,7 +24,7 @@ import os
 import time
 from collections.abc import Callable
 
-from physcap_drake import allocator
+from physcap_drake import allocator, blas_threads
 from physcap_drake.app.agent_episode import run_agent_episode
 
 TASKS = ("find_blue_cube", "identify_empty_can", "pick_ripe_avocado", "empty_cup")
@@ -36,7 +37,8 @@ class EpisodeBenchResult:
     """One task's episodes: `rtf` = robot_time_s / wall_time_s; cpu_time_s: this process's
     CPU time, child_cpu_time_s: its child processes'; `cpu_rtf` = robot_time_s / (both).
     load_average: the machine's 1-minute load average when the task's first episode
-    started; allocator: "tcmalloc" or "system" (glibc's)."""
+    started; allocator: "tcmalloc" or "system" (glibc's); blas_threads: the threads of
+    NumPy's BLAS (None: unknown)."""
 
     task: str
     robot_time_s: float
@@ -49,6 +51,7 @@ class EpisodeBenchResult:
     child_cpu_time_s: float = 0.0
     cpu_rtf: float = 0.0
     allocator: str = ""
+    blas_threads: int | None = None
 
 
 def _ratio(robot: float, cpu: float) -> float:
@@ -74,7 +77,7 @@ def run_episode_bench(tasks=TASKS, seeds=SEEDS,
     """Runs the episodes (after `warm_up`, if the caller wants the figures of a warm
     process); `on_episode(task, seed, summary)` hears each one as it ends."""
     results = []
-    memory = allocator.in_use()
+    memory, threads = allocator.in_use(), blas_threads.in_use()
     for task in tasks:
         load = os.getloadavg()[0]
         robot = wall = cpu = children = 0.0
@@ -94,5 +97,5 @@ def run_episode_bench(tasks=TASKS, seeds=SEEDS,
         results.append(EpisodeBenchResult(task, round(robot, 3), round(wall, 3),
                                           round(robot / wall, 3), round(cpu, 3), len(seeds),
                                           successes, load, round(children, 3),
-                                          _ratio(robot, cpu + children), memory))
+                                          _ratio(robot, cpu + children), memory, threads))
     return results

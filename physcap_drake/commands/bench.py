@@ -121,7 +121,7 @@ def episode(
     tasks and seeds given), one after the other in this process, after an untimed warm-up
     episode, and prints robot time, wall time, robot time per wall-clock second (rtf), CPU
     time (this process and the code blocks' child processes) and robot time per CPU
-    second (cpu rtf) per task, and the memory allocator it ran with."""
+    second (cpu rtf) per task, and the memory allocator and BLAS threads it ran with."""
     names = EPISODE_TASKS if tasks == "all" else tuple(tasks.split(","))
     unknown = [name for name in names if name not in EPISODE_TASKS]
     if unknown:
@@ -140,7 +140,8 @@ def episode(
                                     advance(summary["success"]))
     warmed = f"after a {warmup_s:.1f} s warm-up episode" if warmup else "no warm-up"
     table = Table(title=f"physcap bench episode (physcap, reference reasoner, seeds {seeds}; "
-                        f"{warmed}; allocator {results[0].allocator})")
+                        f"{warmed}; allocator {results[0].allocator}, BLAS threads "
+                        f"{results[0].blas_threads or 'unknown'})")
     for column in ("task", "robot time (s)", "wall time (s)", "rtf", "cpu time (s)",
                    "child cpu (s)", "cpu rtf", "successes", "load"):
         table.add_column(column, justify="right")
