@@ -9,8 +9,10 @@ caches. Episodes are the same to the last bit either way; only the time changes.
 
 An allocator must be chosen before a process allocates anything, so `physcap` (the console
 command, `launch.main`) starts itself again with TCMalloc in `LD_PRELOAD` when it is not
-loaded yet. `LD_PRELOAD` stays set, so the processes it starts (the evaluation's workers,
-the code blocks' sandboxes) run with it too. `PHYSCAP_ALLOCATOR=system` keeps glibc's
+loaded yet. `LD_PRELOAD` stays set, so the processes it starts with its environment (the
+evaluation's workers, the CAN emulator) run with it too; a code block's sandboxed child does
+not (its environment is built from nothing, see `agent.sandbox.child_process`), and it
+allocates little. `PHYSCAP_ALLOCATOR=system` keeps glibc's
 allocator; when TCMalloc is not installed the command says so on stderr once and runs with
 glibc's.
 """
