@@ -5,9 +5,10 @@ splits between them, keeps the extra threads spinning (`sched_yield`) for a whil
 another call comes. An episode's matrices are small (3 × 3 rotations applied to a point
 cloud, the arm's 6 × 6 Jacobians), so splitting gains nothing, and on a 2-core machine the
 spinning thread takes the core that the renderer's threads and the sandboxed code block
-need. Measured on find_blue_cube seeds 0–2 (warm, TCMalloc, alternated runs): rtf
-3.75 / 3.92 with OpenBLAS's default of 2 threads, 4.12 / 4.16 with 1, and about 1 s less
-CPU time; the episodes were the same to the last digit (all four tasks, seeds 0–3).
+need. Measured with `physcap bench episode`, five runs alternated with OpenBLAS's default
+of 2 threads: find_blue_cube's rtf 3.42 → 3.75 on average and its CPU time 9.8 → 8.4 s; the
+other tasks as fast as before within the machine's noise. Episodes are the same to the last
+digit (the reference grid: 200 of 200 identical).
 An evaluation runs one episode per worker process and core, so one BLAS thread per process
 is also what keeps its workers from oversubscribing the machine.
 
