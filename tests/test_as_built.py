@@ -119,3 +119,36 @@ def test_attribution_finds_the_group_that_explains_the_errors():
     shares = mismatch.attribute(errors, draws)
     assert next(iter(shares)) == "torque_gain" and shares["torque_gain"] > 0.8
     assert shares.get("friction", 0.0) < 0.2
+
+
+def test_as_built_joint_damping_is_the_worlds_model_data_and_not_the_controllers():
+    scenario, _ = _scenario_with("stiffness_level3", seed=0, trial=0, noise=False)
+    config = scenario.station
+    damping = [0.5, 0.25, 0.125, 0.1, 0.05, 0.3333333333333333]
+    config.as_built.joint_damping = damping
+    config.initial_arm_position = [0.1, 0.2, -0.3, 0.4, 0.5, -0.6]
+    config.initial_gripper_opening = 0.05
+    station, context = _station_context(scenario)
+    plant = station.GetSubsystemByName("plant")
+    arm = plant.GetModelInstanceByName(config.arm_model)
+    joints = [plant.get_joint(j) for j in plant.GetJointIndices(arm)
+              if plant.get_joint(j).num_positions() == 1]
+    assert [j.default_damping() for j in joints] == damping  # exactly: written with repr
+    plant_context = station.GetSubsystemContext(plant, context)
+    assert plant.GetPositions(plant_context, arm).tolist() == config.initial_arm_position
+    gripper = plant.GetModelInstanceByName(config.gripper_model)
+    fingers = plant.GetPositions(plant_context, gripper)
+    assert fingers.tolist() == [0.025, 0.025]
+    model = make_controller_plant(scenario.directives, config.arm_model, config.gripper_model)
+    assert all(j.default_damping() == 0.0 for j in
+               (model.get_joint(i) for i in model.GetJointIndices(
+                   model.GetModelInstanceByName(config.arm_model)))
+               if j.num_positions() == 1)
+
+
+def test_as_built_joint_damping_needs_one_value_per_revolute_joint():
+    scenario, _ = _scenario_with("stiffness_level3", seed=0, trial=0, noise=False)
+    scenario.station.as_built.joint_damping = [0.1, 0.2]
+    with pytest.raises(ValueError, match=r"station.as_built.joint_damping: 2 values for the "
+                                         r"6 revolute joints of .*piper_arm.sdf"):
+        MakeStation(scenario)

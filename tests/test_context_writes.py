@@ -92,16 +92,12 @@ DEFAULTS = frozenset({"SetDefaultPositions", "set_default_positions", "set_defau
 ALLOWED_DEFAULTS = {
     "station/directive_loader.py": {
         "set_default_positions": "a directive's default_joint_positions, as Drake's "
-                                 "ProcessModelDirectives sets them",
+                                 "ProcessModelDirectives sets them (also the sim station's "
+                                 "initial arm and finger joints, put there by "
+                                 "with_joint_positions)",
         "SetDefaultFloatingBaseBodyPose": "a directive's default_free_body_pose (the task "
                                           "layout's placements), as ProcessModelDirectives "
                                           "sets it",
-    },
-    "station/sim_station.py": {
-        "SetDefaultPositions": "the scenario's initial arm position and gripper opening",
-    },
-    "station/as_built.py": {
-        "set_default_damping": "the as-built arm's joint damping (N·m·s/rad)",
     },
 }
 

@@ -29,7 +29,7 @@ from pydrake.systems.framework import DiagramBuilder
 
 from physcap_drake.resources import add_model_packages, models_dir, stations_dir
 from physcap_drake.scenario import load_scenario
-from physcap_drake.station.directive_loader import load_directives
+from physcap_drake.station.directive_loader import load_directives, with_joint_positions
 from physcap_drake.tasks.registry import TASKS, get_task
 
 ROLES = (Role.kProximity, Role.kIllustration, Role.kPerception)
@@ -164,3 +164,19 @@ def test_a_model_beside_its_meshes_finds_them(tmp_path: Path):
     meshes = [g for g in ours["geometries"].values() if g[0] == "Mesh"]
     assert meshes and all(str(mesh) in g[1] for g in meshes)
     assert ours == _describe(*_plant(directives, _with_drake))
+
+
+def test_initial_joint_positions_become_the_directives_default_joint_positions():
+    directives = load_scenario(stations_dir() / "piper_table.yaml").directives
+    given = with_joint_positions(directives, {"piper": {"joint2": 0.75, "joint4": -0.25}})
+    arm = next(d.add_model for d in given if d.add_model is not None
+               and d.add_model.name == "piper")
+    assert {k: v.tolist() for k, v in arm.default_joint_positions.items()} == {
+        "joint2": [0.75], "joint4": [-0.25]}
+    plant, _ = _plant(given, load_directives)
+    instance = plant.GetModelInstanceByName("piper")
+    assert plant.GetJointByName("joint2", instance).default_positions().tolist() == [0.75]
+    assert plant.GetJointByName("joint1", instance).default_positions().tolist() == [0.0]
+    with pytest.raises(ValueError, match="no add_model directive is named 'arm'"):
+        with_joint_positions(directives, {"arm": {"joint1": 0.1}})
+

@@ -1,10 +1,11 @@
 """Building the simulated world as built rather than as drawn (`station.as_built`).
 
-The arm's links get the masses and centres of mass of `as_built.links`: the text of its model
-file with those values in place of the drawn ones is parsed (the controller's and the estimators'
-own models keep the file as it is). Joint damping goes on the plant's joints, and the
-compliant geometries of named models get their hydroelastic modulus scaled. All of it
-happens while the plant is built, before it is finalized.
+The arm's links get the masses and centres of mass of `as_built.links`, and its joints the
+damping of `as_built.joint_damping`: the text of its model file with those values in place of
+the drawn ones is parsed (the controller's and the estimators' own models keep the file as it
+is), so they are the model's own data, as a measured model file would have them. The compliant
+geometries of named models get their hydroelastic modulus scaled. All of it happens while the
+plant is built, before it is finalized.
 """
 
 from __future__ import annotations
@@ -23,27 +24,31 @@ from physcap_drake.station.sim_config import AsBuilt
 def add_directives_as_built(plant: MultibodyPlant, directives: list, arm_model: str,
                             as_built: AsBuilt) -> None:
     """Adds the models of `directives` to `plant` like `robot_model.add_directives`, the arm
-    model `arm_model` with the link deviations of `as_built`."""
-    if not as_built.links:
+    model `arm_model` with the link deviations and joint damping of `as_built`."""
+    if not as_built.links and not as_built.joint_damping:
         load_directives(plant, directives)
         return
     flat = FlattenModelDirectives(ModelDirectives(directives=directives), make_package_map())
     arm = [d.add_model for d in flat.directives
            if d.add_model is not None and d.add_model.name == arm_model]
+    field = "links" if as_built.links else "joint_damping"
     if not arm:
-        raise ValueError(f"station.as_built.links: no model named {arm_model!r} in the "
+        raise ValueError(f"station.as_built.{field}: no model named {arm_model!r} in the "
                          "scenario's directives")
     path = make_package_map().ResolveUrl(arm[0].file)
     text = sdf_text(path)
     if text is None:
-        raise ValueError(f"station.as_built.links: the arm's model {path} includes other "
-                         "files; as-built links need a model in one file")
-    load_directives(plant, directives, texts={arm_model: deviate_links(text, as_built, path)})
+        raise ValueError(f"station.as_built.{field}: the arm's model {path} includes other "
+                         "files; an as-built arm needs a model in one file")
+    text = damp_joints(deviate_links(text, as_built, path), as_built.joint_damping, path)
+    load_directives(plant, directives, texts={arm_model: text})
 
 
 def deviate_links(sdf: str, as_built: AsBuilt, label: str) -> str:
     """The SDF text with each named link's inertial mass, inertia and centre of mass
-    scaled as `as_built.links` says."""
+    scaled as `as_built.links` says (unchanged without links)."""
+    if not as_built.links:
+        return sdf
     root = ET.fromstring(sdf)
     links = {link.get("name"): link for link in root.iter("link")}
     for name, deviation in as_built.links.items():
@@ -62,10 +67,28 @@ def deviate_links(sdf: str, as_built: AsBuilt, label: str) -> str:
     return ET.tostring(root, encoding="unicode")
 
 
-def apply_joint_damping(plant: MultibodyPlant, joints: list, damping: list[float]) -> None:
-    """Viscous friction on the arm's joints (J1..J6), N·m·s/rad."""
+def damp_joints(sdf: str, damping: list[float], label: str) -> str:
+    """The SDF text with viscous damping `damping` (N·m·s/rad, J1..J6) on its revolute
+    joints, in the order the file declares them (unchanged for an empty list)."""
+    if not damping:
+        return sdf
+    root = ET.fromstring(sdf)
+    joints = [j for j in root.iter("joint") if j.get("type") in ("revolute", "continuous")]
+    if len(joints) != len(damping):
+        raise ValueError(f"station.as_built.joint_damping: {len(damping)} values for the "
+                         f"{len(joints)} revolute joints of {label}")
     for joint, value in zip(joints, damping, strict=True):
-        joint.set_default_damping(float(value))
+        axis = joint.find("axis")
+        if axis is None:
+            axis = ET.SubElement(joint, "axis")
+        dynamics = axis.find("dynamics")
+        if dynamics is None:
+            dynamics = ET.SubElement(axis, "dynamics")
+        element = dynamics.find("damping")
+        if element is None:
+            element = ET.SubElement(dynamics, "damping")
+        element.text = repr(float(value))
+    return ET.tostring(root, encoding="unicode")
 
 
 def scale_moduli(plant: MultibodyPlant, scene_graph, scales: dict[str, float]) -> None:

@@ -91,6 +91,29 @@ def load_directives(plant: MultibodyPlant, directives: list,
         _exclude_collisions(plant, parser, groups)
 
 
+def with_joint_positions(directives: list,
+                         positions: Mapping[str, Mapping[str, float]]) -> list:
+    """`directives` flattened, with `positions` (model name -> joint name -> position, rad
+    or m) added to the `default_joint_positions` of the models' `add_model` entries: initial
+    joint positions as model data, which `load_directives` (like Drake's
+    `ProcessModelDirectives`) sets while it adds the models. Raises ValueError naming a
+    model no `add_model` adds."""
+    flat = FlattenModelDirectives(ModelDirectives(directives=directives), make_package_map())
+    pending = dict(positions)
+    for directive in flat.directives:
+        model = directive.add_model
+        if model is None or model.name not in pending:
+            continue
+        joints = dict(model.default_joint_positions)
+        joints.update({name: [float(q)] for name, q in pending.pop(model.name).items()})
+        model.default_joint_positions = joints
+        directive.add_model = model
+    if pending:
+        raise ValueError(f"no add_model directive is named {', '.join(map(repr, pending))} "
+                         "(the models given initial joint positions)")
+    return list(flat.directives)
+
+
 @dc.dataclass(frozen=True)
 class _FilterGroup:
     """One `add_collision_filter_group`: its bodies (scoped names), the groups it contains

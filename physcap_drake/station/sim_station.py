@@ -12,12 +12,9 @@ from pydrake.visualization import ApplyVisualizationConfig
 
 from physcap_drake.station import ports
 from physcap_drake.station.arm_feedforward import make_arm_feedforward
-from physcap_drake.station.as_built import (
-    add_directives_as_built,
-    apply_joint_damping,
-    scale_moduli,
-)
+from physcap_drake.station.as_built import add_directives_as_built, scale_moduli
 from physcap_drake.station.cameras import add_cameras
+from physcap_drake.station.directive_loader import with_joint_positions
 from physcap_drake.station.gripper_servo import GripperServo
 from physcap_drake.station.joint_friction import JointFriction
 from physcap_drake.station.joint_target_interpolator import JointTargetInterpolator
@@ -26,6 +23,7 @@ from physcap_drake.station.robot_model import (
     arm_joint_limits,
     make_controller_plant,
     moving_joints,
+    robot_model,
 )
 from physcap_drake.station.sensor_model import ReportedSignal
 from physcap_drake.station.sim_config import SimPiper
@@ -77,6 +75,29 @@ def _release_arm_end_stops(plant: MultibodyPlant, arm: ModelInstanceIndex):
     return lower, upper
 
 
+def _initial_joint_positions(directives: list, config: SimPiper) -> dict:
+    """The station's initial arm joints (`initial_arm_position`, rad) and finger joints (each
+    at half of `initial_gripper_opening`, m), by model and joint name, for the directives'
+    `default_joint_positions`. Raises ValueError for a position outside the arm's joint
+    limits or an opening beyond the gripper's stroke (of the shared RobotModel: the same
+    model files)."""
+    robot = robot_model(directives, config.arm_model, config.gripper_model)
+    plant = robot.controller_plant
+    q0 = np.asarray(config.initial_arm_position, dtype=float)
+    lower, upper = arm_joint_limits(plant, plant.GetModelInstanceByName(config.arm_model))
+    if np.any(q0 < lower) or np.any(q0 > upper):
+        raise ValueError(f"station.initial_arm_position {q0.tolist()} is outside the joint "
+                         f"limits [{lower.tolist()}, {upper.tolist()}] rad")
+    opening0 = config.initial_gripper_opening
+    if opening0 > robot.gripper_stroke + 1e-9:
+        raise ValueError(f"station.initial_gripper_opening {opening0} m exceeds the gripper's "
+                         f"stroke of {robot.gripper_stroke} m")
+    fingers = moving_joints(plant, plant.GetModelInstanceByName(config.gripper_model))
+    return {config.arm_model: {joint.name(): q for joint, q in zip(robot.arm_joints, q0,
+                                                                   strict=True)},
+            config.gripper_model: {joint.name(): 0.5 * opening0 for joint in fingers}}
+
+
 def MakeSimStation(scenario, meshcat: Meshcat | None = None, *,
                    external_forces: bool = False) -> Diagram:
     """Builds the simulated station for `scenario` (whose `station` is a `SimPiper`).
@@ -91,7 +112,9 @@ def MakeSimStation(scenario, meshcat: Meshcat | None = None, *,
     as_built = config.as_built
     builder = DiagramBuilder()
     plant, scene_graph = AddMultibodyPlant(scenario.plant_config, builder)
-    add_directives_as_built(plant, scenario.directives, config.arm_model, as_built)
+    directives = with_joint_positions(scenario.directives, _initial_joint_positions(
+        scenario.directives, config))
+    add_directives_as_built(plant, directives, config.arm_model, as_built)
     arm = plant.GetModelInstanceByName(config.arm_model)
     gripper = plant.GetModelInstanceByName(config.gripper_model)
     servo = config.joint_servo
@@ -99,24 +122,12 @@ def MakeSimStation(scenario, meshcat: Meshcat | None = None, *,
         actuator.set_controller_gains(PdControllerGains(p=servo.stiffness[i],
                                                         d=servo.damping[i]))
     lower, upper = _release_arm_end_stops(plant, arm)
-    if as_built.joint_damping:
-        apply_joint_damping(plant, moving_joints(plant, arm), as_built.joint_damping)
     scale_moduli(plant, scene_graph, as_built.modulus_scale)
     plant.Finalize()
     time_step = plant.time_step()
 
-    q0 = np.asarray(config.initial_arm_position, dtype=float)
-    if np.any(q0 < lower) or np.any(q0 > upper):
-        raise ValueError(f"station.initial_arm_position {q0.tolist()} is outside the joint "
-                         f"limits [{lower.tolist()}, {upper.tolist()}] rad")
-    plant.SetDefaultPositions(arm, q0)
     finger_actuator = _finger_actuator(plant, gripper)
     finger_travel = finger_actuator.joint().position_upper_limits()[0]
-    opening0 = config.initial_gripper_opening
-    if opening0 > 2 * finger_travel + 1e-9:
-        raise ValueError(f"station.initial_gripper_opening {opening0} m exceeds the gripper's "
-                         f"stroke of {2 * finger_travel} m")
-    plant.SetDefaultPositions(gripper, [0.5 * opening0, 0.5 * opening0])
 
     # The arm: firmware joint mode = interpolated reference + stiff PD + model feed-forward.
     arm_state = builder.AddNamedSystem("arm_state", Demultiplexer([ports.NUM_ARM_JOINTS] * 2))
