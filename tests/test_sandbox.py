@@ -12,8 +12,11 @@ from __future__ import annotations
 import dataclasses as dc
 import os
 import socket
+import subprocess
+import sys
 import tempfile
 import time
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -32,7 +35,6 @@ from physcap_drake.agent.sandbox import (
     Text,
     Vector,
     check_code,
-    lockdown,
     protocol,
     run_sandboxed,
     seccomp,
@@ -606,48 +608,17 @@ def test_the_private_folder_is_deleted(robot, tmp_path, monkeypatch):
     assert list(tmp_path.iterdir()) == []
 
 
-ORDINARY_UID = 54321
+LOCKDOWN_PROBE = Path(__file__).with_name("lockdown_probe.py")
 
 
 def _probe_lockdown_as_ordinary_user(layer: str) -> str:
-    """Fork; in the child become an ordinary user, build one layer of the wall only, then
-    try to fork and to signal this (the parent) process. Returns what happened."""
-    parent = os.getpid()
-    read_end, write_end = os.pipe()
-    pid = os.fork()
-    if pid == 0:  # the probe: report through the pipe, never return into pytest
-        status = 1
-        try:
-            os.close(read_end)
-            os.setgroups([])
-            os.setresgid(ORDINARY_UID, ORDINARY_UID, ORDINARY_UID)
-            os.setresuid(ORDINARY_UID, ORDINARY_UID, ORDINARY_UID)
-            report = []
-            if layer == "namespaces+rlimits":
-                entered = lockdown.enter_namespaces()
-                report.append(",".join(entered))
-                if "pid_ns" in entered and os.fork():
-                    os.wait()
-                    os._exit(0)
-                lockdown.set_rlimits(2, 512, write_end, kill_at_soft=True)
-            else:
-                report.append(f"seccomp={seccomp.install()}")
-            for name, attempt in (("fork", os.fork), ("signal", lambda: os.kill(parent, 0))):
-                try:
-                    if attempt() == 0:
-                        os._exit(0)  # a fork that worked: the copy leaves at once
-                    report.append(f"{name}:allowed")
-                except OSError as error:
-                    report.append(f"{name}:{error.strerror}")
-            os.write(write_end, " ".join(report).encode())
-            status = 0
-        finally:
-            os._exit(status)
-    os.close(write_end)
-    with os.fdopen(read_end, "rb") as reader:
-        report = reader.read().decode()
-    os.waitpid(pid, 0)
-    return report
+    """Runs lockdown_probe.py in a fresh interpreter: it becomes an ordinary user, builds one
+    layer of the wall only, then tries to fork and to signal this (the parent) process.
+    Returns its report."""
+    done = subprocess.run([sys.executable, str(LOCKDOWN_PROBE), layer, str(os.getpid())],
+                          capture_output=True, text=True, timeout=60, check=False)
+    assert done.returncode == 0, f"the probe broke ({done.returncode}): {done.stderr[-2000:]}"
+    return done.stdout.strip()
 
 
 @pytest.mark.skipif(os.geteuid() != 0, reason="needs root to become an ordinary user")
