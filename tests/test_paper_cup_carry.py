@@ -1,4 +1,9 @@
-"""A lifted paper cup is set down upright on the tray and let go of.
+"""Paper cups in the gripper: the fingers stop at the wall, and a lifted cup is set down
+upright on the tray and let go of.
+
+The small cup weighs 8 g. SAP softens contacts it cannot resolve in a step, the more the
+lighter the body; with Drake's default near-rigid threshold the 15 N pads sank up to 8 mm
+into each side of it and the grasp crept on until close_gripper timed out.
 
 The far-left cup of find_blue_cube (seed 2) is out of reach of a straight-down grasp: the
 gripper takes it about 16° off vertical and sets it down pointing straight down, so the cup
@@ -18,6 +23,11 @@ from physcap_drake.control.ik import tilt_from_vertical
 #: makes this case hard), rad.
 UPRIGHT = np.radians(5.0)
 HARD_GRASP_TILT = np.radians(10.0)
+#: The small cup's closed top, its narrowest outer width (models/objects/paper_cup_small.sdf),
+#: m: fingers closed on the cup's side stop wider than this.
+SMALL_CUP_TOP = 0.044
+#: Most tilt of a cup held by its sides, rad (it may turn a little about the fingers).
+HELD_TILT = np.radians(20.0)
 
 
 def _tilt(episode, body) -> float:
@@ -51,3 +61,20 @@ def test_a_cup_grasped_off_vertical_is_set_down_upright_and_released():
               @ plant.EvalBodyPoseInWorld(episode.plant_context, cup)).translation()
     assert abs(offset[2]) < 0.02, "the cup left the tray floor (carried off by a finger?)"
     assert np.all(np.abs(offset[:2]) < 0.15)
+
+
+def test_the_fingers_stop_at_a_light_cup_and_lift_it():
+    episode = make_episode("find_blue_cube", 4)  # the small cup stands in the middle
+    api, plant = episode.api, episode.plant
+    cup = episode.instance.body_of(plant, "small cup")
+    grasp = api.get_object_pose("small cup")
+    api.open_gripper()
+    api.goto_pose(grasp, z_approach=0.12)
+    api.close_gripper()  # raises SkillFailed if the fingers never stop
+    assert "holding something" in api.status.message
+    assert api.gripper_opening > SMALL_CUP_TOP, "the pads sank into the cup's wall"
+    start = plant.EvalBodyPoseInWorld(episode.plant_context, cup).translation()
+    api.goto_pose(grasp + [0.0, 0.0, 0.10])
+    lifted = plant.EvalBodyPoseInWorld(episode.plant_context, cup).translation()
+    assert lifted[2] - start[2] > 0.09
+    assert _tilt(episode, cup) < HELD_TILT

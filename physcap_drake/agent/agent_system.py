@@ -84,7 +84,8 @@ CLIENT = "agent"
 #: executor's events: after the executor's (which end skills) and the probes' (a third of a
 #: period after them, which end probes), so the next request follows either at the
 #: executor's next event, as when a client outside the diagram waits for each request.
-#: With the 12 ms period every event falls on a step of the simulated plant (4 ms).
+#: With the 12 ms period the events fall on a 4 ms grid: every other one on a step of the
+#: simulated plant (8 ms), the others between its steps (no plant step is added).
 PERIOD = MONITOR_PERIOD
 OFFSET = 2.0 / 3.0
 

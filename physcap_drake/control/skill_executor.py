@@ -26,7 +26,9 @@ from physcap_drake.immutable_state import Immutable
 from physcap_drake.station import ports
 
 #: Period of the executor's event: it takes new requests and checks the running skill, s.
-#: A multiple of the simulated plant's 4 ms step, so the simulator steps only at plant steps.
+#: Three times 4 ms: with the probes' and the AgentSystem's events a third and two thirds of
+#: a period later, the events keep to a 4 ms grid (every other point a step of the
+#: simulated plant's 8 ms).
 MONITOR_PERIOD = 0.012
 #: A gripper counts as stopped when its opening changed less than this over STALL_WINDOW, m
 #: (s; pro rata over the time between the events that compare it, so the check does not

@@ -21,9 +21,9 @@ class MassProbeConfig:
     # Length of each torque-averaging window, s.
     window: float = 1.0
     # Rate at which torques are sampled into the average, Hz: every step of the simulated
-    # plant (4 ms), so sampling adds no simulator steps (the real arm reports at 200 Hz: a
-    # few of its reports are sampled twice, which leaves the average as it is).
-    sample_rate: float = 250.0
+    # plant (8 ms), so sampling adds no simulator steps (the real arm reports at 200 Hz: the
+    # average takes every one or two of its reports, which leaves it as it is).
+    sample_rate: float = 125.0
     # A grasp that closes the fingers to less than this gap held nothing, m.
     min_grasp_opening: float = 0.004
     # Gain of each arm joint's torque reading, J1..J6 (a reported torque change is this

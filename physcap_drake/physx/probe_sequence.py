@@ -31,7 +31,7 @@ from physcap_drake.control.skill_executor import MONITOR_PERIOD, REQUEST_PORT, S
 from physcap_drake.immutable_state import Immutable
 
 #: Period of a probe's events, s, and their offset from the executor's (a third of a period:
-#: on the simulated plant's 4 ms steps, before the AgentSystem's events at two thirds).
+#: on the 4 ms grid of the events, before the AgentSystem's events at two thirds).
 PERIOD = MONITOR_PERIOD
 OFFSET = MONITOR_PERIOD / 3
 

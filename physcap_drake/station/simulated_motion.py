@@ -67,7 +67,7 @@ class SimulatedMotion:
         # The emulated firmware (`can.planner`) plans the joint reference; the simulated
         # station's own joint interpolator only has to pass it on. Bounding its acceleration
         # as well would filter the reference a second time (the firmware's 5 ms steps are
-        # sampled at the plant's 4 ms), so the world is built with that bound lifted.
+        # sampled at the plant's 8 ms), so the world is built with that bound lifted.
         servo = scenario.station.joint_servo
         scenario = dc.replace(scenario, station=dc.replace(
             scenario.station, joint_servo=dc.replace(
