@@ -28,7 +28,6 @@ class PlanningModel:
     Attributes:
         robot: the RobotModel it is built on.
         plant: continuous-time plant of arm, gripper and fixed environment.
-        arm_plant: the arm alone (6 positions), for time-parameterizing joint paths.
         tcp_frame: the fingertip frame of `plant`.
         arm_position_indices: where the six arm joints sit in `plant`'s positions.
         finger_position_indices: the two finger joints (each at half the opening).
@@ -42,7 +41,6 @@ class PlanningModel:
         self.diagram, plant, scene_graph = robot.workcell
         self.plant: MultibodyPlant = plant
         self.scene_graph: SceneGraph = scene_graph
-        self.arm_plant = robot.arm_plant
         arm = plant.GetModelInstanceByName(robot.arm_model)
         gripper = plant.GetModelInstanceByName(robot.gripper_model)
         self.arm_position_indices = [j.position_start() for j in moving_joints(plant, arm)]

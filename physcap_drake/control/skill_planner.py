@@ -108,7 +108,7 @@ class SkillPlanner:
             raise SkillRefused(f"{what}: " + "; ".join(bad))
 
     def _timed(self, waypoints: np.ndarray):
-        return time_parameterize(self.model.arm_plant, waypoints,
+        return time_parameterize(waypoints,
                                  max_velocity=self.config.max_joint_velocity,
                                  max_acceleration=self.config.max_joint_acceleration)
 

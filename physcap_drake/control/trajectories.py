@@ -1,15 +1,16 @@
-"""Time-optimal joint trajectories within speed and acceleration limits (Drake's Toppra)."""
+"""Time-optimal joint trajectories within speed and acceleration limits (TOPP-RA on Drake's
+grid: `path_timing`)."""
 
 from __future__ import annotations
 
 import numpy as np
 from pydrake.multibody.optimization import CalcGridPointsOptions, Toppra
-from pydrake.multibody.plant import MultibodyPlant
 from pydrake.trajectories import PathParameterizedTrajectory, PiecewisePolynomial, Trajectory
 
 from physcap_drake.control.errors import SkillRefused
+from physcap_drake.control.path_timing import time_optimal_timing
 
-#: Toppra enforces the limits at grid points; planning against slightly lower limits keeps
+#: TOPP-RA enforces the limits at grid points; planning against slightly lower limits keeps
 #: the motion between grid points inside the configured ones (checked after solving).
 LIMIT_MARGINS = (0.97, 0.9, 0.8)
 #: Step of the dense check of a solved trajectory, s.
@@ -41,7 +42,7 @@ def peak_rates(trajectory: Trajectory) -> tuple[float, float]:
     return float(velocity), float(acceleration)
 
 
-def time_parameterize(arm_plant: MultibodyPlant, waypoints: np.ndarray, *, max_velocity: float,
+def time_parameterize(waypoints: np.ndarray, *, max_velocity: float,
                       max_acceleration: float) -> Trajectory:
     """The fastest trajectory along the path through `waypoints` (6 × N, rad; repeated ones
     are dropped) that starts and ends at rest and keeps every joint within ±max_velocity
@@ -53,14 +54,10 @@ def time_parameterize(arm_plant: MultibodyPlant, waypoints: np.ndarray, *, max_v
     if waypoints.shape[1] == 1:  # already there: a 1 ms hold
         return PiecewisePolynomial.FirstOrderHold([0.0, 1e-3], waypoints[:, [0, 0]])
     path = joint_path(waypoints)
-    n = waypoints.shape[0]
+    gridpoints = Toppra.CalcGridPoints(path, CalcGridPointsOptions())
     for margin in LIMIT_MARGINS:
-        toppra = Toppra(path, arm_plant, Toppra.CalcGridPoints(path, CalcGridPointsOptions()))
-        toppra.AddJointVelocityLimit(np.full(n, -margin * max_velocity),
-                                     np.full(n, margin * max_velocity))
-        toppra.AddJointAccelerationLimit(np.full(n, -margin * max_acceleration),
-                                         np.full(n, margin * max_acceleration))
-        time_scaling = toppra.SolvePathParameterization()
+        time_scaling = time_optimal_timing(path, gridpoints, max_velocity=margin * max_velocity,
+                                           max_acceleration=margin * max_acceleration)
         if time_scaling is None:
             continue
         trajectory = PathParameterizedTrajectory(path, time_scaling)

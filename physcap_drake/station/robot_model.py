@@ -78,7 +78,6 @@ class RobotModel:
     Attributes:
         arm_model, gripper_model: the model instance names in the scenario's directives.
         controller_plant: continuous-time plant of the arm and gripper alone.
-        arm_plant: the arm alone (6 positions), for time-parameterizing joint paths.
         arm_joints: the controller plant's arm joints J1..J6.
         gripper_stroke: the widest opening between the fingers, m (twice a finger's travel).
         workcell: (diagram, plant, scene graph) of the arm, gripper and the models welded to
@@ -89,7 +88,6 @@ class RobotModel:
     def __init__(self, directives: list, arm_model: str, gripper_model: str):
         self.arm_model, self.gripper_model = arm_model, gripper_model
         self.controller_plant = make_model_plant(directives, (arm_model, gripper_model))
-        self.arm_plant = make_model_plant(directives, (arm_model,))
         plant = self.controller_plant
         self.arm_joints = moving_joints(plant, plant.GetModelInstanceByName(arm_model))
         fingers = moving_joints(plant, plant.GetModelInstanceByName(gripper_model))
