@@ -53,7 +53,6 @@ from physcap_drake.physx.stiffness_levels import load_thresholds
 from physcap_drake.physx.stiffness_probe import StiffnessProbe
 from physcap_drake.scenario import Scenario
 from physcap_drake.station import MakeStation, ports
-from physcap_drake.station.body_masses import set_station_masses
 from physcap_drake.station.robot_model import RobotModel, robot_model
 
 #: The robot stack's request path, when its client is outside the diagram.
@@ -91,17 +90,12 @@ class RobotStack:
 
     def make_clock(self) -> Clock:
         """The diagram's clock: an initialized simulator configured by the scenario, with
-        no request on `robot.request` yet and the scenario's `body_masses` in a simulated
-        station's world, both set in the root context created here, before any simulator
-        holds it: nothing changes the diagram's state from outside once it runs."""
+        no request on `robot.request` yet (set in the root context created here, before any
+        simulator holds it): nothing changes the diagram's state from outside once it runs.
+        (A simulated world's hidden masses are its plant's model data: `body_masses`.)"""
         context = self.diagram.CreateDefaultContext()
         if self.request_input is not None:
             self.put_request(context, RobotRequest())
-        if self.scenario.body_masses and self.station.HasSubsystemNamed("plant"):
-            # The simulated station's world is in this diagram: a task's hidden masses are
-            # initial parameters of its fresh context. (An emulated arm's world was given
-            # them in its scenario when the station started it, before its simulator ran.)
-            set_station_masses(self.station, context, self.scenario.body_masses)
         return Clock(self.diagram, self.scenario.simulator_config, context)
 
     def put_request(self, root: Context, request: RobotRequest) -> None:

@@ -42,21 +42,13 @@ ALLOWED = {
         "mutable_context": "RobotStack.send: the outside client's next request, put on the "
                            "exported input in the clock's root context between two runs",
     },
-    "station/body_masses.py": {
-        "SetMass": "a simulated world's hidden masses are initial parameters, set in the "
-                   "fresh context its simulator is then created with (the emulated world's "
-                   "in SimulatedMotion, the sim station's in RobotStack.make_clock)",
-        "GetMyMutableContextFromRoot": "set_station_masses: the sim station's plant part of "
-                                       "that fresh root context",
-    },
     "station/simulated_motion.py": {
         "get_mutable_context": "the emulated world owns its simulator (it stands for the "
                                "real world behind the CAN bus)",
         "SetPositionsAndVelocities": ("set_world: an operator placing things in the emulated "
                                       "world, between two steps of its own simulator"),
         "GetMyMutableContextFromRoot": "the emulated world's plant context, in the context "
-                                       "its simulator owns: its hidden masses before the "
-                                       "first step and an operator's moves (set_world) "
+                                       "its simulator owns: an operator's moves (set_world) "
                                        "between steps",
     },
     "station/can_scene.py": {

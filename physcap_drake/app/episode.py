@@ -3,9 +3,9 @@
 The scene is simulated either by the sim station or, with `station: !PiperCan {emulate:
 true}`, by the emulator behind the CAN station; the objects, their hidden masses and the
 success check live in that simulated world (`Episode.ground_truth`). The hidden
-masses are the scenario's `body_masses` (the task's layout puts them there): set in the
-sim station's fresh context before its clock runs, or by the emulated arm's world when it
-is built in the emulator's process.
+masses are the scenario's `body_masses` (the task's layout puts them there): model data of
+the simulated world's plant, the sim station's or the emulated arm's world's, built in the
+emulator's process (`station/body_masses.py`).
 
 Perception (what get_object_pose and the agent's observations use) is either "rgbd", the
 RGB-D perception that sees from the colour and depth images alone, or "label", the

@@ -130,8 +130,8 @@ class EmulatorProcess:
     def set_world(self, state: np.ndarray) -> None:
         """Moves things in the simulated world while it runs, as something outside the arm
         would (an operator placing an object): the plant's positions and velocities become
-        `state`; returns once applied. The world's parameters (its hidden masses) are set
-        once, before it runs, from the scenario's `body_masses`."""
+        `state`; returns once applied. The world's hidden masses are its plant's model data,
+        from the scenario's `body_masses`, and never change while it runs."""
         self._request(("set_world", state))
 
     def close(self) -> None:
@@ -161,7 +161,7 @@ def serve(conn, bus_fd: int, scenario_yaml: str | None, world_builder: str | Non
         if scenario_yaml is None:
             motion = KinematicMotion()
         else:
-            # The builder sets the scenario's hidden masses before the world's first step.
+            # The builder's world has the scenario's hidden masses as model data.
             motion = named_function(world_builder)(scenario_yaml, gripper_max_effort)
     except (RuntimeError, ValueError, OSError) as error:  # say why there is no world; end
         conn.recv()

@@ -1,4 +1,5 @@
-"""Building the simulated world as built rather than as drawn (`station.as_built`).
+"""Building the simulated world as built rather than as drawn (`station.as_built`), and
+with its hidden masses (`Scenario.body_masses`, see `body_masses`).
 
 The arm's links get the masses and centres of mass of `as_built.links`, and its joints the
 damping of `as_built.joint_damping`: the text of its model file with those values in place of
@@ -11,23 +12,32 @@ plant is built, before it is finalized.
 from __future__ import annotations
 
 import xml.etree.ElementTree as ET
+from collections.abc import Mapping
 
 from pydrake.geometry import ProximityProperties, RoleAssign
 from pydrake.multibody.parsing import FlattenModelDirectives, ModelDirectives
 from pydrake.multibody.plant import MultibodyPlant
 
 from physcap_drake.resources import make_package_map
+from physcap_drake.station.body_masses import mass_texts, scale_moments_of_inertia
 from physcap_drake.station.directive_loader import load_directives, sdf_text
 from physcap_drake.station.sim_config import AsBuilt
 
 
 def add_directives_as_built(plant: MultibodyPlant, directives: list, arm_model: str,
-                            as_built: AsBuilt) -> None:
+                            as_built: AsBuilt, masses: Mapping[str, float] | None = None
+                            ) -> None:
     """Adds the models of `directives` to `plant` like `robot_model.add_directives`, the arm
-    model `arm_model` with the link deviations and joint damping of `as_built`."""
+    model `arm_model` with the link deviations and joint damping of `as_built`, and the
+    bodies named in `masses` (kg by scoped body name) with those masses (`body_masses`)."""
+    texts = _as_built_arm(directives, arm_model, as_built)
+    load_directives(plant, directives, texts=mass_texts(directives, masses or {}, texts))
+
+
+def _as_built_arm(directives: list, arm_model: str, as_built: AsBuilt) -> dict[str, str]:
+    """{arm_model: its model's text as built}, or nothing for an arm as drawn."""
     if not as_built.links and not as_built.joint_damping:
-        load_directives(plant, directives)
-        return
+        return {}
     flat = FlattenModelDirectives(ModelDirectives(directives=directives), make_package_map())
     arm = [d.add_model for d in flat.directives
            if d.add_model is not None and d.add_model.name == arm_model]
@@ -40,8 +50,8 @@ def add_directives_as_built(plant: MultibodyPlant, directives: list, arm_model: 
     if text is None:
         raise ValueError(f"station.as_built.{field}: the arm's model {path} includes other "
                          "files; an as-built arm needs a model in one file")
-    text = damp_joints(deviate_links(text, as_built, path), as_built.joint_damping, path)
-    load_directives(plant, directives, texts={arm_model: text})
+    return {arm_model: damp_joints(deviate_links(text, as_built, path), as_built.joint_damping,
+                                   path)}
 
 
 def deviate_links(sdf: str, as_built: AsBuilt, label: str) -> str:
@@ -58,8 +68,7 @@ def deviate_links(sdf: str, as_built: AsBuilt, label: str) -> str:
         inertial = links[name].find("inertial")
         mass = inertial.find("mass")
         mass.text = repr(float(mass.text) * deviation.mass_scale)
-        for moment in inertial.find("inertia"):
-            moment.text = repr(float(moment.text) * deviation.mass_scale)
+        scale_moments_of_inertia(inertial, deviation.mass_scale)
         pose = inertial.find("pose")
         values = [float(v) for v in pose.text.split()]
         values[:3] = [v * s for v, s in zip(values[:3], deviation.com_scale, strict=True)]

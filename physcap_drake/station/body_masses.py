@@ -1,57 +1,101 @@
-"""A simulated world's hidden masses: parameters of its plant, set before the world runs.
+"""A simulated world's hidden masses, as model data of its plant.
 
-A MultibodyPlant reads each body's default mass from its model file and has no setter for
-it once the model is parsed; a different mass is a parameter of one context. The world's
-owner sets it in the fresh context its simulator is then created with, so the world has it
-from its first step on and nothing changes it while the world runs: the emulated arm's
-world (`simulated_motion.SimulatedMotion`) and an episode's clock on the simulated station
-(`RobotStack.make_clock`, through `set_station_masses`). Nothing else holds that context:
-an emulated world's masses never reach the CAN station's side (its scene copy keeps the
-model files' masses).
+A task's layout gives some bodies masses other than their model files' (`Scenario.body_masses`,
+by scoped body name: an empty can, a full cup). They are written into the text of each such
+model (the link's inertial mass, its moments of inertia scaled with it: the same shape, so
+the same unit inertia) and the model is parsed from that text while the world's plant is
+built (`sim_station.MakeSimStation`, through `as_built.add_directives_as_built`): they are
+the plant's default masses, as a weighed model file would have them. No context is written:
+every context of that world (an episode's clock, the emulated arm's world) starts with them,
+and nothing changes them while it runs. Only the simulated world has them: the controller's
+and the estimators' models, and the CAN station's copy of an emulated world
+(`can_scene.EmulatedScene`), keep the model files' masses.
 """
 
 from __future__ import annotations
 
+import xml.etree.ElementTree as ET
 from collections.abc import Mapping
 
-from pydrake.multibody.plant import MultibodyPlant
-from pydrake.systems.framework import Context, Diagram
+from pydrake.multibody.parsing import FlattenModelDirectives, ModelDirectives
+
+from physcap_drake.resources import make_package_map
+from physcap_drake.station.directive_loader import sdf_text
 
 
-def set_body_masses(plant: MultibodyPlant, plant_context: Context,
-                    masses: Mapping[str, float]) -> None:
-    """Sets each body's mass, kg, by scoped body name ("model_instance::body", as
-    `TaskInstance.hidden_masses()` names them), in `plant_context`: the plant's part of a
-    fresh context that no simulator holds yet. Raises ValueError naming a name that is not
-    scoped, a model instance or body the plant does not have, or a mass that is not
-    positive (nothing is set then)."""
-    bodies = [(_body(plant, name), float(kg), name) for name, kg in masses.items()]
-    for _, kg, name in bodies:
-        if not kg > 0.0:
+def masses_by_model(masses: Mapping[str, float]) -> dict[str, dict[str, float]]:
+    """`masses` (kg by scoped body name, "model_instance::body") grouped by model instance:
+    {model: {body: kg}}. Raises ValueError naming a name that is not scoped or a mass that
+    is not positive."""
+    grouped: dict[str, dict[str, float]] = {}
+    for name, kg in masses.items():
+        instance, sep, link = name.rpartition("::")
+        if not sep or not instance or not link:
+            raise ValueError(f"body_masses: {name!r} is not a scoped body name "
+                             "(\"model_instance::body\", e.g. \"red_can::can_red_open\")")
+        if not float(kg) > 0.0:
             raise ValueError(f"body_masses[{name!r}] must be a positive mass in kg; got {kg}")
-    for body, kg, _ in bodies:
-        body.SetMass(plant_context, kg)
+        grouped.setdefault(instance, {})[link] = float(kg)
+    return grouped
 
 
-def set_station_masses(station: Diagram, root_context: Context,
-                       masses: Mapping[str, float]) -> None:
-    """`set_body_masses` for the simulated station's world (its subsystem "plant") in
-    `root_context`: the station's diagram's fresh root context, before any simulator holds
-    it."""
-    plant = station.GetSubsystemByName("plant")
-    set_body_masses(plant, plant.GetMyMutableContextFromRoot(root_context), masses)
+def with_masses(sdf: str, masses: Mapping[str, float], model: str) -> str:
+    """The SDFormat text `sdf` of model instance `model` with each named link's mass set to
+    `masses[link]` kg and its moments of inertia scaled by the same factor (the centre of
+    mass stays). Raises ValueError naming a link the model does not have or one without an
+    inertial mass."""
+    root = ET.fromstring(sdf)
+    links = {link.get("name"): link for link in root.iter("link")}
+    for link_name, kg in masses.items():
+        scoped = f"{model}::{link_name}"
+        if link_name not in links:
+            raise ValueError(f"body_masses: {scoped!r} names the body {link_name!r}, which "
+                             f"the model instance {model!r} does not have")
+        inertial = links[link_name].find("inertial")
+        mass = inertial.find("mass") if inertial is not None else None
+        if mass is None or not float(mass.text) > 0.0:
+            raise ValueError(f"body_masses: {scoped!r}: the model gives the body no mass "
+                             "to replace")
+        scale_moments_of_inertia(inertial, kg / float(mass.text))
+        mass.text = repr(kg)
+    return ET.tostring(root, encoding="unicode")
 
 
-def _body(plant: MultibodyPlant, name: str):
-    instance, sep, link = name.rpartition("::")
-    if not sep or not instance or not link:
-        raise ValueError(f"body_masses: {name!r} is not a scoped body name "
-                         "(\"model_instance::body\", e.g. \"red_can::can_red_open\")")
-    if not plant.HasModelInstanceNamed(instance):
-        raise ValueError(f"body_masses: {name!r} names the model instance {instance!r}, "
-                         "which the simulated world does not have")
-    model = plant.GetModelInstanceByName(instance)
-    if not plant.HasBodyNamed(link, model):
-        raise ValueError(f"body_masses: {name!r} names the body {link!r}, which the model "
-                         f"instance {instance!r} does not have")
-    return plant.GetBodyByName(link, model)
+def scale_moments_of_inertia(inertial: ET.Element, scale: float) -> None:
+    """Multiplies the moments and products of inertia of an SDFormat `<inertial>` element by
+    `scale` (as a mass scaled by it with the same shape has them)."""
+    inertia = inertial.find("inertia")
+    for moment in (inertia if inertia is not None else ()):
+        moment.text = repr(float(moment.text) * scale)
+
+
+def mass_texts(directives: list, masses: Mapping[str, float],
+               texts: Mapping[str, str] | None = None) -> dict[str, str]:
+    """SDFormat text, by model instance name, of each model of `directives` that `masses`
+    (kg by scoped body name) weighs differently, for `directive_loader.load_directives`;
+    `texts`: models already given as text (e.g. the arm as built), the base of theirs.
+    Raises ValueError naming a model instance the directives do not add, one that is not a
+    single SDFormat file, and the errors of `masses_by_model` and `with_masses`."""
+    grouped = masses_by_model(masses)
+    if not grouped:
+        return dict(texts or {})
+    package_map = make_package_map()
+    files = {d.add_model.name: d.add_model.file for d in FlattenModelDirectives(
+        ModelDirectives(directives=directives), package_map).directives
+        if d.add_model is not None}
+    result = dict(texts or {})
+    for model, links in grouped.items():
+        if model not in files:
+            name = f"{model}::{next(iter(links))}"
+            raise ValueError(f"body_masses: {name!r} names the model instance {model!r}, "
+                             "which the simulated world does not have")
+        text = result.get(model)
+        if text is None:
+            file = files[model]
+            path = package_map.ResolveUrl(file) if "://" in file else file
+            text = sdf_text(path) if path.endswith(".sdf") else None
+            if text is None:
+                raise ValueError(f"body_masses: the model instance {model!r} ({file}) is not "
+                                 "one SDFormat file, so its masses cannot be given")
+        result[model] = with_masses(text, links, model)
+    return result

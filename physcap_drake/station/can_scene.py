@@ -52,7 +52,9 @@ class EmulatedScene(LeafSystem):
         from physcap_drake.station.sim_station import MakeSimStation
 
         self.session = session  # resources shared with the emulator, not state
-        self.station = MakeSimStation(dc.replace(scenario, station=scenario.station.emulated))
+        # The copy keeps the model files' masses: the hidden ones are the emulated world's.
+        self.station = MakeSimStation(dc.replace(scenario, station=scenario.station.emulated,
+                                                 body_masses={}))
         self.plant = self.station.GetSubsystemByName("plant")
         # The scene copy's scratch context, owned by this system (the usual Drake way to
         # evaluate a model outside the diagram); set from this system's state before use.
@@ -123,7 +125,7 @@ class EmulatedScene(LeafSystem):
         """Yields (plant, plant context) of the world now; the positions and velocities the
         block changes are written to the emulated world when the block ends (as an operator
         moves things). Raises RuntimeError if the block changed a parameter (a mass): the
-        emulated world's parameters are set before it runs (the scenario's body_masses)."""
+        emulated world's parameters are its model's (the scenario's body_masses)."""
         self._sync()
         context = self._plant_context
         before = _parameters(context)
@@ -136,7 +138,7 @@ class EmulatedScene(LeafSystem):
                 raise RuntimeError(
                     f"the emulated world's parameters (groups {changed}) cannot change while "
                     "it runs: give its hidden masses in the scenario's body_masses, which the "
-                    "emulated arm's world sets before its first step")
+                    "emulated arm's world is built with")
             now = self.plant.GetPositionsAndVelocities(context)
             if not np.array_equal(now, state):
                 self.emulator.set_world(now.copy())

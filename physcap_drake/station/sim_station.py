@@ -114,7 +114,8 @@ def MakeSimStation(scenario, meshcat: Meshcat | None = None, *,
     plant, scene_graph = AddMultibodyPlant(scenario.plant_config, builder)
     directives = with_joint_positions(scenario.directives, _initial_joint_positions(
         scenario.directives, config))
-    add_directives_as_built(plant, directives, config.arm_model, as_built)
+    add_directives_as_built(plant, directives, config.arm_model, as_built,
+                            scenario.body_masses)
     arm = plant.GetModelInstanceByName(config.arm_model)
     gripper = plant.GetModelInstanceByName(config.gripper_model)
     servo = config.joint_servo

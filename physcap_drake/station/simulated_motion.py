@@ -27,7 +27,6 @@ from pydrake.systems.framework import Context, DiagramBuilder
 from physcap_drake.can.arm_state import DEFAULT_MAX_SPEED
 from physcap_drake.can.motion import MotionCommand, MotionReading
 from physcap_drake.station import ports
-from physcap_drake.station.body_masses import set_body_masses
 from physcap_drake.station.end_load import EndLoadWeight
 from physcap_drake.station.firmware_command import (
     END_LOAD_MASS,
@@ -54,7 +53,7 @@ class SimulatedMotion:
 
     Args:
         scenario: a scenario whose `station` is a `SimPiper` (the scene to simulate); its
-            `body_masses` are set in the world's context before its simulator starts.
+            `body_masses` are its plant's model data (see `body_masses`).
         gripper_max_effort: the gripper motor effort (N·m) that corresponds to the simulated
             gripper's maximum squeeze force (`station.gripper_servo.max_force`): a commanded
             effort limit e maps to a force limit e / gripper_max_effort · max_force, and the
@@ -93,12 +92,9 @@ class SimulatedMotion:
         world.set_name("emulated_world")
         self._max_force = config.gripper_servo.max_force
         self._max_effort = float(gripper_max_effort)
-        context = world.CreateDefaultContext()
-        # The hidden masses are parameters of this fresh context, which the simulator then
-        # owns: the world weighs them from its first step on.
-        set_body_masses(self.plant, self.plant.GetMyMutableContextFromRoot(context),
-                        scenario.body_masses)
-        self._simulator = Simulator(world, context)
+        # The hidden masses are the plant's model data (`body_masses`): the world weighs them
+        # from its first step on.
+        self._simulator = Simulator(world)
         self._context = self._simulator.get_mutable_context()
         self._station_context = self.station.GetMyContextFromRoot(self._context)
         self._feedforward = (self.station.GetSubsystemByName("arm_feedforward")

@@ -65,8 +65,8 @@ class TaskInstance:
 
     def add_to(self, scenario: Scenario) -> None:
         """Appends the objects' model directives to the scenario and gives its simulated
-        world the objects' hidden masses (`Scenario.body_masses`, set by whoever runs that
-        world before it starts)."""
+        world the objects' hidden masses (`Scenario.body_masses`, the model data of the
+        world's plant: `station/body_masses.py`)."""
         scenario.random_seed = self.seed
         scenario.directives.extend(obj.directive() for obj in self.objects)
         scenario.body_masses.update(self.hidden_masses())
