@@ -73,7 +73,7 @@ class TaskInstance:
 
     def hidden_masses(self) -> dict[str, float]:
         """The objects' hidden masses, kg, by scoped body name ("model_instance::body"):
-        parameters of the simulated world, given to it where it is built (see add_to)."""
+        model data of the simulated world, given to it where it is built (see add_to)."""
         return {f"{obj.body}::{_link_name(obj.model)}": float(obj.hidden["mass_kg"])
                 for obj in self.objects if "mass_kg" in obj.hidden}
 
