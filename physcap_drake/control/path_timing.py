@@ -96,8 +96,11 @@ def _controllable_sets(limits: _Limits, delta: np.ndarray) -> np.ndarray | None:
     k0 = k1 = 0.0
     for k in range(len(delta) - 1, -1, -1):
         hi = min(x_max[k], (base[k] - per_k0[k] * k0 + per_k1[k] * k1).min())
-        lo = max(0.0, (per_k1[k] * k0 - np.where(falling[k], base[k], 0.0)).max()) if k0 > 0 \
-            else 0.0
+        lo = 0.0
+        if k0 > 0:  # the next set excludes rest: a lower bound, and g = 0 asks h ≥ K0'
+            lo = max(0.0, (per_k1[k] * k0 - np.where(falling[k], base[k], 0.0)).max())
+            if np.any(~(rising[k] | falling[k]) & (h[k] < k0 * (1.0 - _TOLERANCE))):
+                return None
         if lo > hi:
             if lo - hi > _TOLERANCE * max(1.0, abs(hi)):
                 return None
