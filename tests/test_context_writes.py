@@ -8,6 +8,11 @@ context before any simulator holds it, and scratch contexts that one object owns
 kinematics or rendering. Each such module is listed here with its reason; any other module
 that calls one of WRITES fails this test, naming the file, line and call.
 
+A system's own events change its state through the State Drake hands its update handler
+(`state.get_mutable_abstract_state(...)` and the like, STATE_WRITES); those calls are
+allowed only there: in a method the class declares as an update handler, on that method's
+own parameter (or in a helper only such handlers call).
+
 Like tests/test_layers.py, this reads the source (every call counts, also inside functions).
 """
 
@@ -27,7 +32,9 @@ WRITES = frozenset({"FixValue", "SetMass", "get_mutable_context", "SetTime",
                     "mutable_context", "GetMyMutableContextFromRoot",
                     # Posing a plant: a scratch model's positions, or a world's state.
                     "SetPositions", "SetPositionsAndVelocities", "SetFreeBodyPose",
-                    "SetFreeBodySpatialVelocity"})
+                    "SetFreeBodySpatialVelocity",
+                    # A parameter group's values.
+                    "get_mutable_numeric_parameter"})
 
 #: file (relative to physcap_drake/) -> {call: why this module may make it}.
 ALLOWED = {
@@ -58,6 +65,9 @@ ALLOWED = {
                                        "world, set from its own latched state (or, for "
                                        "readers outside the diagram, the published world) "
                                        "before each use",
+        "get_mutable_numeric_parameter": "ground_truth: the scratch copy gets the model's "
+                                         "parameters back after a block that changed one "
+                                         "(which raises: the world's masses cannot change)",
     },
     "control/planning_model.py": {
         "SetPositions": ("the planning model's own scratch contexts (the workcell's, and "
@@ -94,6 +104,54 @@ ALLOWED_DEFAULTS = {
 }
 
 
+#: Calls that change the State a Drake update handler is handed (`state` of an unrestricted
+#: or discrete update event): a system changing its own state. Allowed only there.
+STATE_WRITES = frozenset({"get_mutable_abstract_state", "get_mutable_discrete_state",
+                          "get_mutable_vector", "get_mutable_state", "SetAbstractState"})
+
+
+def _handlers(cls: ast.ClassDef) -> set[str]:
+    """Methods of `cls` it declares as update handlers (`self.Declare...UpdateEvent(...,
+    self.<method>)`), and helpers of theirs: methods called only from them."""
+    declared = set()
+    for node in ast.walk(cls):
+        if (isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute)
+                and node.func.attr.startswith("Declare")
+                and node.func.attr.endswith("UpdateEvent")):
+            declared |= {arg.attr for arg in node.args if isinstance(arg, ast.Attribute)
+                         and isinstance(arg.value, ast.Name) and arg.value.id == "self"}
+    methods = {f.name: f for f in cls.body if isinstance(f, ast.FunctionDef)}
+    callers: dict[str, set[str]] = {}
+    for name, method in methods.items():
+        for node in ast.walk(method):
+            if (isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute)
+                    and isinstance(node.func.value, ast.Name) and node.func.value.id == "self"
+                    and node.func.attr in methods):
+                callers.setdefault(node.func.attr, set()).add(name)
+    helpers = {name for name, by in callers.items() if name not in declared and by <= declared}
+    return declared | helpers
+
+
+def _state_writes_outside_handlers(path: Path) -> list[str]:
+    """Each STATE_WRITES call of `path` that is not made, on one of its own parameters, by an
+    update handler of its class (or a helper only handlers call), as "line: name"."""
+    tree = ast.parse(path.read_text(), filename=str(path))
+    allowed: set[int] = set()
+    for cls in (n for n in ast.walk(tree) if isinstance(n, ast.ClassDef)):
+        handlers = _handlers(cls)
+        for method in cls.body:
+            if not isinstance(method, ast.FunctionDef) or method.name not in handlers:
+                continue
+            params = {a.arg for a in method.args.args[1:]}
+            allowed |= {id(node) for node in ast.walk(method)
+                        if isinstance(node, ast.Attribute) and node.attr in STATE_WRITES
+                        and isinstance(node.value, ast.Name) and node.value.id in params}
+    outside = sorted((node.lineno, node.attr) for node in ast.walk(tree)
+                     if isinstance(node, ast.Attribute) and node.attr in STATE_WRITES
+                     and id(node) not in allowed)
+    return [f"{line}: {name}" for line, name in outside]
+
+
 def _calls(path: Path, names: frozenset[str] = WRITES) -> list[tuple[int, str]]:
     """(line, name) of every call or attribute named in `names` in `path`."""
     tree = ast.parse(path.read_text(), filename=str(path))
@@ -123,6 +181,38 @@ def test_only_the_listed_modules_write_into_a_context_from_outside():
                             "events (use an input port, an event of the owning system, or a "
                             "scratch context; or list the file in ALLOWED with its reason):\n"
                             + "\n".join(unexpected))
+
+
+def test_systems_change_their_state_only_in_their_own_update_events():
+    """What the stop hook counts as "reaching into a Context" (a State's mutable parts) is
+    allowed only as a system's own event: the State Drake hands one of its update handlers."""
+    found = {path.relative_to(ROOT).as_posix(): _state_writes_outside_handlers(path)
+             for path in sorted(ROOT.rglob("*.py"))}
+    unexpected = [f"physcap_drake/{file}:{where}" for file, lines in found.items()
+                  for where in lines]
+    assert not unexpected, ("these change a State outside the owning system's update "
+                            "handlers:\n" + "\n".join(unexpected))
+    owners = {file for file, _ in _writes(STATE_WRITES).items()}
+    assert {"control/skill_executor.py", "agent/agent_system.py",
+            "station/firmware_command.py"} <= owners  # the check sees the real handlers
+
+
+def test_the_handler_check_tells_an_event_from_an_outside_write(tmp_path):
+    source = tmp_path / "module.py"
+    source.write_text(
+        "class S:\n"
+        "    def __init__(self):\n"
+        "        self.DeclarePeriodicUnrestrictedUpdateEvent(0.1, 0.0, self._update)\n"
+        "    def _update(self, context, state):\n"
+        "        self._set(state, 1)\n"
+        "    def _set(self, state, value):\n"
+        "        state.get_mutable_abstract_state(0).set_value(value)\n"
+        "    def poke(self, state):\n"
+        "        state.get_mutable_abstract_state(0).set_value(2)\n"
+        "def reach(context):\n"
+        "    context.get_mutable_state().SetFrom(None)\n")
+    assert _state_writes_outside_handlers(source) == ["9: get_mutable_abstract_state",
+                                                      "11: get_mutable_state"]
 
 
 def test_every_allowance_is_still_needed():
