@@ -72,6 +72,7 @@ from physcap_drake.control.skill_executor import MONITOR_PERIOD, REQUEST_PORT, S
 from physcap_drake.immutable_state import Immutable
 from physcap_drake.station import ports
 from physcap_drake.station.arm_fault import ArmFault
+from physcap_drake.weak_method import weak_method
 
 #: The value type of each image input a perception module may read.
 _IMAGE_INPUTS = {ports.CAMERA_RGB: ImageRgba8U, ports.CAMERA_DEPTH: ImageDepth32F,
@@ -178,9 +179,9 @@ class AgentSystem(LeafSystem):
         self._state = self.DeclareAbstractState(AbstractValue.Make(AgentState()))
         ticket = {self.abstract_state_ticket(self._state)}
         self.DeclareAbstractOutputPort(PROGRESS_PORT, lambda: AbstractValue.Make(
-            AgentProgress()), self._output_progress, ticket)
+            AgentProgress()), weak_method(self._output_progress), ticket)
         self.DeclareAbstractOutputPort(REQUEST_PORT, lambda: AbstractValue.Make(
-            RobotRequest()), self._output_request, ticket)
+            RobotRequest()), weak_method(self._output_request), ticket)
         self.DeclarePeriodicUnrestrictedUpdateEvent(period, OFFSET * period, self._update)
 
     @property
@@ -194,6 +195,16 @@ class AgentSystem(LeafSystem):
         check failed): the first event then ends it with that reason."""
         self._policy, self._robot_time, self._on_observe = policy, robot_time, on_observe
         self._start_problem = start_problem
+
+    def detach(self) -> None:
+        """Forgets what `attach` gave, once the run is over: the events do nothing more.
+
+        The policy refers to the robot API, and the API to the clock whose Simulator keeps
+        this system's diagram alive. pydrake's hold from a Simulator on its diagram is
+        invisible to Python's garbage collector. So a system that still referred to its
+        policy would keep its whole episode in memory until the process ends."""
+        self._policy, self._robot_time, self._on_observe = None, lambda: 0.0, None
+        self._start_problem = ""
 
     def observation(self, context: Context) -> Observation:
         """What the camera shows now (renders the images if they are stale)."""

@@ -226,6 +226,7 @@ def run_agent_episode(task: str, seed: int, *, agent: str = "physcap",
         outcome = loop.outcome(mind, time.monotonic() - start)
         outcome, truth = judge_outcome(episode, outcome, operator, transcript)
     finally:
+        system.detach()  # else the finished episode could never be freed (see detach)
         episode.close()
     run = AgentRun(task, variant.name, seed, getattr(client, "name", llm),
                    getattr(client, "model", model or ""), outcome, transcript,

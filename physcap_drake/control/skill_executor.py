@@ -24,6 +24,7 @@ from physcap_drake.control.requests import (
 from physcap_drake.control.skill_planner import PlannedSkill, SkillKind, SkillPlanner
 from physcap_drake.immutable_state import Immutable
 from physcap_drake.station import ports
+from physcap_drake.weak_method import weak_method
 
 #: Period of the executor's event: it takes new requests and checks the running skill, s.
 #: Three times 4 ms: with the probes' and the AgentSystem's events a third and two thirds of
@@ -117,7 +118,7 @@ class SkillExecutor(LeafSystem):
         self.DeclareVectorOutputPort(ports.GRIPPER_FORCE_LIMIT, 1, self._output_force,
                                      state_ticket)
         self.DeclareAbstractOutputPort(STATUS_PORT, lambda: AbstractValue.Make(SkillStatus()),
-                                       self._output_status, state_ticket)
+                                       weak_method(self._output_status), state_ticket)
 
     @property
     def planner(self) -> SkillPlanner:

@@ -11,8 +11,7 @@ Each unfinished episode is one Ray task reserving one CPU:
   retried: its folder gets error.json and the transcript so far, and rerunning the command
   retries it, as with the process pool.
 - Memory: a worker process runs at most `EPISODES_PER_WORKER` episodes (Ray's `max_calls`)
-  and is then replaced, as in the process pool, so what episodes leave behind does not pile
-  up in long-lived workers.
+  and is then replaced, as in the process pool: a guard, since a finished episode is freed.
 - Model calls of networked backends go through a zero-CPU actor per episode (see
   `eval.ray_models`), so a task waiting for a model lends its CPU to another episode.
 

@@ -13,6 +13,7 @@ from pydrake.systems.framework import (
 from pydrake.systems.primitives import PortSwitch
 
 from physcap_drake.station import ports
+from physcap_drake.weak_method import weak_method
 
 SOURCES = ("executor", "probe")
 
@@ -27,7 +28,7 @@ class _ActiveSource(LeafSystem):
         # Only `probe.active` matters: without this the default (all sources, time among
         # them) would run this Python at every plant step the station reads the commands.
         self.DeclareAbstractOutputPort("source", lambda: AbstractValue.Make(InputPortIndex(0)),
-                                       self._source, {self._active.ticket()})
+                                       weak_method(self._source), {self._active.ticket()})
 
     def _source(self, context: Context, output: AbstractValue) -> None:
         source = "probe" if self._active.Eval(context)[0] > 0.5 else "executor"

@@ -16,6 +16,7 @@ from pydrake.systems.framework import Context, LeafSystem, State
 from physcap_drake.control.planning_model import ModelAtPositions
 from physcap_drake.immutable_state import Immutable
 from physcap_drake.station import ports
+from physcap_drake.weak_method import weak_method
 
 #: Standard gravity, m/s².
 GRAVITY = 9.81
@@ -157,7 +158,8 @@ class MassEstimator(LeafSystem):
         self._state = self.DeclareAbstractState(AbstractValue.Make(_Averaging()))
         self.DeclarePeriodicUnrestrictedUpdateEvent(1.0 / sample_rate, 0.0, self._sample)
         self.DeclareAbstractOutputPort(
-            ESTIMATE_PORT, lambda: AbstractValue.Make(MassEstimate()), self._output_estimate,
+            ESTIMATE_PORT, lambda: AbstractValue.Make(MassEstimate()),
+            weak_method(self._output_estimate),
             {self.abstract_state_ticket(self._state)})
 
     def _sample(self, context: Context, state: State) -> None:

@@ -30,6 +30,7 @@ from physcap_drake.physx.mass_estimator import (
 from physcap_drake.physx.physx_config import MassProbeConfig
 from physcap_drake.physx.probe_sequence import ProbeSequence, Step
 from physcap_drake.station import ports
+from physcap_drake.weak_method import weak_method
 
 
 @dc.dataclass(frozen=True)
@@ -123,8 +124,11 @@ class MassProbe(ProbeSequence):
                                                        AbstractValue.Make(MassEstimate()))
         self.DeclareAbstractOutputPort(
             WINDOW_PORT, lambda: AbstractValue.Make(WindowRequest()),
-            lambda context, output: output.set_value(self._window(context)),
+            weak_method(self._output_window),
             {self.memory_ticket()})
+
+    def _output_window(self, context: Context, output: AbstractValue) -> None:
+        output.set_value(self._window(context))
 
     def _window(self, context: Context) -> WindowRequest:
         memory = self.memory(context)

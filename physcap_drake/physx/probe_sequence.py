@@ -29,6 +29,7 @@ from physcap_drake.control.errors import SkillRefused
 from physcap_drake.control.requests import RobotRequest, Served, SkillState, SkillStatus
 from physcap_drake.control.skill_executor import MONITOR_PERIOD, REQUEST_PORT, STATUS_PORT
 from physcap_drake.immutable_state import Immutable
+from physcap_drake.weak_method import weak_method
 
 #: Period of a probe's events, s, and their offset from the executor's (a third of a period:
 #: on the 4 ms grid of the events, before the AgentSystem's events at two thirds).
@@ -82,9 +83,11 @@ class ProbeSequence(LeafSystem):
         self._state = self.DeclareAbstractState(AbstractValue.Make(SequenceState()))
         self.DeclarePeriodicUnrestrictedUpdateEvent(PERIOD, OFFSET, self._update)
         ticket = self.abstract_state_ticket(self._state)
-        self.DeclareAbstractOutputPort(REQUEST_PORT, lambda: model_request, self._output_request,
+        self.DeclareAbstractOutputPort(REQUEST_PORT, lambda: model_request,
+                                       weak_method(self._output_request),
                                        {ticket, self._request.ticket()})
-        self.DeclareAbstractOutputPort(STATUS_PORT, lambda: model_status, self._output_status,
+        self.DeclareAbstractOutputPort(STATUS_PORT, lambda: model_status,
+                                       weak_method(self._output_status),
                                        {ticket, self._request.ticket(), self._status.ticket()})
 
     # For subclasses ---------------------------------------------------------------------------

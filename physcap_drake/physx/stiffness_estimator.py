@@ -19,6 +19,7 @@ from physcap_drake.physx.stiffness_levels import (
     majority_level,
 )
 from physcap_drake.station import ports
+from physcap_drake.weak_method import weak_method
 
 #: A release is complete when the fingers are this close to the release opening, m, and no
 #: effort is left; the next squeeze starts after at most MAX_RELEASE_TICKS dwells anyway.
@@ -166,7 +167,7 @@ class StiffnessEstimator(LeafSystem):
         self.DeclareVectorOutputPort(ports.GRIPPER_FORCE_LIMIT, 1, self._output_force, ticket)
         self.DeclareVectorOutputPort(ACTIVE_PORT, 1, self._output_active, ticket)
         self.DeclareAbstractOutputPort(RESULT_PORT, lambda: AbstractValue.Make(StiffnessReport()),
-                                       self._output_result, ticket)
+                                       weak_method(self._output_result), ticket)
 
     @property
     def thresholds(self) -> StiffnessThresholds:

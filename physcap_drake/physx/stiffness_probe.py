@@ -21,6 +21,7 @@ from physcap_drake.physx.stiffness_estimator import (
     StiffnessResult,
 )
 from physcap_drake.physx.stiffness_levels import LEVEL_NAMES
+from physcap_drake.weak_method import weak_method
 
 #: Height of the vertical approach to and retreat from the object, m.
 APPROACH = 0.10
@@ -97,8 +98,11 @@ class StiffnessProbe(ProbeSequence):
                                                      AbstractValue.Make(StiffnessReport()))
         self.DeclareAbstractOutputPort(
             SQUEEZE_PORT, lambda: AbstractValue.Make(SqueezeRequest()),
-            lambda context, output: output.set_value(self._squeeze(context)),
+            weak_method(self._output_squeeze),
             {self.memory_ticket()})
+
+    def _output_squeeze(self, context: Context, output: AbstractValue) -> None:
+        output.set_value(self._squeeze(context))
 
     def _squeeze(self, context: Context) -> SqueezeRequest:
         memory = self.memory(context)

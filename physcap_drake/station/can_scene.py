@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import dataclasses as dc
 from contextlib import contextmanager
+from functools import partial
 
 import numpy as np
 from pydrake.common.value import AbstractValue
@@ -23,6 +24,7 @@ from physcap_drake.can.emulator_process import FIRMWARE_RATE
 from physcap_drake.station import ports
 from physcap_drake.station.can_session import CanSession
 from physcap_drake.station.ports import camera_port
+from physcap_drake.weak_method import weak_method
 
 SCENE_OUTPUTS = (*ports.IMAGE_OUTPUTS, ports.BODY_POSES)
 #: The images a rendered camera gives, and the name of the station's camera.
@@ -67,7 +69,8 @@ class EmulatedScene(LeafSystem):
         names = [camera_port(camera, image) for camera in cameras for image in IMAGES]
         for name in (*names, ports.BODY_POSES):
             port = self.station.GetOutputPort(name)
-            self.DeclareAbstractOutputPort(name, port.Allocate, self._copier(port),
+            self.DeclareAbstractOutputPort(name, port.Allocate,
+                                           partial(weak_method(self._copy), port),
                                            {self.discrete_state_ticket(self._world)})
         # The first image costs several times the next ones (renderer set-up): pay it now.
         for camera in cameras:
@@ -93,11 +96,10 @@ class EmulatedScene(LeafSystem):
     def _latch(self, context: Context, state: DiscreteValues) -> None:
         state.get_mutable_vector(self._world).SetFromVector(self._published())
 
-    def _copier(self, port):
-        def calc(context: Context, output: AbstractValue) -> None:
-            self.plant.SetPositionsAndVelocities(self._plant_context, self.world_state(context))
-            output.SetFrom(port.EvalAbstract(self._context))
-        return calc
+    def _copy(self, port, context: Context, output: AbstractValue) -> None:
+        """`output` := the scene copy's `port` with the world state latched in `context`."""
+        self.plant.SetPositionsAndVelocities(self._plant_context, self.world_state(context))
+        output.SetFrom(port.EvalAbstract(self._context))
 
     def _published(self) -> np.ndarray:
         """The world's state as the emulated arm publishes it now, or, once the station was
@@ -179,15 +181,18 @@ class NoScene(LeafSystem):
                 allocate = empty.get_body_poses_output_port().Allocate
             else:
                 allocate = _allocator(models[name.rsplit(".", 1)[1]])  # <camera>.<image>
-            self.DeclareAbstractOutputPort(name, allocate, self._refuse(name, why))
+            self.DeclareAbstractOutputPort(name, allocate, _refusal(name, why))
 
-    @staticmethod
-    def _refuse(name: str, why: str):
-        def calc(context: Context, output: AbstractValue) -> None:
-            what = ("simulation-only ground truth" if name == ports.BODY_POSES
-                    or name.endswith(".label") else "a camera image")
-            raise RuntimeError(f"{name} is {what}, and {why}")
-        return calc
+
+def _refusal(name: str, why: str):
+    """The calculation of NoScene's port `name`: an error saying what it is and `why` it is
+    missing (a function of its own: a closure over the system would keep it alive, see
+    physcap_drake.weak_method)."""
+    def calc(context: Context, output: AbstractValue) -> None:
+        what = ("simulation-only ground truth" if name == ports.BODY_POSES
+                or name.endswith(".label") else "a camera image")
+        raise RuntimeError(f"{name} is {what}, and {why}")
+    return calc
 
 
 def _allocator(model):

@@ -19,6 +19,8 @@ from pydrake.multibody.plant import ExternallyAppliedSpatialForce_, MultibodyPla
 from pydrake.multibody.tree import Frame
 from pydrake.systems.framework import Context, LeafSystem
 
+from physcap_drake.weak_method import weak_method
+
 GRAVITY = 9.81  # m/s²
 
 _Force = ExternallyAppliedSpatialForce_[float]
@@ -40,7 +42,7 @@ class EndLoadWeight(LeafSystem):
         self._p_BoTcp_B = tcp.GetFixedPoseInBodyFrame().translation().copy()
         self._mass = self.DeclareVectorInputPort("mass", 1)
         self.DeclareAbstractOutputPort("spatial_forces", lambda: AbstractValue.Make([_Force()]),
-                                       self._output, {self._mass.ticket()})
+                                       weak_method(self._output), {self._mass.ticket()})
 
     def _output(self, context: Context, output: AbstractValue) -> None:
         mass = float(self._mass.Eval(context)[0])

@@ -29,6 +29,8 @@ from pydrake.multibody.plant import MultibodyPlant
 from pydrake.multibody.tree import BodyIndex
 from pydrake.systems.framework import Context, DiagramBuilder, LeafSystem
 
+from physcap_drake.weak_method import weak_method
+
 
 @dc.dataclass
 class RenderWorld:
@@ -61,7 +63,7 @@ class RenderPoses(LeafSystem):
         self._poses = self.DeclareAbstractInputPort("body_poses", body_poses)
         self.DeclareAbstractOutputPort("geometry_pose",
                                        lambda: AbstractValue.Make(FramePoseVector()),
-                                       self._output)
+                                       weak_method(self._output))
 
     def _output(self, context: Context, output: AbstractValue) -> None:
         poses = self._poses.Eval(context)

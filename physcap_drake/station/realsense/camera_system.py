@@ -36,6 +36,7 @@ from physcap_drake.station.realsense.config import RealSense
 from physcap_drake.station.realsense.frames import RgbdFrame
 from physcap_drake.station.realsense.pipeline_camera import PipelineRealSense
 from physcap_drake.station.realsense.software_camera import SoftwareRealSense
+from physcap_drake.weak_method import weak_method
 
 RENDERED_RGB, RENDERED_DEPTH = "rendered.rgb", "rendered.depth"
 #: Random stream of the depth faults (apart from the station's other noise streams).
@@ -55,20 +56,24 @@ class RgbdCameraSystem(LeafSystem):
     def __init__(self, name: str, width: int, height: int, prerequisites: set):
         super().__init__()
         self.camera_name = name
-        self._cache = self.DeclareCacheEntry(
+        # The entry's index, not the entry: pydrake's CacheEntry keeps its system alive
+        # from outside the garbage collector's view (see physcap_drake.weak_method).
+        frame = self.DeclareCacheEntry(
             "frame", ValueProducer(allocate=lambda: AbstractValue.Make(_NO_FRAME),
-                                   calc=self._calc_frame), prerequisites)
+                                   calc=weak_method(self._calc_frame)), prerequisites)
+        self._frame_index, frame_ticket = frame.cache_index(), frame.ticket()
         self.DeclareAbstractOutputPort(
             camera_port(name, "rgb"), lambda: AbstractValue.Make(ImageRgba8U(width, height)),
-            self._output_rgb, {self._cache.ticket()})
+            weak_method(self._output_rgb), {frame_ticket})
         self.DeclareAbstractOutputPort(
             camera_port(name, "depth"),
-            lambda: AbstractValue.Make(ImageDepth32F(width, height)), self._output_depth,
-            {self._cache.ticket()})
+            lambda: AbstractValue.Make(ImageDepth32F(width, height)),
+            weak_method(self._output_depth),
+            {frame_ticket})
 
     def frame(self, context: Context) -> RgbdFrame:
         """The frame both ports show at `context` (taken now if not yet)."""
-        return self._cache.Eval(context)
+        return self.get_cache_entry(self._frame_index).Eval(context)
 
     def _calc_frame(self, context: Context, value: AbstractValue) -> None:
         value.set_value(self._frame(context))
