@@ -1,18 +1,26 @@
-"""The mass model of the MassEstimator (exact on synthetic torques), and one get_mass end to
-end through the RobotAPI on the whole robot stack. (The estimator's and the probe's ports are
-tested in test_mass_probe.py.)"""
+"""The mass model of the MassEstimator (exact on synthetic torques), its averaging window
+through its ports, and one get_mass end to end through the RobotAPI on the whole robot stack.
+(The probe's ports, with the estimator behind them, are tested in test_mass_probe.py.)"""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
+from pydrake.common.value import AbstractValue
+from pydrake.systems.framework import DiagramBuilder
+from pydrake.systems.primitives import ConstantValueSource, ConstantVectorSource
 
 from physcap_drake.app import calibration
+from physcap_drake.clock import Clock
 from physcap_drake.control.planning_model import TCP_FRAME
 from physcap_drake.physx.mass_estimator import (
+    ESTIMATE_PORT,
     GRAVITY,
+    WINDOW_PORT,
     MassEstimator,
     TorqueWindow,
+    WindowKind,
+    WindowRequest,
     horizontal_load_offset,
     mass_from_torque_change,
 )
@@ -20,6 +28,7 @@ from physcap_drake.resources import stations_dir
 from physcap_drake.robot_api import RobotAPI
 from physcap_drake.robot_stack import build_robot_stack
 from physcap_drake.scenario import load_scenario
+from physcap_drake.station import ports
 from physcap_drake.station.robot_model import robot_model
 
 LIFT_POSE = np.array([0.3, 1.5, -1.3, 0.1, 1.0, 0.2])  # rad, an arm reaching over the table
@@ -47,10 +56,18 @@ def test_a_point_that_cannot_move_vertically_is_an_error():
 
 
 @pytest.fixture(scope="module")
-def estimator():
+def model():
     scenario = load_scenario(stations_dir() / calibration.SCENARIO)
-    model = robot_model(scenario.directives, "piper", "piper_gripper")
+    return robot_model(scenario.directives, "piper", "piper_gripper")
+
+
+def make_estimator(model) -> MassEstimator:
     return MassEstimator(model.controller_plant, model.arm_joints, TCP_FRAME, sample_rate=200.0)
+
+
+@pytest.fixture(scope="module")
+def estimator(model):
+    return make_estimator(model)
 
 
 def test_an_offset_grasp_is_found_and_weighed_exactly(estimator):
@@ -93,3 +110,28 @@ def test_noise_free_weighing_is_exact_and_puts_the_object_back():
     assert np.linalg.norm(end.translation()[:2] - start[:2]) < 0.01  # back where it was
     assert end.rotation().matrix()[2, 2] > np.cos(np.radians(5))  # standing upright
     assert api.gripper_opening > 0.09  # and let go of
+
+
+def test_a_window_samples_its_duration_and_the_estimator_is_idle_otherwise(model):
+    """Through its ports: a window of 0.1 s at 200 Hz averages 20 samples of the torques on
+    `piper.torque_measured`, and only those samples write the estimator's state (idle
+    samples say DidNothing, so the simulator writes nothing back)."""
+    torque = np.array([0.1, -2.0, 1.5, 0.02, -0.3, 0.01])
+    builder = DiagramBuilder()
+    system = builder.AddSystem(make_estimator(model))
+    builder.Connect(builder.AddSystem(ConstantVectorSource(LIFT_POSE)).get_output_port(),
+                    system.GetInputPort(ports.ARM_POSITION_MEASURED))
+    builder.Connect(builder.AddSystem(ConstantVectorSource(torque)).get_output_port(),
+                    system.GetInputPort(ports.ARM_TORQUE_MEASURED))
+    window = builder.AddSystem(ConstantValueSource(AbstractValue.Make(
+        WindowRequest(1, WindowKind.EMPTY, 0.1))))
+    builder.Connect(window.get_output_port(), system.GetInputPort(WINDOW_PORT))
+    diagram = builder.Build()
+    clock = Clock(diagram)
+    clock.run_for(0.5)
+    context = system.GetMyContextFromRoot(clock.context)
+    estimate = system.GetOutputPort(ESTIMATE_PORT).Eval(context)
+    assert estimate.sequence == 1 and estimate.empty.count == 20
+    np.testing.assert_allclose(estimate.empty.torque, torque, rtol=1e-12)
+    np.testing.assert_allclose(estimate.empty.position, LIFT_POSE, rtol=1e-12)
+    assert clock.simulator.get_num_unrestricted_updates() == 20

@@ -312,3 +312,21 @@ def test_over_a_late_station_a_blocked_gripper_is_still_blocked_and_a_holding_on
     holding.send(close)
     status = holding.finish(close)
     assert status.state is SkillState.SUCCEEDED and "stopped at 30.0 mm" in status.message
+
+
+def test_events_with_nothing_to_do_leave_the_state_unwritten():
+    """An event that finds no new request and no skill ending says so (Drake's DidNothing):
+    the simulator then writes no state back, so what is computed from the state (the status,
+    the commands) stays cached. The state is written when a request is taken and when its
+    skill ends, and at no other event."""
+    rig = Rig()
+    simulator = rig.clock.simulator
+    written = simulator.get_num_unrestricted_updates()
+    rig.clock.run_for(20 * MONITOR_PERIOD)
+    assert simulator.get_num_unrestricted_updates() == written
+    request = RobotRequest("test", 1, MoveToJoints(REACHABLE))
+    rig.send(request)
+    assert rig.finish(request).state is SkillState.SUCCEEDED
+    assert simulator.get_num_unrestricted_updates() == written + 2  # taken, ended
+    rig.clock.run_for(20 * MONITOR_PERIOD)
+    assert simulator.get_num_unrestricted_updates() == written + 2

@@ -206,6 +206,10 @@ def test_a_stop_request_ends_the_probe_and_hands_the_gripper_back():
     squeeze.FixValue(clock.mutable_context, SqueezeRequest(2, stop=True))
     clock.run_for(0.1)
     assert active.Eval(clock.context)[0] == 0.0
+    # Idle, its events find nothing to do and say so: no state is written back.
+    written = clock.simulator.get_num_unrestricted_updates()
+    clock.run_for(1.0)
+    assert clock.simulator.get_num_unrestricted_updates() == written
 
 
 @pytest.mark.parametrize(("slope", "level"), [(40.0, 2), (100.0, 3), (400.0, 5)])

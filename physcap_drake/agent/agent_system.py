@@ -60,7 +60,7 @@ from collections.abc import Callable, Generator
 from concurrent.futures import Future
 
 from pydrake.common.value import AbstractValue
-from pydrake.systems.framework import Context, LeafSystem, State
+from pydrake.systems.framework import Context, EventStatus, LeafSystem, State
 from pydrake.systems.sensors import ImageDepth32F, ImageLabel16I, ImageRgba8U
 
 from physcap_drake.agent.loop import AgentLoop, AgentMind, BlockEnd
@@ -262,10 +262,10 @@ class AgentSystem(LeafSystem):
 
     # --- the event -------------------------------------------------------------------------
 
-    def _update(self, context: Context, state: State) -> None:
+    def _update(self, context: Context, state: State) -> EventStatus | None:
         current = self.state(context)
         if self._policy is None or current.mind.over:
-            return
+            return EventStatus.DidNothing()
         reached = [current]  # the state as far as the event got (to clean up after)
         try:
             updated = self._advance(context, reached)
@@ -276,8 +276,10 @@ class AgentSystem(LeafSystem):
         except BaseException:  # e.g. KeyboardInterrupt: the run ends, no child is left behind
             _close(reached[0])
             raise
-        if updated is not current:
-            state.get_mutable_abstract_state(self._state).set_value(updated)
+        if updated is current:  # waiting: for the robot, the model or the end of the run
+            return EventStatus.DidNothing()
+        state.get_mutable_abstract_state(self._state).set_value(updated)
+        return None
 
     def _advance(self, context: Context, reached: list[AgentState]) -> AgentState:
         """Moves the agent on as far as it goes without the robot (see the module

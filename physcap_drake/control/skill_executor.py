@@ -7,7 +7,7 @@ import dataclasses as dc
 
 import numpy as np
 from pydrake.common.value import AbstractValue
-from pydrake.systems.framework import BasicVector, Context, LeafSystem, State
+from pydrake.systems.framework import BasicVector, Context, EventStatus, LeafSystem, State
 
 from physcap_drake.control.errors import SkillRefused
 from physcap_drake.control.joint_plan import JointPlan
@@ -146,8 +146,8 @@ class SkillExecutor(LeafSystem):
 
     # The event ----------------------------------------------------------------------------
 
-    def _update(self, context: Context, state: State) -> None:
-        current = self._get(context)
+    def _update(self, context: Context, state: State) -> EventStatus | None:
+        current = before = self._get(context)
         request = self._request.Eval(context)
         new_request = current.served.is_new(request)
         if current.skill is not None and current.status.state is SkillState.RUNNING:
@@ -158,7 +158,10 @@ class SkillExecutor(LeafSystem):
                 current = self._monitor(context, current)
         if new_request and current.status.state is not SkillState.RUNNING:
             current = self._take(context, current, request)
+        if current is before:  # a skill going on, or nothing to do: the state stays as it is
+            return EventStatus.DidNothing()
         self._set(state, current)
+        return None
 
     def _take(self, context: Context, current: ExecutorState,
               request: RobotRequest) -> ExecutorState:

@@ -11,7 +11,7 @@ import numpy as np
 from pydrake.common.value import AbstractValue
 from pydrake.multibody.plant import MultibodyPlant
 from pydrake.multibody.tree import JacobianWrtVariable
-from pydrake.systems.framework import Context, LeafSystem, State
+from pydrake.systems.framework import Context, EventStatus, LeafSystem, State
 
 from physcap_drake.control.planning_model import ModelAtPositions
 from physcap_drake.immutable_state import Immutable
@@ -162,20 +162,21 @@ class MassEstimator(LeafSystem):
             weak_method(self._output_estimate),
             {self.abstract_state_ticket(self._state)})
 
-    def _sample(self, context: Context, state: State) -> None:
+    def _sample(self, context: Context, state: State) -> EventStatus | None:
         current: _Averaging = context.get_abstract_state(self._state).get_value()
         request = self._window.Eval(context)
         if request.sequence != current.request.sequence:  # a new window starts now
             wanted = max(1, round(request.duration * self._rate))
             current = _Averaging(request, wanted, estimate=current.estimate)
         elif current.count >= current.wanted:
-            return  # finished (or never asked): nothing to average
+            return EventStatus.DidNothing()  # finished (or never asked): nothing to average
         current = dc.replace(current, count=current.count + 1,
                              sum_q=current.sum_q + self._q.Eval(context),
                              sum_tau=current.sum_tau + self._tau.Eval(context))
         if current.count == current.wanted:
             current = dc.replace(current, estimate=self._publish(current))
         state.get_mutable_abstract_state(self._state).set_value(current)
+        return None
 
     def _publish(self, done: _Averaging) -> MassEstimate:
         window = TorqueWindow(done.sum_q / done.count, done.sum_tau / done.count, done.count)

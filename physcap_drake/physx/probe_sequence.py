@@ -23,7 +23,7 @@ from __future__ import annotations
 import dataclasses as dc
 
 from pydrake.common.value import AbstractValue
-from pydrake.systems.framework import Context, LeafSystem, State
+from pydrake.systems.framework import Context, EventStatus, LeafSystem, State
 
 from physcap_drake.control.errors import SkillRefused
 from physcap_drake.control.requests import RobotRequest, Served, SkillState, SkillStatus
@@ -148,18 +148,20 @@ class ProbeSequence(LeafSystem):
         else:
             output.set_value(self._status.Eval(context))
 
-    def _update(self, context: Context, state: State) -> None:
+    def _update(self, context: Context, state: State) -> EventStatus | None:
         current = self._get(context)
         status = self._status.Eval(context)
         if current.job is None:
             request = self._request.Eval(context)
             if not self._takes(request) or not current.served.is_new(request):
-                return
+                return EventStatus.DidNothing()  # no job, none to take
             updated = self._take(context, current, request, status)
         else:
             updated = self._continue(context, current, status)
-        if updated is not None:
-            state.get_mutable_abstract_state(self._state).set_value(updated)
+        if updated is None:  # the step goes on
+            return EventStatus.DidNothing()
+        state.get_mutable_abstract_state(self._state).set_value(updated)
+        return None
 
     def _take(self, context: Context, current: SequenceState, request: RobotRequest,
               status: SkillStatus) -> SequenceState:

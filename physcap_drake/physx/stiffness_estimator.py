@@ -8,7 +8,7 @@ import enum
 import math
 
 from pydrake.common.value import AbstractValue
-from pydrake.systems.framework import BasicVector, Context, LeafSystem, State
+from pydrake.systems.framework import BasicVector, Context, EventStatus, LeafSystem, State
 
 from physcap_drake.immutable_state import Immutable
 from physcap_drake.physx.physx_config import StiffnessProbeConfig
@@ -185,11 +185,12 @@ class StiffnessEstimator(LeafSystem):
 
     # The probe's steps ------------------------------------------------------------------------
 
-    def _step(self, context: Context, state: State) -> None:
+    def _step(self, context: Context, state: State) -> EventStatus | None:
         now = context.get_time()
         current = self._get(context)
         request = self._request.Eval(context)
-        if request.sequence != current.sequence:
+        started = request.sequence != current.sequence
+        if started:
             if request.stop:
                 current = dc.replace(current, phase=Phase.IDLE, sequence=request.sequence)
             else:  # start closing from where the fingers are, with this dwell's step
@@ -197,10 +198,10 @@ class StiffnessEstimator(LeafSystem):
                 current = ProbeState(Phase.SEEK_CONTACT, request.sequence, command=opening,
                                      start_opening=opening, issued=((now, opening),))
             state.get_mutable_abstract_state(self._state).set_value(current)
-        if current.phase in (Phase.IDLE, Phase.DONE):
-            return
-        if now < current.read_after - TIME_EPSILON:
-            return  # the step a decision rests on does not show in the feedback yet
+        # Idle, done, or the step a decision rests on does not show in the feedback yet.
+        if (current.phase in (Phase.IDLE, Phase.DONE)
+                or now < current.read_after - TIME_EPSILON):
+            return None if started else EventStatus.DidNothing()
         d = float(self._opening.Eval(context)[0])
         f = float(self._effort.Eval(context)[0])
         handler = {
@@ -214,6 +215,7 @@ class StiffnessEstimator(LeafSystem):
             issued = current.issued + ((now, updated.command),)
             updated = dc.replace(updated, issued=issued[-self._kept_commands:])
         state.get_mutable_abstract_state(self._state).set_value(updated)
+        return None
 
     def _shown_command(self, s: ProbeState, now: float) -> float:
         """The command (m) the feedback read at `now` shows: the latest issued at least the

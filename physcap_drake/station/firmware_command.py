@@ -22,7 +22,7 @@ A periodic latch would need the owner's schedule twice; an input port fixed from
 from __future__ import annotations
 
 import numpy as np
-from pydrake.systems.framework import BasicVector, Context, LeafSystem, State
+from pydrake.systems.framework import BasicVector, Context, EventStatus, LeafSystem, State
 
 from physcap_drake.station import ports
 
@@ -87,8 +87,12 @@ class FirmwareCommandSource(LeafSystem):
         """The command latched in `context`: [q (6), opening, force, load]."""
         return context.get_discrete_state(self._command).get_value()
 
-    def _latch(self, context: Context, state: State) -> None:
-        state.get_mutable_discrete_state(self._command).SetFromVector(self.mailbox.latest())
+    def _latch(self, context: Context, state: State) -> EventStatus | None:
+        latest = self.mailbox.latest()
+        if np.array_equal(latest, self.command(context)):  # the command held: nothing to write
+            return EventStatus.DidNothing()
+        state.get_mutable_discrete_state(self._command).SetFromVector(latest)
+        return None
 
     def _output_of(self, part: slice):
         def calc(context: Context, output: BasicVector) -> None:
