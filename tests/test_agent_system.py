@@ -35,7 +35,7 @@ from physcap_drake.control.requests import (
     SkillState,
     SkillStatus,
 )
-from physcap_drake.control.skill_executor import MONITOR_PERIOD, REQUEST_PORT, STATUS_PORT
+from physcap_drake.control.skill_executor import REQUEST_PORT, STATUS_PORT
 from physcap_drake.immutable_state import Immutable
 from physcap_drake.knowledge import SceneKnowledge
 from physcap_drake.physx.mass_probe import MassMeasurement, MeasureMass
@@ -44,7 +44,6 @@ from physcap_drake.station import ports
 from physcap_drake.station.arm_fault import ArmFault
 
 MOTION_S = 0.5  # s of simulated time each request takes the scripted robot
-ROBOT_PERIOD = MONITOR_PERIOD  # s between the scripted robot's events, at 0 as the executor's
 MASS_KG = 0.35
 LIMITS = SandboxLimits(cpu_s=2, compute_wall_s=5, memory_mb=512)
 OBJECT = [0.3, 0.0, 0.05]  # where get_object_pose finds every object, m
@@ -58,10 +57,10 @@ class RobotMemory(Immutable):
 
 
 class ScriptedRobot(LeafSystem):
-    """Takes a new request on `request` at its events (every ROBOT_PERIOD s), answers it on
-    `status` at its first event MOTION_S s later: REFUSED (nothing moves) for a target
-    farther than 1 m, else SUCCEEDED (a MeasureMass with a MassMeasurement of MASS_KG). From
-    `fault_at` s on, its event raises ArmFault, as a station does."""
+    """Takes a new request on `request` at its events (every 10 ms), answers it on `status`
+    MOTION_S s later: REFUSED (nothing moves) for a target farther than 1 m, else SUCCEEDED
+    (a MeasureMass with a MassMeasurement of MASS_KG). From `fault_at` s on, its event raises
+    ArmFault, as a station does."""
 
     def __init__(self, fault_at: float = math.inf):
         super().__init__()
@@ -69,7 +68,7 @@ class ScriptedRobot(LeafSystem):
         self._request = self.DeclareAbstractInputPort(REQUEST_PORT,
                                                       AbstractValue.Make(RobotRequest()))
         self._memory = self.DeclareAbstractState(AbstractValue.Make(RobotMemory()))
-        self.DeclarePeriodicUnrestrictedUpdateEvent(ROBOT_PERIOD, 0.0, self._update)
+        self.DeclarePeriodicUnrestrictedUpdateEvent(0.01, 0.0, self._update)
         self.DeclareAbstractOutputPort(
             STATUS_PORT, lambda: AbstractValue.Make(SkillStatus()),
             lambda context, output: output.set_value(self.memory(context).status),
@@ -229,10 +228,9 @@ def test_each_robot_call_of_the_code_is_a_request_and_its_answer_comes_back_to_t
     assert isinstance(first, MoveToPose) and isinstance(second, MeasureMass)
     np.testing.assert_allclose(first.position, [0.3, 0.0, 0.2])
     np.testing.assert_allclose(second.position, OBJECT)
-    # The second call came only after the first was answered (at the robot's first event
-    # MOTION_S s after it took the first) and was taken at the robot's next event.
-    answered_after = math.ceil(MOTION_S / ROBOT_PERIOD - 1e-9) * ROBOT_PERIOD
-    assert taken[1][0] - taken[0][0] == pytest.approx(answered_after + ROBOT_PERIOD, abs=1e-6)
+    # The second call came only after the first was answered: one motion later, at the
+    # robot's next event.
+    assert taken[1][0] - taken[0][0] == pytest.approx(MOTION_S + 0.01, abs=1e-6)
     progress = rig.agent.GetOutputPort(PROGRESS_PORT).Eval(rig.agent_context())
     assert (progress.phase, progress.steps) == ("executing", 0)
     rig.clock.run_until(lambda root: rig.agent.mind(rig.agent_context()).steps, timeout=5.0)
@@ -274,9 +272,9 @@ def test_the_agent_decides_at_its_event_while_simulated_time_stands_still():
     wall = time.monotonic() - wall
     assert rig.coder.calls == 1 and wall >= delay
     # The decision and the block's first request were made at the agent's first event (at
-    # half a period): the robot took it at its next one. The model's time took no sim time.
+    # 0.75 PERIOD): the robot took it at its next one. The model's time took no sim time.
     (taken_at, request), = rig.requests()
-    assert taken_at == pytest.approx(ROBOT_PERIOD) and request.sequence == 1
+    assert taken_at == pytest.approx(0.01) and request.sequence == 1
     assert {e.robot_time_s for e in rig.transcript.entries} == {0.0}
 
 

@@ -9,8 +9,8 @@ the top of that path: the agent is the robot's client inside the diagram. Its st
 agent's mind (`AgentMind`) and the code block it runs, in the Context; `agent.progress`
 publishes a summary.
 
-Every PERIOD s (half a period after the SkillExecutor's events, with the probes', so a
-request the executor finished is followed by the next one at the executor's next event) an
+Every PERIOD s (after the SkillExecutor's events and the probes', so a request that one of
+them finished is followed by the next one at the executor's next event) an
 unrestricted-update event moves the agent on as far as it can without the robot:
 
 - "idle": once a policy is attached, the episode starts: "deciding", or "failed" when the
@@ -82,13 +82,13 @@ PROGRESS_PORT = "agent.progress"
 #: This system's name on the request path.
 CLIENT = "agent"
 #: Period of the agent's events, s of simulated time, and their offset (in periods) from the
-#: executor's events: half a period after the executor's (which end skills), at the same
-#: time as the probes' (which end probes), so the next request after a skill follows at the
-#: executor's next event, as when a client outside the diagram waits for each request; a
-#: probe's end is seen a period later. Every event falls on a step of the simulated plant
-#: (see MONITOR_PERIOD).
+#: executor's events: after the executor's (which end skills) and the probes' (a third of a
+#: period after them, which end probes), so the next request follows either at the
+#: executor's next event, as when a client outside the diagram waits for each request.
+#: With the 12 ms period the events fall on a 4 ms grid: every other one on a step of the
+#: simulated plant (8 ms), the others between its steps (no plant step is added).
 PERIOD = MONITOR_PERIOD
-OFFSET = 0.5
+OFFSET = 2.0 / 3.0
 
 
 @dc.dataclass(frozen=True)

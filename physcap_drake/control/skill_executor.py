@@ -27,12 +27,10 @@ from physcap_drake.station import ports
 from physcap_drake.weak_method import weak_method
 
 #: Period of the executor's event: it takes new requests and checks the running skill, s.
-#: Twice the simulated plant's 8 ms step: the probes' and the AgentSystem's events come half a
-#: period later, so every event of the request path falls on a plant step (of 8 or 4 ms) and
-#: the simulator takes no step of its own between two plant steps. (With 12 ms and the others
-#: at a third and two thirds, the events kept to a 4 ms grid: twice as many simulator steps as
-#: plant steps, and find_blue_cube took 15 % more CPU time.)
-MONITOR_PERIOD = 0.016
+#: Three times 4 ms: with the probes' and the AgentSystem's events a third and two thirds of
+#: a period later, the events keep to a 4 ms grid (every other point a step of the
+#: simulated plant's 8 ms).
+MONITOR_PERIOD = 0.012
 #: A gripper counts as stopped when its opening changed less than this over STALL_WINDOW, m
 #: (s; pro rata over the time between the events that compare it, so the check does not
 #: depend on the event period). The window is lengthened by the station's command latency:

@@ -31,10 +31,10 @@ from physcap_drake.control.skill_executor import MONITOR_PERIOD, REQUEST_PORT, S
 from physcap_drake.immutable_state import Immutable
 from physcap_drake.weak_method import weak_method
 
-#: Period of a probe's events, s, and their offset from the executor's (half a period: on the
-#: plant step between two of the executor's events, with the AgentSystem's events).
+#: Period of a probe's events, s, and their offset from the executor's (a third of a period:
+#: on the 4 ms grid of the events, before the AgentSystem's events at two thirds).
 PERIOD = MONITOR_PERIOD
-OFFSET = MONITOR_PERIOD / 2
+OFFSET = MONITOR_PERIOD / 3
 
 
 @dc.dataclass(frozen=True)
