@@ -74,9 +74,9 @@ ALLOWED = {
                          "ModelAtPositions' of a robot-only plant, which the mass estimator reads "
                          "its Jacobians and gravity torques from): set in full from the arguments "
                          "of each query"),
-        "GetMyMutableContextFromRoot": "the planning model's own scratch contexts (and a "
-                                       "fresh one per inverse-kinematics solve, "
-                                       "fresh_plant_context)",
+        "GetMyMutableContextFromRoot": "the planning model's own scratch contexts (one of "
+                                       "them lent to each inverse-kinematics solve in "
+                                       "turn, solver_plant_context)",
     },
 }
 

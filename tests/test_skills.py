@@ -186,6 +186,21 @@ def test_a_pose_whose_gripper_would_hit_the_table_is_refused(robot):
         "clear of the table")
 
 
+def test_joint_targets_in_contact_are_refused_naming_the_pair(robot):
+    # A fingertip 7 mm above the table, the gripper rolled so that a finger is 5 mm in it.
+    assert_refused_without_motion(
+        robot, lambda: robot.api.move_joints([-0.3, 1.6, -0.4, -1.5, 0.5, -1.8]),
+        "at the goal", "piper_gripper::left_finger and table::table_top", "in contact")
+
+
+def test_a_motion_through_the_arm_itself_is_refused_naming_the_pair(robot):
+    # Both ends are clear, but on the way from home the gripper sweeps 3 cm into link 1.
+    assert_refused_without_motion(
+        robot, lambda: robot.api.move_joints([1.4, 0.4, -0.1, -1.2, 1.1, -0.4]),
+        "the motion would bring", "piper::link1 and piper_gripper::gripper_base",
+        "into contact")
+
+
 def test_moves_with_the_gripper_closed_are_planned(fresh_robot):
     robot = fresh_robot
     assert robot.api.gripper_opening < 1e-3  # the scene starts with the fingers closed

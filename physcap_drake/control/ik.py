@@ -78,8 +78,7 @@ def solve_fingertip_ik(model: PlanningModel, goal: FingertipGoal, q_seed: np.nda
 
     Raises SkillRefused naming the target when no such configuration is found.
     """
-    diagram_context, plant_context = model.fresh_plant_context()
-    ik = InverseKinematics(model.plant, plant_context, with_joint_limits=False)
+    ik = InverseKinematics(model.plant, model.solver_plant_context(), with_joint_limits=False)
     q = ik.q()
     prog = ik.get_mutable_prog()
     arm = model.arm_position_indices

@@ -54,12 +54,17 @@ class PlanningModel:
         # diagram's.
         self._context = self.diagram.CreateDefaultContext()
         self._plant_context = plant.GetMyMutableContextFromRoot(self._context)
+        # A second one for solvers that hold the context they evaluate in (e.g.
+        # InverseKinematics): shared by them one after the other, never at once.
+        self._solver_context = self.diagram.CreateDefaultContext()
 
-    def fresh_plant_context(self):
-        """(diagram context, plant context) of a new scratch context of the workcell, for a
-        solver that keeps its own (e.g. InverseKinematics); nothing else holds it."""
-        diagram_context = self.diagram.CreateDefaultContext()
-        return diagram_context, self.plant.GetMyMutableContextFromRoot(diagram_context)
+    def solver_plant_context(self):
+        """The plant context of this model's scratch context for a solver that holds one
+        (e.g. InverseKinematics), one solver at a time: what a solver computes depends only on
+        the positions it sets (all of them, at every evaluation), not on what the previous
+        solver left there, and the context outlives the solver as long as this model does.
+        Creating one per solve cost 0.34 ms, a fifth of a typical 1.6 ms solve."""
+        return self.plant.GetMyMutableContextFromRoot(self._solver_context)
 
     def full_positions(self, q_arm: np.ndarray, opening: float) -> np.ndarray:
         """Positions of `plant` for arm joints `q_arm` (rad) and a gripper `opening` (m)."""
@@ -81,20 +86,24 @@ class PlanningModel:
         self.plant.SetPositions(self._plant_context, self.full_positions(q_arm, 0.0))
         return self.tcp_frame.CalcPoseInWorld(self._plant_context)
 
-    def min_distance(self, q_arm: np.ndarray, opening: float) -> tuple[float, str]:
-        """Smallest signed distance (m) between any robot geometry and the environment or
-        another robot link, and the names of that pair."""
+    def deepest_contact(self, q_arm: np.ndarray, opening: float) -> tuple[float, str] | None:
+        """The pair of geometries (robot and environment, or two robot links) that
+        penetrate deepest at arm joints `q_arm` (rad) and gripper `opening` (m): their signed
+        distance (m, at most 0: touching or penetrating) and their names; None when no
+        robot geometry touches anything. Only touching pairs are measured (the broad phase
+        drops every pair whose bounding boxes are apart): half the cost of measuring every
+        pair within 0.1 m, 35 µs instead of 70 µs per check on this project's machine."""
         self.plant.SetPositions(self._plant_context, self.full_positions(q_arm, opening))
         query = self.scene_graph.get_query_output_port().Eval(
             self.scene_graph.GetMyContextFromRoot(self._context))
-        pairs = query.ComputeSignedDistancePairwiseClosestPoints(max_distance=0.1)
+        pairs = query.ComputeSignedDistancePairwiseClosestPoints(max_distance=0.0)
         if not pairs:
-            return np.inf, ""
-        closest = min(pairs, key=lambda p: p.distance)
+            return None
+        deepest = min(pairs, key=lambda p: p.distance)
         inspector = query.inspector()
         names = " and ".join(inspector.GetName(inspector.GetFrameId(g))
-                             for g in (closest.id_A, closest.id_B))
-        return closest.distance, names
+                             for g in (deepest.id_A, deepest.id_B))
+        return deepest.distance, names
 
 
 class ModelAtPositions:

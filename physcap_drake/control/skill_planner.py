@@ -119,10 +119,11 @@ class SkillPlanner:
             count = int(np.ceil(max((end - start) / PATH_CHECK_TIME,
                                     travel / PATH_CHECK_ANGLE))) + 1
             for t in np.linspace(start, end, max(count, 2)):
-                distance, pair = self.model.min_distance(segment.value(t).ravel(), opening)
-                if distance <= 0.0:
-                    raise SkillRefused(f"{what}: the motion would bring {pair} into contact; "
-                                       "move the arm up or choose another target first")
+                contact = self.model.deepest_contact(segment.value(t).ravel(), opening)
+                if contact is not None:
+                    raise SkillRefused(f"{what}: the motion would bring {contact[1]} into "
+                                       "contact; move the arm up or choose another target "
+                                       "first")
 
     def _arm_skill(self, label: str, segments: tuple, now: float, q_now: np.ndarray,
                    gripper_command: tuple[float, float], note="") -> PlannedSkill:
@@ -136,10 +137,10 @@ class SkillPlanner:
         self._check_joint_limits(goal, f"{request.label} refused")
         if request.check_workspace:
             self._check_workspace(self.model.tcp_pose(goal).translation(), request.label)
-        distance, pair = self.model.min_distance(goal, opening)
-        if distance <= 0.0:
-            raise SkillRefused(f"{request.label} refused: at the goal, {pair} would be in "
-                               "contact")
+        contact = self.model.deepest_contact(goal, opening)
+        if contact is not None:
+            raise SkillRefused(f"{request.label} refused: at the goal, {contact[1]} would be "
+                               "in contact")
         segments = (self._timed(np.column_stack([q_now, goal])),)
         self._check_clear(segments, opening, f"{request.label} refused")
         return self._arm_skill(request.label, segments, now, q_now, gripper_command)
