@@ -16,6 +16,7 @@ import numpy as np
 from physcap_drake.perception.camera_geometry import CameraGeometry
 from physcap_drake.perception.footprint import footprint_outline
 from physcap_drake.perception.grasp import grasp_point_from_points
+from physcap_drake.perception.last_look import LastLook
 from physcap_drake.perception.mask_pixels import mask_pixels
 from physcap_drake.perception.offline_pointer import OfflinePointer
 from physcap_drake.perception.regions import footprint_rectangle
@@ -34,11 +35,20 @@ class LabelPerception:
     def __init__(self, camera: CameraGeometry, pointer: OfflinePointer):
         self.camera = camera
         self.pointer = pointer
+        self._last = LastLook()
 
     def look(self, images: Mapping[str, np.ndarray]) -> list[SeenObject]:
-        """The catalogued objects in view, left to right, with their grasp points."""
+        """The catalogued objects in view, left to right, with their grasp points (those of
+        the previous look when the label and depth images are the same)."""
         label = np.asarray(images[ports.CAMERA_LABEL])
         depth = np.asarray(images[ports.CAMERA_DEPTH]).reshape(label.shape[:2])
+        seen = self._last.find((label, depth))
+        if seen is None:
+            seen = self._find(label, depth)
+            self._last.keep((label, depth), seen)
+        return list(seen)
+
+    def _find(self, label: np.ndarray, depth: np.ndarray) -> list[SeenObject]:
         measured = np.isfinite(depth) & (depth > 0)
         seen = []
         for visible, mask, column in self.pointer.visible(label):

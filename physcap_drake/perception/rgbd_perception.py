@@ -22,7 +22,6 @@ A look at the same images twice is computed once.
 
 from __future__ import annotations
 
-import zlib
 from collections.abc import Mapping
 
 import numpy as np
@@ -31,6 +30,7 @@ from physcap_drake.perception.camera_geometry import CameraGeometry
 from physcap_drake.perception.decimation import decimation_factor, upsample
 from physcap_drake.perception.describe import FullImage, describe
 from physcap_drake.perception.footprint import footprint_outline
+from physcap_drake.perception.last_look import LastLook
 from physcap_drake.perception.object_memory import ObjectMemory
 from physcap_drake.perception.regions import (
     find_regions,
@@ -55,18 +55,17 @@ class RgbdPerception:
         self.camera = camera
         self.vocabulary = tuple(vocabulary)
         self.memory = ObjectMemory()
-        self._last: tuple[int, list[SeenObject]] | None = None
+        self._last = LastLook()
 
     def look(self, images: Mapping[str, np.ndarray]) -> list[SeenObject]:
         """The objects in view, left to right (containers included)."""
         rgb = np.asarray(images[ports.CAMERA_RGB])
         depth = np.asarray(images[ports.CAMERA_DEPTH]).reshape(rgb.shape[:2])
         q = images.get(ports.ARM_POSITION_MEASURED)
-        key = zlib.crc32(np.ascontiguousarray(depth).tobytes())
-        if q is not None:
-            key = zlib.crc32(np.asarray(q, dtype=np.float64).tobytes(), key)
-        if self._last is not None and self._last[0] == key:
-            return self._last[1]
+        key = (depth,) if q is None else (depth, np.asarray(q, dtype=np.float64))
+        last = self._last.find(key)
+        if last is not None:
+            return list(last)
         step = decimation_factor(self.camera.width)
         geometry = scene_geometry(depth[::step, ::step], self.camera.decimated(step),
                                   exclude=None if q is None else RobotSelfFilter(q))
@@ -87,8 +86,8 @@ class RgbdPerception:
                                   else None)
                        for visible, view in zip(names, views, strict=True)),
                       key=lambda s: s.column)
-        self._last = (key, seen)
-        return seen
+        self._last.keep(key, seen)
+        return list(seen)
 
     def known(self) -> list[VisibleObject]:
         """Every object named so far (in view or not)."""
