@@ -62,7 +62,7 @@ class RgbdPerception:
         rgb = np.asarray(images[ports.CAMERA_RGB])
         depth = np.asarray(images[ports.CAMERA_DEPTH]).reshape(rgb.shape[:2])
         q = images.get(ports.ARM_POSITION_MEASURED)
-        key = (depth,) if q is None else (depth, np.asarray(q, dtype=np.float64))
+        key = (rgb, depth) if q is None else (rgb, depth, np.asarray(q, dtype=np.float64))
         last = self._last.find(key)
         if last is not None:
             return list(last)
