@@ -109,6 +109,35 @@ def test_bench_episode_runs_only_the_tasks_and_seeds_asked_for(tmp_path, monkeyp
         ("empty_cup", 28.0), ("find_blue_cube", 28.0)]  # 13 + 15 s
 
 
+def test_bench_episode_repeats_the_runs_and_gives_each_tasks_median_and_range(tmp_path,
+                                                                            monkeypatch):
+    ran = []
+    # The run's episodes take 10, 30 and 20 ms of wall time: rtf 10 / wall.
+    pauses = iter([0.01, 0.03, 0.02])
+
+    def fake_episode(task, seed, *, agent, llm):
+        ran.append((task, seed))
+        time.sleep(next(pauses))
+        return FakeRun(task, 0)
+
+    monkeypatch.setattr(episode_bench, "run_agent_episode", fake_episode)
+    out = tmp_path / "bench.json"
+    result = runner.invoke(app, ["bench", "episode", "--tasks", "empty_cup", "--seeds", "0",
+                                 "--no-warmup", "--repeat", "3", "--json", str(out)])
+    assert result.exit_code == 0, result.output
+    assert ran == [("empty_cup", 0)] * 3
+    rows = json.loads(out.read_text())
+    assert [row["run"] for row in rows] == [0, 1, 2]
+    rtfs = sorted(row["rtf"] for row in rows)
+    assert rtfs[0] < rtfs[1] < rtfs[2]
+    [spread] = episode_bench.spread_over_runs(
+        [episode_bench.EpisodeBenchResult(**row) for row in rows])
+    assert (spread.task, spread.runs) == ("empty_cup", 3)
+    assert (spread.rtf_min, spread.rtf_median, spread.rtf_max) == tuple(rtfs)
+    assert "rtf over 3 runs" in result.output and f"{rtfs[1]:.2f}" in result.output
+    assert runner.invoke(app, ["bench", "episode", "--repeat", "0"]).exit_code == 2
+
+
 def test_bench_episode_names_a_bad_task_or_seed_list():
     result = runner.invoke(app, ["bench", "episode", "--tasks", "juggle"])
     assert result.exit_code == 2 and "unknown task(s) juggle" in result.output

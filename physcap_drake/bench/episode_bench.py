@@ -9,6 +9,11 @@ figures that a machine loaded by other work disturbs less than wall time. `cpu_r
 robot time per CPU second of both, what `rtf` would be on an idle machine were nothing
 waited for.
 
+On a shared machine the same episodes take CPU time that swings by a third from one run to
+the next, so one run's `rtf` says little about the code: `run_episode_bench` can be run
+several times (`run` numbers them) and `spread_over_runs` gives each task's median and
+range.
+
 The figures are those of a worker that has run an episode before, as every episode of an
 evaluation but each worker's first: an untimed warm-up episode (the first task's first seed)
 runs first and pays what a process pays once (importing the agent, the perception and the
@@ -21,6 +26,7 @@ from __future__ import annotations
 
 import dataclasses as dc
 import os
+import statistics
 import time
 from collections.abc import Callable
 
@@ -38,7 +44,7 @@ class EpisodeBenchResult:
     CPU time, child_cpu_time_s: its child processes'; `cpu_rtf` = robot_time_s / (both).
     load_average: the machine's 1-minute load average when the task's first episode
     started; allocator: "tcmalloc" or "system" (glibc's); blas_threads: the threads of
-    NumPy's BLAS (None: unknown)."""
+    NumPy's BLAS (None: unknown). run: which run of the bench this is (0, 1, ...)."""
 
     task: str
     robot_time_s: float
@@ -52,6 +58,31 @@ class EpisodeBenchResult:
     cpu_rtf: float = 0.0
     allocator: str = ""
     blas_threads: int | None = None
+    run: int = 0
+
+
+@dc.dataclass(frozen=True)
+class RtfSpread:
+    """One task's `rtf` and `cpu_rtf` over several runs of the bench: the median, the
+    lowest and the highest, and how many runs."""
+
+    task: str
+    runs: int
+    rtf_median: float
+    rtf_min: float
+    rtf_max: float
+    cpu_rtf_median: float
+
+
+def spread_over_runs(results: list[EpisodeBenchResult]) -> list[RtfSpread]:
+    """Each task's RtfSpread over the runs in `results`, in the order tasks first appear."""
+    by_task: dict[str, list[EpisodeBenchResult]] = {}
+    for result in results:
+        by_task.setdefault(result.task, []).append(result)
+    return [RtfSpread(task, len(runs), round(statistics.median(r.rtf for r in runs), 3),
+                      min(r.rtf for r in runs), max(r.rtf for r in runs),
+                      round(statistics.median(r.cpu_rtf for r in runs), 3))
+            for task, runs in by_task.items()]
 
 
 def _ratio(robot: float, cpu: float) -> float:
@@ -72,10 +103,11 @@ def warm_up(tasks=TASKS, seeds=SEEDS) -> float:
 
 
 def run_episode_bench(tasks=TASKS, seeds=SEEDS,
-                      on_episode: Callable[[str, int, dict], None] | None = None
-                      ) -> list[EpisodeBenchResult]:
+                      on_episode: Callable[[str, int, dict], None] | None = None,
+                      run: int = 0) -> list[EpisodeBenchResult]:
     """Runs the episodes (after `warm_up`, if the caller wants the figures of a warm
-    process); `on_episode(task, seed, summary)` hears each one as it ends."""
+    process); `on_episode(task, seed, summary)` hears each one as it ends. `run` numbers
+    this run among several of the same process (see `spread_over_runs`)."""
     results = []
     memory, threads = allocator.in_use(), blas_threads.in_use()
     for task in tasks:
@@ -85,11 +117,11 @@ def run_episode_bench(tasks=TASKS, seeds=SEEDS,
         for seed in seeds:
             start_wall, start_cpu = time.perf_counter(), time.process_time()
             start_children = _children_cpu_time()
-            run = run_agent_episode(task, seed, agent=AGENT, llm="reference")
+            episode = run_agent_episode(task, seed, agent=AGENT, llm="reference")
             wall += time.perf_counter() - start_wall
             cpu += time.process_time() - start_cpu
             children += _children_cpu_time() - start_children
-            summary = run.summary()
+            summary = episode.summary()
             robot += summary["robot_time_s"]
             successes += bool(summary["success"])
             if on_episode is not None:
@@ -97,5 +129,6 @@ def run_episode_bench(tasks=TASKS, seeds=SEEDS,
         results.append(EpisodeBenchResult(task, round(robot, 3), round(wall, 3),
                                           round(robot / wall, 3), round(cpu, 3), len(seeds),
                                           successes, load, round(children, 3),
-                                          _ratio(robot, cpu + children), memory, threads))
+                                          _ratio(robot, cpu + children), memory, threads,
+                                          run))
     return results

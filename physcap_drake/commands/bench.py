@@ -11,7 +11,7 @@ from rich.table import Table
 
 from physcap_drake.bench.can_loop_bench import run_can_loop
 from physcap_drake.bench.episode_bench import TASKS as EPISODE_TASKS
-from physcap_drake.bench.episode_bench import run_episode_bench, warm_up
+from physcap_drake.bench.episode_bench import run_episode_bench, spread_over_runs, warm_up
 from physcap_drake.bench.perception_bench import bench_episode
 from physcap_drake.bench.perception_bench import summarize as summarize_perception
 from physcap_drake.bench.pick_place_bench import run_trial, summarize
@@ -114,6 +114,11 @@ def episode(
         "--warmup/--no-warmup",
         help="First run the first task's first seed once, untimed, as a worker that has "
              "run an episode before.")] = True,
+    repeat: Annotated[int, typer.Option(
+        "--repeat", min=1,
+        help="Run the tasks' episodes this many times and also print each task's median "
+             "rtf and its range (one run's figure swings with the machine's other work).")
+    ] = 1,
 ) -> None:
     """Measure how fast agent episodes run.
 
@@ -121,7 +126,9 @@ def episode(
     tasks and seeds given), one after the other in this process, after an untimed warm-up
     episode, and prints robot time, wall time, robot time per wall-clock second (rtf), CPU
     time (this process and the code blocks' child processes) and robot time per CPU
-    second (cpu rtf) per task, and the memory allocator and BLAS threads it ran with."""
+    second (cpu rtf) per task, and the memory allocator and BLAS threads it ran with.
+    With --repeat N it does all that N times and adds each task's median rtf, lowest and
+    highest."""
     names = EPISODE_TASKS if tasks == "all" else tuple(tasks.split(","))
     unknown = [name for name in names if name not in EPISODE_TASKS]
     if unknown:
@@ -135,21 +142,33 @@ def episode(
     if warmup:
         console.print(f"warm-up: {names[0]} seed {seed_list[0]}, not counted")
         warmup_s = warm_up(names, seed_list)
-    with trial_progress("bench episode", len(names) * len(seed_list)) as advance:
-        results = run_episode_bench(names, seed_list, on_episode=lambda task, seed, summary:
-                                    advance(summary["success"]))
+    results = []
+    with trial_progress("bench episode", repeat * len(names) * len(seed_list)) as advance:
+        for run in range(repeat):
+            results += run_episode_bench(names, seed_list, run=run, on_episode=lambda task,
+                                         seed, summary: advance(summary["success"]))
     warmed = f"after a {warmup_s:.1f} s warm-up episode" if warmup else "no warm-up"
     table = Table(title=f"physcap bench episode (physcap, reference reasoner, seeds {seeds}; "
                         f"{warmed}; allocator {results[0].allocator}, BLAS threads "
                         f"{results[0].blas_threads or 'unknown'})")
-    for column in ("task", "robot time (s)", "wall time (s)", "rtf", "cpu time (s)",
-                   "child cpu (s)", "cpu rtf", "successes", "load"):
+    columns = ["task", "robot time (s)", "wall time (s)", "rtf", "cpu time (s)",
+               "child cpu (s)", "cpu rtf", "successes", "load"]
+    for column in (["run"] if repeat > 1 else []) + columns:
         table.add_column(column, justify="right")
     for r in results:
-        table.add_row(r.task, f"{r.robot_time_s:.1f}", f"{r.wall_time_s:.1f}", f"{r.rtf:.2f}",
+        table.add_row(*([str(r.run + 1)] if repeat > 1 else []), r.task,
+                      f"{r.robot_time_s:.1f}", f"{r.wall_time_s:.1f}", f"{r.rtf:.2f}",
                       f"{r.cpu_time_s:.1f}", f"{r.child_cpu_time_s:.1f}", f"{r.cpu_rtf:.2f}",
                       f"{r.successes}/{r.episodes}", f"{r.load_average:.1f}")
     console.print(table)
+    if repeat > 1:
+        spread = Table(title=f"rtf over {repeat} runs")
+        for column in ("task", "median rtf", "lowest", "highest", "median cpu rtf"):
+            spread.add_column(column, justify="right")
+        for s in spread_over_runs(results):
+            spread.add_row(s.task, f"{s.rtf_median:.2f}", f"{s.rtf_min:.2f}",
+                           f"{s.rtf_max:.2f}", f"{s.cpu_rtf_median:.2f}")
+        console.print(spread)
     if json_path is not None:
         save_json(json_path, [dataclasses.asdict(r) for r in results])
 
