@@ -25,6 +25,7 @@ from physcap_drake.station import MakeStation, close_station, ports, scene_snaps
 from physcap_drake.station.arm_fault import ArmFault
 from physcap_drake.station.can_config import PiperCan
 from physcap_drake.station.can_scene import NoScene
+from physcap_drake.station.can_session import TRIP_MARGIN
 from physcap_drake.station.can_station import can_session, start_can_station
 from physcap_drake.station.sim_config import SimPiper
 
@@ -61,7 +62,18 @@ def outputs(station, context) -> dict[str, np.ndarray]:
 def test_the_can_station_reads_what_the_sim_station_reads(can_station):
     sim = MakeStation(load_scenario(stations_dir() / "piper_table.yaml"))
     _, sim_context = run_to_target(sim, 1.5, realtime=False)
-    _, can_context = run_to_target(can_station, 1.5, realtime=True)
+    can_simulator, can_context = run_to_target(can_station, 1.5, realtime=True)
+    # The move takes about 0.8 s, but a stall of the machine during it (the feedback goes
+    # stale for 50 ms, the link stops streaming and then restarts from where the arm is)
+    # can add half a second and an overshoot of up to 0.09 rad on J2/J3: the comparison is
+    # of the arm at rest on its target, so wait for that (2.5 s more at most).
+    def at_rest(context) -> bool:
+        q = can_station.GetOutputPort(ports.ARM_POSITION_MEASURED).Eval(context)
+        v = can_station.GetOutputPort(ports.ARM_VELOCITY_ESTIMATED).Eval(context)
+        return np.allclose(q, TARGET, atol=2e-3) and np.allclose(v, 0.0, atol=0.01)
+
+    while not at_rest(can_context) and can_context.get_time() < 4.0:
+        can_simulator.AdvanceTo(can_context.get_time() + 0.05)
     expected, got = outputs(sim, sim_context), outputs(can_station, can_context)
     np.testing.assert_allclose(got[ports.ARM_POSITION_MEASURED], TARGET, atol=2e-3)
     np.testing.assert_allclose(got[ports.ARM_POSITION_MEASURED],
@@ -137,11 +149,22 @@ def test_stale_feedback_holds_the_outputs_then_ends_the_run(can_station):
         can_station.GetOutputPort(ports.ARM_POSITION_MEASURED).Eval(context), held)
     with pytest.raises(ArmFault, match=r"stale for 0\.\d s .*stale_limit = 0.3 s.*no feedback"):
         simulator.AdvanceTo(context.get_time() + 0.5)
-    # A silent link is a fault of the link: the emulated arm's own figures do not excuse it.
+    # A silent link is a fault of the link: the emulated arm's own figures do not excuse it,
+    # unless its firmware loop itself happened to stall then (the machine was starved: the
+    # session cannot tell the two apart and lets it go, as the episode tests rely on).
     session = can_session(can_station)
     session.close()
-    assert session.last_emulator_timing.firmware.steps > 50
-    assert any(trip.startswith("no feedback for") for trip in session.unexplained_trips())
+    firmware = session.last_emulator_timing.firmware
+    assert firmware.steps > 50
+    window = session.config.feedback_timeout + TRIP_MARGIN
+    silences = [since for since, reason in session.last_stale_events
+                if reason.startswith("no feedback for")]
+    assert silences
+    starved = [since for since in silences
+               if firmware.covering(since - window, since, TRIP_MARGIN) is not None]
+    unexplained = [trip for trip in session.unexplained_trips()
+                   if trip.startswith("no feedback for")]
+    assert len(unexplained) == len(silences) - len(starved), (unexplained, firmware.spells)
 
 
 def test_the_scene_ports_show_the_emulated_world(can_station):

@@ -3,6 +3,7 @@ paces."""
 
 from __future__ import annotations
 
+import gc
 import time
 from pathlib import Path
 
@@ -98,3 +99,37 @@ def test_a_paced_run_does_not_make_up_for_a_stall_within_it():
     # The 0.4 s of simulated time after the stall take 0.4 s of wall time: the run does not
     # sprint to catch up the 0.3 s the stall lost (it would be done about 0.1 s after it).
     assert time.perf_counter() - stall.after_stall >= 0.38
+
+
+class FreezeWatcher(Counter):
+    """A Counter that notes, at each event, how many objects the garbage collector leaves
+    alone (`gc.get_freeze_count()`), and how many it frees of a reference cycle the event
+    makes and drops."""
+
+    def __init__(self):
+        super().__init__()
+        self.frozen: list[int] = []
+        self.freed: list[int] = []
+
+    def _tick(self, context, state):
+        self.frozen.append(gc.get_freeze_count())
+        cycle = [None]
+        cycle[0] = cycle
+        del cycle
+        self.freed.append(gc.collect())
+        super()._tick(context, state)
+
+
+def test_a_paced_run_keeps_the_garbage_collector_off_what_existed_before_it():
+    watcher = FreezeWatcher()
+    before = [[n] for n in range(10_000)]  # objects the process held before the run
+    clock = Clock(watcher, SimulatorConfig(target_realtime_rate=5.0))
+    clock.run_for(0.05)
+    # (The interpreter keeps a few hundred objects of its own frozen anyway.)
+    assert len(watcher.frozen) == 5  # the events at 0, 10, ..., 40 ms
+    assert min(watcher.frozen) >= len(before)  # each saw them frozen,
+    assert min(watcher.freed) >= 1  # while what the run made was still collected,
+    assert gc.get_freeze_count() < len(before)  # and the run gave them back
+    unpaced = FreezeWatcher()
+    Clock(unpaced).run_for(0.05)  # a simulation's run leaves the collector as it is
+    assert max(unpaced.frozen) < len(before)
