@@ -21,11 +21,11 @@ lost, as on a real controller.
 
 A paced run also keeps Python's garbage collector off what the process held before it
 (`gc.freeze()` as it starts, `gc.unfreeze()` as it ends): a full collection walks every
-object of the process and stops all its threads meanwhile, 0.3 s in a process that has run
-many episodes (a 414 ms gap in the arm's log while a model thought, in the test suite's
-process), longer than the 100 ms in which a fault must surface. Within the run only what it
-allocates is collected (a collection of a 3-million-object heap: 262 ms, and 0.3 ms with it
-frozen); the rest is collected after it.
+object of the process and stops all its threads meanwhile (262 ms over 3 million objects;
+in the test suite's large process the arm's log once had a 414 ms gap while a model
+thought), longer than the 100 ms in which a fault must surface. Within the run only what
+it allocates is collected (the same collection with the older objects frozen: 0.3 ms); the
+rest is collected after it.
 """
 
 from __future__ import annotations
