@@ -52,6 +52,18 @@ def plan_through(client, images: bool = True) -> PlannerAnswer:
     return ask_structured(client, request, PlannerAnswer)[0]
 
 
+def test_each_request_carries_its_answer_models_schema_in_a_dict_of_its_own():
+    """The schema text is built once per answer model; a backend that adapts the schema
+    it was given (e.g. for a server's dialect) must not change the next request's."""
+    first = PromptBook().planner(CONTEXT, "planner")
+    assert first.json_schema == PlannerAnswer.model_json_schema()
+    first.json_schema["title"] = "changed by a backend"
+    first.json_schema["properties"].clear()
+    second = PromptBook().planner(CONTEXT, "planner")
+    assert second.json_schema == PlannerAnswer.model_json_schema()
+    assert '"title": "PlannerAnswer"' in second.system
+
+
 # --- faults a retry or a second ask cures --------------------------------------------------
 
 

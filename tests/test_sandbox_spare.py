@@ -14,7 +14,7 @@ import time
 import pytest
 
 from physcap_drake.agent.sandbox import SandboxLimits, SandboxSession, SpareChild
-from physcap_drake.agent.sandbox.child_process import children_of
+from physcap_drake.agent.sandbox.child_process import children_of, scan_children_of
 
 LIMITS = SandboxLimits(cpu_s=2, compute_wall_s=5, total_wall_s=5, memory_mb=512, startup_s=5)
 # Hostile code run with the static check and the restricted builtins off: the process wall
@@ -114,3 +114,30 @@ def test_rejected_code_starts_no_child_and_its_session_kills_the_spare():
         assert session.start().kind == "rejected"
         assert spare.pid == pid  # never taken: the code did not run
     assert pid not in children_of(os.getpid()) and not os.path.exists(home)
+
+
+def _process_state(pid: int) -> str:
+    with open(f"/proc/{pid}/stat", encoding="ascii") as stat:
+        text = stat.read()
+    return text[text.rfind(")") + 2]
+
+
+def test_children_of_finds_running_and_zombie_children_as_a_scan_of_proc_does():
+    """children_of reads the kernel's per-thread lists of children: it must find what the
+    scan of every process's /proc/<pid>/stat finds, a child not yet reaped (a zombie)
+    included, for a code process must never outlive its sandbox child unnoticed."""
+    running = subprocess.Popen(["sleep", "30"])
+    zombie = subprocess.Popen(["true"])
+    try:
+        deadline = time.monotonic() + 10
+        while _process_state(zombie.pid) != "Z":
+            assert time.monotonic() < deadline, "the child never exited"
+            time.sleep(0.01)
+        listed, scanned = set(children_of(os.getpid())), set(scan_children_of(os.getpid()))
+        assert {running.pid, zombie.pid} <= listed
+        assert {running.pid, zombie.pid} <= scanned
+    finally:
+        running.kill()
+        running.wait()
+        zombie.wait()
+    assert not {running.pid, zombie.pid} & set(children_of(os.getpid()))

@@ -12,6 +12,7 @@ objects with where they appear in the image) next to the objects list.
 from __future__ import annotations
 
 import dataclasses as dc
+import functools
 import json
 from pathlib import Path
 from string import Template
@@ -61,8 +62,16 @@ def _entry_context(entry: KnowledgeEntry) -> dict:
             "unit": entry.unit, "ok": entry.ok, "note": entry.note}
 
 
+@functools.cache
 def schema_text(model: type[BaseModel]) -> str:
+    """The JSON schema of an answer model, as the prompts show it. Built once per model class
+    (pydantic takes a few milliseconds; every request of an episode needs one)."""
     return json.dumps(model.model_json_schema(), indent=1)
+
+
+def json_schema(model: type[BaseModel]) -> dict:
+    """The JSON schema of an answer model, a fresh dict the caller may change."""
+    return json.loads(schema_text(model))
 
 
 class PromptBook:
@@ -105,7 +114,7 @@ class PromptBook:
         context = ctx.as_context() | {"mode": mode} | extra_context
         return LLMRequest(role=role, system=system, prompt=prompt,
                           images=(ctx.observation.jpeg,) if self.images else (),
-                          json_schema=schema.model_json_schema(), context=context)
+                          json_schema=json_schema(schema), context=context)
 
     def planner(self, ctx: AgentContext, mode: str) -> LLMRequest:
         """mode: "planner" (PlannerAnswer), "joint_planner" (JointPlannerAnswer) or

