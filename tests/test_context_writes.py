@@ -69,6 +69,13 @@ ALLOWED = {
                                          "parameters back after a block that changed one "
                                          "(which raises: the world's masses cannot change)",
     },
+    "station/render_world.py": {
+        "GetMyMutableContextFromRoot": "the render world's own context (its private "
+                                       "SceneGraph in a diagram of its own), whose geometry "
+                                       "it registers and removes as stations lease it",
+        "FixValue": ("the render world's frame poses, set from the plant's body poses a "
+                     "camera was evaluated with, just before the image is rendered"),
+    },
     "control/planning_model.py": {
         "SetPositions": ("the planning model's own scratch contexts (the workcell's, and "
                          "ModelAtPositions' of a robot-only plant, which the mass estimator reads "

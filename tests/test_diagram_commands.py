@@ -28,7 +28,7 @@ def test_sim_writes_the_built_diagram_as_graphviz(tmp_path):
     text = dot.read_text()
     assert text.startswith("digraph")
     for system in ("station", "plant", "joint_target_interpolator", "gripper_servo",
-                   "arm_feedforward", "render_scene_graph"):
+                   "arm_feedforward", "render_camera_camera"):
         assert system in text, system
 
 

@@ -23,7 +23,7 @@ from physcap_drake.perception.phrases import PointingError
 from physcap_drake.station import ports, scene_snapshot
 
 #: The rendering sensor inside the station behind an emulated RealSense named "camera".
-_SENSOR = "rgbd_sensor_camera"
+_SENSOR = "render_camera_camera"
 
 
 @dc.dataclass

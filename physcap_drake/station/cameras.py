@@ -1,12 +1,14 @@
 """The simulated station's cameras: rendered ones (Drake `CameraConfig`), and emulated
 RealSense cameras (`!RealSense {emulate: true}`) whose rendered frames go through librealsense.
 
-Drake's `ApplyCameraConfig` also adds an LCM image publisher that renders at the camera's
-fps throughout a simulation; the station has no LCM consumers and must not pay for rendering
-nobody reads, so it builds the `RgbdSensor` from the same config itself. Images are computed
-when their output port is evaluated (a test, the perception code, a recorder), never per step.
+Drake's `ApplyCameraConfig` adds an `RgbdSensor` on the simulation's SceneGraph and an LCM
+image publisher that renders at the camera's fps throughout a simulation; the station has no
+LCM consumers and must not pay for rendering nobody reads, so it builds a `RenderCamera` from
+the same config itself, rendering in a pooled render world (`render_world.py`). Images are
+computed when their output port is evaluated (a test, the perception code, a recorder),
+never per step.
 
-An emulated RealSense renders its view with an `RgbdSensor` too (`RealSense.rendering_config`)
+An emulated RealSense renders its view with a `RenderCamera` too (`RealSense.rendering_config`)
 and feeds it to an `EmulatedRealSenseCamera`, which exports `<name>.rgb` and `<name>.depth`
 (stereo depth faults, z16, through the software device); `<name>.label` still comes from the
 renderer (simulation only). A live or recorded RealSense cannot see a simulated world and is
@@ -15,16 +17,10 @@ refused here.
 
 from __future__ import annotations
 
-from pydrake.geometry import (
-    MakeRenderEngineGl,
-    MakeRenderEngineVtk,
-    RenderEngineGlParams,
-    RenderEngineVtkParams,
-    SceneGraph,
-)
+from pydrake.geometry import SceneGraph
 from pydrake.multibody.plant import MultibodyPlant
 from pydrake.systems.framework import Diagram, DiagramBuilder
-from pydrake.systems.sensors import CameraConfig, RgbdSensor
+from pydrake.systems.sensors import CameraConfig
 
 from physcap_drake.station.ports import camera_port
 from physcap_drake.station.realsense.camera_system import (
@@ -34,44 +30,43 @@ from physcap_drake.station.realsense.camera_system import (
     RgbdCameraSystem,
 )
 from physcap_drake.station.realsense.config import RealSense
-from physcap_drake.station.render_world import RenderWorld
+from physcap_drake.station.render_camera import RenderCamera
+from physcap_drake.station.render_world import (
+    RenderWorldLease,
+    lease_render_world,
+    unique_renderers,
+)
+
+_LIVE_REALSENSE = ("camera '{name}': a simulated station's RealSense must be emulated "
+                   "(emulate: true); a live or recorded camera cannot see the simulated scene")
 
 
-def _ensure_renderer(scene_graph: SceneGraph, config: CameraConfig) -> None:
-    if scene_graph.HasRenderer(config.renderer_name):
-        return
-    renderer = config.renderer_class
-    if isinstance(renderer, RenderEngineGlParams):
-        engine = MakeRenderEngineGl(renderer)
-    elif isinstance(renderer, RenderEngineVtkParams):
-        engine = MakeRenderEngineVtk(renderer)
-    elif renderer in ("", "RenderEngineVtk"):
-        engine = MakeRenderEngineVtk(RenderEngineVtkParams(backend="EGL"))
-    else:
-        raise ValueError(
-            f"camera '{config.name}': renderer_class {renderer!r} is not supported; use "
-            "!RenderEngineVtkParams {backend: EGL} (headless) or !RenderEngineGlParams {}")
-    scene_graph.AddRenderer(config.renderer_name, engine)
-
-
-def add_cameras(builder: DiagramBuilder, plant: MultibodyPlant, world: RenderWorld,
+def add_cameras(builder: DiagramBuilder, plant: MultibodyPlant, scene_graph: SceneGraph,
                 scenario) -> None:
-    """Adds every camera of `scenario.cameras` (see the module docstring), looking at the
-    render world `world` of `plant`; the emulated RealSense cameras' depth faults are seeded
-    by `scenario.random_seed`."""
+    """Adds every camera of `scenario.cameras` (see the module docstring), looking at a
+    render world (`render_world.py`) that shows the visible geometry of `plant` (finalized,
+    registered with `scene_graph`); the emulated RealSense cameras' depth faults are seeded
+    by `scenario.random_seed`. Raises ValueError for an unsupported renderer or a live
+    RealSense."""
+    for entry in scenario.cameras:
+        if isinstance(entry, RealSense) and not entry.emulate:
+            raise ValueError(_LIVE_REALSENSE.format(name=entry.name))
+    configs = [entry.rendering_config() if isinstance(entry, RealSense) else entry
+               for entry in scenario.cameras]
+    lease = lease_render_world(plant, scene_graph.model_inspector(), unique_renderers(configs))
     for entry in scenario.cameras:
         if isinstance(entry, RealSense):
-            add_emulated_realsense(builder, plant, world, entry, scenario.random_seed)
+            add_emulated_realsense(builder, plant, lease, entry, scenario.random_seed)
         else:
-            add_camera(builder, plant, world, entry)
+            add_camera(builder, plant, lease, entry)
 
 
-def add_camera(builder: DiagramBuilder, plant: MultibodyPlant, world: RenderWorld,
-               config: CameraConfig) -> RgbdSensor:
-    """Adds one RgbdSensor posed by `config.X_PB` (relative to `config.X_PB.base_frame`, the
+def add_camera(builder: DiagramBuilder, plant: MultibodyPlant, lease: RenderWorldLease,
+               config: CameraConfig) -> RenderCamera:
+    """Adds one RenderCamera posed by `config.X_PB` (relative to `config.X_PB.base_frame`, the
     world when empty) and exports its images as `<name>.rgb`, `<name>.depth` (m, float32)
     and `<name>.label` (the body index of what each pixel sees)."""
-    sensor = _add_sensor(builder, plant, world, config)
+    sensor = _add_sensor(builder, plant, lease, config)
     builder.ExportOutput(sensor.color_image_output_port(), camera_port(config.name, "rgb"))
     builder.ExportOutput(sensor.depth_image_32F_output_port(), camera_port(config.name, "depth"))
     builder.ExportOutput(sensor.label_image_output_port(), camera_port(config.name, "label"))
@@ -79,15 +74,13 @@ def add_camera(builder: DiagramBuilder, plant: MultibodyPlant, world: RenderWorl
 
 
 def add_emulated_realsense(builder: DiagramBuilder, plant: MultibodyPlant,
-                           world: RenderWorld, entry: RealSense, seed: int):
-    """Adds an emulated RealSense (an RgbdSensor feeding an EmulatedRealSenseCamera) and
+                           lease: RenderWorldLease, entry: RealSense, seed: int):
+    """Adds an emulated RealSense (a RenderCamera feeding an EmulatedRealSenseCamera) and
     exports `<name>.rgb`, `<name>.depth` from the camera and `<name>.label` from the
     renderer. Raises ValueError for a live or recorded RealSense (not emulated)."""
     if not entry.emulate:
-        raise ValueError(f"camera '{entry.name}': a simulated station's RealSense must be "
-                         "emulated (emulate: true); a live or recorded camera cannot see the "
-                         "simulated scene")
-    sensor = _add_sensor(builder, plant, world, entry.rendering_config())
+        raise ValueError(_LIVE_REALSENSE.format(name=entry.name))
+    sensor = _add_sensor(builder, plant, lease, entry.rendering_config())
     camera = builder.AddNamedSystem(f"realsense_{entry.name}",
                                     EmulatedRealSenseCamera(entry, seed))
     builder.Connect(sensor.color_image_output_port(), camera.GetInputPort(RENDERED_RGB))
@@ -100,25 +93,26 @@ def add_emulated_realsense(builder: DiagramBuilder, plant: MultibodyPlant,
 
 
 def close_cameras(station: Diagram) -> None:
-    """Releases the camera devices of `station` (and finishes their recordings)."""
+    """Releases the camera devices of `station` (and finishes their recordings) and gives its
+    rendering cameras' world back for the next station."""
     for system in station.GetSystems():
         if isinstance(system, RgbdCameraSystem):
             system.close()
+        elif isinstance(system, RenderCamera):
+            system.release()
 
 
-def _add_sensor(builder: DiagramBuilder, plant: MultibodyPlant, world: RenderWorld,
-                config: CameraConfig) -> RgbdSensor:
-    scene_graph = world.scene_graph
-    _ensure_renderer(scene_graph, config)
+def _add_sensor(builder: DiagramBuilder, plant: MultibodyPlant, lease: RenderWorldLease,
+                config: CameraConfig) -> RenderCamera:
     color_camera, depth_camera = config.MakeCameras()
     base_frame = config.X_PB.base_frame
     parent = plant.GetFrameByName(base_frame) if base_frame else plant.world_frame()
     X_PB = config.X_PB.GetDeterministicValue()
-    # The sensor is attached to the parent frame's body; compose the frame's offset.
+    # The camera is attached to the parent frame's body; compose the frame's offset.
     X_BodyB = parent.GetFixedPoseInBodyFrame() @ X_PB
-    sensor = builder.AddNamedSystem(
-        f"rgbd_sensor_{config.name}",
-        RgbdSensor(world.frame_of(parent.body().index()), X_BodyB,
-                   color_camera, depth_camera))
-    builder.Connect(scene_graph.get_query_output_port(), sensor.query_object_input_port())
-    return sensor
+    camera = builder.AddNamedSystem(
+        f"render_camera_{config.name}",
+        RenderCamera(lease, int(parent.body().index()), X_BodyB, color_camera, depth_camera,
+                     plant.get_body_poses_output_port().Allocate()))
+    builder.Connect(plant.get_body_poses_output_port(), camera.get_input_port())
+    return camera

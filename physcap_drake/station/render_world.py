@@ -1,104 +1,344 @@
-"""The cameras' own copy of the simulated world, posed from it only when an image is taken.
+"""The cameras' own copy of the simulated world, kept warm from one station to the next.
 
-A render engine in the simulation's SceneGraph has every geometry pose pushed to it each
-time the contact solver asks for poses, every plant step, though images are taken a few
-times per episode: that costs about a third of a simulation step. The cameras therefore
-look at a second SceneGraph that holds a copy of the world's visible geometry (each geometry
-with the perception role, with its shape, pose in its body's frame and perception
-properties, so also its render label: the index of its body). Its frames follow the world's
-bodies through `RenderPoses`, whose output is computed only when an image is evaluated.
+Cameras do not look at the simulation's SceneGraph: a render engine there would have every
+geometry pose pushed to it at each plant step, though images are taken a few times per
+episode. They look at a `RenderWorld` instead: a SceneGraph in a diagram of its own, with
+one context, holding a copy of the station's visible geometry (each geometry with the
+perception role: its shape, pose in its body's frame and perception properties, so also its
+render label, the index of its body). Its frames are posed from the plant's body poses just
+before an image is rendered.
+
+A render engine's first images are slow: a new engine (or a clone, which is what a new
+context holds) builds its OpenGL pipelines and touches some 60 MB of fresh memory, about
+0.1 s per station on this project's CPU renderer. So a closed station gives its world back
+(`RenderWorldLease.release`, called by `close_station`), and the next station of the same
+process, thread and renderers borrows it (`lease_render_world`) and shows its own scene in the
+world's context: a body whose geometry is exactly a previous body's (shapes, poses on the
+body, colours, render label) takes over that body's frame, the rest of the previous scene is
+removed and the rest of the new one registered (a find_blue_cube scene of 77 geometries:
+about 4 ms when the scene is the same, 65 ms when all of it is new). A station that is dropped
+without being closed takes its world with it.
 
 The copy is taken from the world's SceneGraph as it was built, not parsed again from the
-scenario's models (parsing a scene costs about 0.3 s of CPU time).
+scenario's models.
 """
 
 from __future__ import annotations
 
 import dataclasses as dc
+import itertools
+import os
+import threading
 
 from pydrake.common.value import AbstractValue
 from pydrake.geometry import (
     FrameId,
     FramePoseVector,
     GeometryFrame,
+    GeometryId,
     GeometryInstance,
+    MakeRenderEngineGl,
+    MakeRenderEngineVtk,
+    QueryObject,
+    RenderEngineGlParams,
+    RenderEngineVtkParams,
     Role,
     SceneGraph,
+    SceneGraphInspector,
 )
+from pydrake.math import RigidTransform
 from pydrake.multibody.plant import MultibodyPlant
-from pydrake.multibody.tree import BodyIndex
-from pydrake.systems.framework import Context, DiagramBuilder, LeafSystem
+from pydrake.systems.framework import DiagramBuilder
+from pydrake.systems.sensors import CameraConfig
 
-from physcap_drake.weak_method import weak_method
+#: Frames a new world has for the bodies it follows (more when a scene needs more).
+FRAMES = 64
+#: Idle worlds kept per process, thread and set of renderers, and in all.
+IDLE_WORLDS = 2
+IDLE_WORLDS_IN_ALL = 4
 
 
-@dc.dataclass
+@dc.dataclass(frozen=True)
+class RendererSpec:
+    """One named render engine: the scenario camera's `renderer_name` and the parameters of
+    its `renderer_class`."""
+
+    name: str
+    params: RenderEngineVtkParams | RenderEngineGlParams
+
+    @property
+    def key(self) -> tuple[str, str, str]:
+        """What makes two specs the same engine (name, type and every parameter)."""
+        return self.name, type(self.params).__name__, repr(self.params)
+
+    def make(self):
+        """A new render engine of this spec."""
+        if isinstance(self.params, RenderEngineGlParams):
+            return MakeRenderEngineGl(self.params)
+        return MakeRenderEngineVtk(self.params)
+
+
+def renderer_spec(config: CameraConfig) -> RendererSpec:
+    """The render engine camera `config` asks for. Raises ValueError for a `renderer_class`
+    that is neither VTK nor GL parameters (nor their names)."""
+    renderer = config.renderer_class
+    if isinstance(renderer, RenderEngineVtkParams | RenderEngineGlParams):
+        return RendererSpec(config.renderer_name, renderer)
+    if renderer in ("", "RenderEngineVtk"):
+        return RendererSpec(config.renderer_name, RenderEngineVtkParams(backend="EGL"))
+    if renderer == "RenderEngineGl":
+        return RendererSpec(config.renderer_name, RenderEngineGlParams())
+    raise ValueError(
+        f"camera '{config.name}': renderer_class {renderer!r} is not supported; use "
+        "!RenderEngineVtkParams {backend: EGL} (headless) or !RenderEngineGlParams {}")
+
+
+def unique_renderers(configs: list[CameraConfig]) -> tuple[RendererSpec, ...]:
+    """One spec per renderer name of `configs`, the first camera's where cameras share a name
+    (as SceneGraph keeps the first renderer added under a name)."""
+    specs: dict[str, RendererSpec] = {}
+    for config in configs:
+        specs.setdefault(config.renderer_name, renderer_spec(config))
+    return tuple(specs.values())
+
+
 class RenderWorld:
-    """The cameras' SceneGraph and which of its frames follows each body of the world's plant
-    (the world body's frame is the world frame, shared by every SceneGraph)."""
+    """A SceneGraph of the cameras' own, with its renderers, showing one station's scene at a
+    time (see the module docstring). Not a system: the cameras (`RenderCamera`) call it when
+    their images are evaluated; it keeps no state of the station's simulation."""
 
-    scene_graph: SceneGraph
-    frames: dict[BodyIndex, FrameId]
+    def __init__(self, renderers: tuple[RendererSpec, ...], frames: int):
+        builder = DiagramBuilder()
+        self._scene_graph = builder.AddSystem(SceneGraph())
+        self._source = self._scene_graph.RegisterSource("render_world")
+        self._frames = [self._scene_graph.RegisterFrame(self._source, GeometryFrame(f"body_{i}"))
+                        for i in range(frames)]
+        for spec in renderers:
+            self._scene_graph.AddRenderer(spec.name, spec.make())
+        self._diagram = builder.Build()
+        self._context = self._scene_graph.GetMyMutableContextFromRoot(
+            self._diagram.CreateDefaultContext())
+        self._poses_port = self._scene_graph.get_source_pose_port(self._source)
+        self._poses = FramePoseVector()
+        for frame in self._frames:
+            self._poses.set_value(frame, RigidTransform())
+        self.key = _key(renderers)
+        #: What each frame (the world frame for anchored geometry) holds: the signature of
+        #: the body it was registered for and the registered geometries.
+        self._held: dict[FrameId, tuple[tuple | None, list[GeometryId]]] = {}
+        self._bodies: list[tuple[int, FrameId]] = []
+        self._showing = False
+        self.registered = 0  # geometries registered over the world's life
 
-    def frame_of(self, body: BodyIndex) -> FrameId:
-        """The render world's frame that moves with the plant's `body`. Raises ValueError
-        for a body without visible geometry (nothing of it is in the copy)."""
-        if body not in self.frames:
-            raise ValueError(f"body index {int(body)} has no visible geometry, so no frame "
-                             "in the cameras' world")
-        return self.frames[body]
+    @property
+    def capacity(self) -> int:
+        """How many moving bodies the world can follow."""
+        return len(self._frames)
 
+    def show(self, plant: MultibodyPlant, inspector: SceneGraphInspector) -> None:
+        """Shows a copy of every perception geometry of `plant`'s SceneGraph (`inspector`), each
+        moving body's on a frame of its own. A frame that holds exactly a body's geometry
+        (shapes, poses in the body, perception properties with the render label) from the
+        station before follows that body again without registering anything; the rest of
+        the previous station's geometry is removed. Raises ValueError when the world already
+        shows a scene or has too few frames."""
+        if self._showing:
+            raise ValueError("this render world already shows a scene; release it first")
+        scene = _visible_geometry(plant, inspector)
+        world = inspector.world_frame_id()
+        moving = [body for body in scene if body != _WORLD_BODY]
+        if len(moving) > len(self._frames):
+            raise ValueError(f"the scene has {len(moving)} moving bodies with visible "
+                             f"geometry; this render world follows {len(self._frames)}")
+        signatures = {body: _signature(inspector, ids) for body, ids in scene.items()}
+        slots: dict[int, FrameId] = {}
+        for body, signature in signatures.items():
+            candidates = [world] if body == _WORLD_BODY else self._frames
+            same = (frame for frame in candidates if frame not in slots.values()
+                    and signature is not None and self._held.get(frame, (None,))[0] == signature)
+            frame = next(same, None)
+            if frame is not None:
+                slots[body] = frame
+        for frame in [frame for frame in self._held if frame not in slots.values()]:
+            for geometry in self._held.pop(frame)[1]:
+                self._scene_graph.RemoveGeometry(self._context, self._source, geometry)
+        free = iter(frame for frame in self._frames if frame not in slots.values())
+        for body, geometries in scene.items():
+            if body in slots:
+                continue
+            slots[body] = world if body == _WORLD_BODY else next(free)
+            self._held[slots[body]] = (signatures[body], [
+                self._register(inspector, geometry, slots[body]) for geometry in geometries])
+        self._bodies = [(body, frame) for body, frame in slots.items() if body != _WORLD_BODY]
+        self._showing = True
 
-class RenderPoses(LeafSystem):
-    """Poses the render world's frames from the plant's body poses.
+    def query(self, body_poses: list[RigidTransform]) -> QueryObject:
+        """The world's query object with each frame at its body's pose in `body_poses` (the
+        plant's `body_poses` output: X_WB by body index); render images through it."""
+        for body, frame in self._bodies:
+            self._poses.set_value(frame, body_poses[body])
+        self._poses_port.FixValue(self._context, AbstractValue.Make(self._poses))
+        return self._scene_graph.get_query_output_port().Eval(self._context)
 
-    Input port: body_poses (the plant's `body_poses`, a list of RigidTransform X_WB by body
-        index). Output port: geometry_pose (FramePoseVector of the render world's frames).
-    """
+    def hide(self) -> None:
+        """Stops showing the station's scene: its frames follow no body any more. The
+        geometry stays registered until the next `show`, which keeps what it can use."""
+        self._bodies = []
+        self._showing = False
 
-    def __init__(self, frames: dict[BodyIndex, FrameId], body_poses: AbstractValue):
-        """`body_poses`: a value of the plant's body_poses port (its type)."""
-        super().__init__()
-        self._frames = [(int(body), frame) for body, frame in frames.items()]
-        self._poses = self.DeclareAbstractInputPort("body_poses", body_poses)
-        self.DeclareAbstractOutputPort("geometry_pose",
-                                       lambda: AbstractValue.Make(FramePoseVector()),
-                                       weak_method(self._output))
-
-    def _output(self, context: Context, output: AbstractValue) -> None:
-        poses = self._poses.Eval(context)
-        vector = output.get_mutable_value()
-        vector.clear()
-        for body, frame in self._frames:
-            vector.set_value(frame, poses[body])
-
-
-def add_render_world(builder: DiagramBuilder, plant: MultibodyPlant,
-                     scene_graph: SceneGraph) -> RenderWorld:
-    """Adds the render world of `plant` (finalized, registered with `scene_graph`) to
-    `builder`: a SceneGraph "render_scene_graph" with a copy of every geometry that has the
-    perception role, and its poses ("render_poses"). Add the cameras to its scene graph."""
-    inspector = scene_graph.model_inspector()
-    render = builder.AddNamedSystem("render_scene_graph", SceneGraph())
-    source = render.RegisterSource("render_world")
-    world = inspector.world_frame_id()
-    frames: dict[BodyIndex, FrameId] = {plant.world_body().index(): world}
-    for geometry in inspector.GetAllGeometryIds(Role.kPerception):
-        frame = inspector.GetFrameId(geometry)
+    def _register(self, inspector: SceneGraphInspector, geometry: GeometryId,
+                  frame: FrameId) -> GeometryId:
         copy = GeometryInstance(inspector.GetPoseInFrame(geometry),
                                 inspector.GetShape(geometry), inspector.GetName(geometry))
         copy.set_perception_properties(inspector.GetPerceptionProperties(geometry))
-        if frame == world:
-            render.RegisterAnchoredGeometry(source, copy)
-            continue
-        body = plant.GetBodyFromFrameId(frame).index()
-        if body not in frames:
-            frames[body] = render.RegisterFrame(source, GeometryFrame(
-                inspector.GetName(frame), inspector.GetFrameGroup(frame)))
-        render.RegisterGeometry(source, frames[body], copy)
-    moving = {body: frame for body, frame in frames.items() if frame != world}
-    poses = builder.AddNamedSystem("render_poses", RenderPoses(
-        moving, plant.get_body_poses_output_port().Allocate()))
-    builder.Connect(plant.get_body_poses_output_port(), poses.get_input_port())
-    builder.Connect(poses.get_output_port(), render.get_source_pose_port(source))
-    return RenderWorld(render, frames)
+        self.registered += 1
+        return self._scene_graph.RegisterGeometry(self._context, self._source, frame, copy)
+
+
+#: The world body's index: its geometry is anchored.
+_WORLD_BODY = 0
+
+
+def _visible_geometry(plant: MultibodyPlant,
+                      inspector: SceneGraphInspector) -> dict[int, list[GeometryId]]:
+    """Perception geometries of `plant` by body index (the world body first, then in the order
+    of each body's first geometry)."""
+    world = inspector.world_frame_id()
+    scene: dict[int, list[GeometryId]] = {_WORLD_BODY: []}
+    for geometry in inspector.GetAllGeometryIds(Role.kPerception):
+        frame = inspector.GetFrameId(geometry)
+        body = _WORLD_BODY if frame == world else int(plant.GetBodyFromFrameId(frame).index())
+        scene.setdefault(body, []).append(geometry)
+    return scene
+
+
+def _signature(inspector: SceneGraphInspector, geometries: list[GeometryId]) -> tuple | None:
+    """What a renderer sees of a body's `geometries`: each one's shape, pose in the body's
+    frame and perception properties. None if a property's value cannot be read here (such
+    a body's geometry is always registered afresh)."""
+    signature = []
+    for geometry in geometries:
+        properties = inspector.GetPerceptionProperties(geometry)
+        values = []
+        for group in sorted(properties.GetGroupNames()):
+            for name, value in sorted(properties.GetPropertiesInGroup(group).items()):
+                try:
+                    values.append((group, name, repr(value.get_value())))
+                except (TypeError, RuntimeError):  # a value type pydrake does not bind
+                    return None
+        signature.append((repr(inspector.GetShape(geometry)),
+                          inspector.GetPoseInFrame(geometry).GetAsMatrix34().tobytes(),
+                          tuple(values)))
+    return tuple(signature)
+
+
+_threads = threading.local()
+_thread_numbers = itertools.count()
+
+
+def _key(renderers: tuple[RendererSpec, ...]) -> tuple:
+    """(process, thread, renderers): a world is lent again only to the thread it was made in
+    (an EGL context current in one thread cannot be made current in another), and never
+    across a fork. Threads are numbered by this module, as a finished thread's identifier
+    is given to later threads."""
+    if not hasattr(_threads, "number"):
+        _threads.number = next(_thread_numbers)
+    return os.getpid(), _threads.number, tuple(sorted(spec.key for spec in renderers))
+
+
+class _Pool:
+    """Idle render worlds by key (`_key`), the least recently returned dropped first."""
+
+    def __init__(self):
+        self._idle: dict[tuple, list[RenderWorld]] = {}
+        self._returned: list[RenderWorld] = []
+        self._lock = threading.Lock()
+
+    def take(self, key: tuple, frames: int) -> RenderWorld | None:
+        with self._lock:
+            idle = self._idle.get(key, [])
+            for world in idle:
+                if world.capacity >= frames:
+                    idle.remove(world)
+                    self._returned.remove(world)
+                    return world
+        return None
+
+    def give_back(self, world: RenderWorld) -> None:
+        with self._lock:
+            same_key = self._idle.get(world.key, [])
+            if len(same_key) == IDLE_WORLDS:
+                self._forget(same_key[0])
+            if len(self._returned) == IDLE_WORLDS_IN_ALL:
+                self._forget(self._returned[0])
+            self._idle.setdefault(world.key, []).append(world)
+            self._returned.append(world)
+
+    def _forget(self, world: RenderWorld) -> None:
+        self._idle[world.key].remove(world)
+        self._returned.remove(world)
+        if not self._idle[world.key]:
+            del self._idle[world.key]
+
+    def idle(self) -> int:
+        """How many worlds wait in the pool (all keys)."""
+        with self._lock:
+            return len(self._returned)
+
+    def drop(self) -> None:
+        """Forgets every idle world."""
+        with self._lock:
+            self._idle.clear()
+            self._returned.clear()
+
+
+_POOL = _Pool()
+
+
+class RenderWorldLease:
+    """One station's use of a render world, from `lease_render_world` to `release` (which
+    `close_station` calls). Its cameras share it."""
+
+    def __init__(self, world: RenderWorld):
+        self._world: RenderWorld | None = world
+
+    @property
+    def released(self) -> bool:
+        return self._world is None
+
+    @property
+    def world(self) -> RenderWorld:
+        """The world. Raises RuntimeError after `release` (it may show another station)."""
+        if self._world is None:
+            raise RuntimeError("the station was closed, so its render world went back to "
+                               "the pool")
+        return self._world
+
+    def release(self) -> None:
+        """Stops the world showing the station's scene and gives it back to the pool for
+        the next station of this process and thread. Safe to call twice."""
+        if self._world is not None:
+            world, self._world = self._world, None
+            world.hide()
+            _POOL.give_back(world)
+
+
+def lease_render_world(plant: MultibodyPlant, inspector: SceneGraphInspector,
+                       renderers: tuple[RendererSpec, ...]) -> RenderWorldLease:
+    """A render world with `renderers`, showing the visible geometry of `plant` (finalized,
+    registered with the SceneGraph of `inspector`): an idle one of this process and thread
+    when there is one, else a new one. Release the lease when the station closes."""
+    frames = len(_visible_geometry(plant, inspector)) - 1  # not the world body
+    world = _POOL.take(_key(renderers), frames) or RenderWorld(renderers, max(FRAMES, frames))
+    world.show(plant, inspector)
+    return RenderWorldLease(world)
+
+
+def idle_render_worlds() -> int:
+    """How many render worlds wait in this process's pool."""
+    return _POOL.idle()
+
+
+def drop_idle_render_worlds() -> None:
+    """Frees the pool's idle render worlds (their engines and memory)."""
+    _POOL.drop()

@@ -18,7 +18,6 @@ from physcap_drake.station.directive_loader import with_joint_positions
 from physcap_drake.station.gripper_servo import GripperServo
 from physcap_drake.station.joint_friction import JointFriction
 from physcap_drake.station.joint_target_interpolator import JointTargetInterpolator
-from physcap_drake.station.render_world import add_render_world
 from physcap_drake.station.robot_model import (
     arm_joint_limits,
     make_controller_plant,
@@ -205,7 +204,7 @@ def MakeSimStation(scenario, meshcat: Meshcat | None = None, *,
     builder.ExportOutput(effort.get_output_port(), ports.GRIPPER_EFFORT_MEASURED)
 
     if scenario.cameras:
-        add_cameras(builder, plant, add_render_world(builder, plant, scene_graph), scenario)
+        add_cameras(builder, plant, scene_graph, scenario)
     builder.ExportOutput(plant.get_body_poses_output_port(), ports.BODY_POSES)
     if external_forces:
         builder.ExportInput(plant.get_applied_spatial_force_input_port(),
