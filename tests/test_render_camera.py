@@ -204,6 +204,17 @@ def test_a_world_released_in_another_thread_is_not_borrowed_here():
     close_cameras(diagram)
 
 
+def test_a_world_is_lent_only_to_cameras_with_the_same_renderer():
+    close_cameras(build()[0])
+    config = camera_config()
+    config.renderer_class = RenderEngineVtkParams(backend="EGL",
+                                                  default_clear_color=[0.2, 0.2, 0.2])
+    diagram = build(with_box=False, config=config)[0]
+    assert idle_render_worlds() == 1  # the first world has the default background
+    close_cameras(diagram)
+    assert idle_render_worlds() == 2
+
+
 def test_a_thread_keeps_at_most_two_idle_worlds():
     stations = [build()[0] for _ in range(3)]
     for station in stations:

@@ -31,6 +31,7 @@ import os
 import threading
 
 from pydrake.common.value import AbstractValue
+from pydrake.common.yaml import yaml_dump_typed
 from pydrake.geometry import (
     FrameId,
     FramePoseVector,
@@ -68,8 +69,8 @@ class RendererSpec:
 
     @property
     def key(self) -> tuple[str, str, str]:
-        """What makes two specs the same engine (name, type and every parameter)."""
-        return self.name, type(self.params).__name__, repr(self.params)
+        """What makes two specs the same engine (name, type and every parameter, exactly)."""
+        return self.name, type(self.params).__name__, yaml_dump_typed(self.params)
 
     def make(self):
         """A new render engine of this spec."""
