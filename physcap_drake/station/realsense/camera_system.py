@@ -7,10 +7,11 @@ so the two ports always show the same frame:
 - `RealSenseCamera` takes the frames of a live device or a recording (`PipelineRealSense`);
   a new frame is taken when the ports are evaluated at a new time.
 - `EmulatedRealSenseCamera` takes a rendered colour and depth image on its input ports
-  (`rendered.rgb`, `rendered.depth`: any renderer, e.g. an RgbdSensor in the simulated
-  scene or an emulator's), adds the stereo depth faults (drawn from the scenario's seed and
-  the evaluation time, so a run is reproducible) and pushes them through librealsense's
-  software device (`SoftwareRealSense`); the frames come back through the same frame path.
+  (`rendered.rgb`, `rendered.depth`: any renderer, e.g. the simulated station's
+  `RenderCamera`, an emulator's, or Drake's RgbdSensor), adds the stereo depth faults
+  (drawn from the scenario's seed and the evaluation time, so a run is reproducible) and
+  pushes them through librealsense's software device (`SoftwareRealSense`); the frames come
+  back through the same frame path.
 
 Neither knows which station it hangs off. `close()` releases the device (and finishes a
 recording); `close_station` calls it.
