@@ -1,55 +1,9 @@
 """AgentSystem: the agent in the diagram, deciding and running its code at discrete events.
 
-Its input ports are the station outputs its perception module reads (`camera.rgb`,
-`camera.depth` and the arm's measured joints for RGB-D perception; `camera.label` instead of
-the joints for the simulator's segmenter), so what the agent sees is exactly what is wired
-to it: no plant, no poses, no masses; and `status` (SkillStatus), the answers of the robot's
-request path. Its `request` output (RobotRequest, client "agent", sequences 1, 2, ...) is
-the top of that path: the agent is the robot's client inside the diagram. Its state is the
-agent's mind (`AgentMind`) and the code block it runs, in the Context; `agent.progress`
-publishes a summary.
+Its inputs are exactly the station outputs its perception reads, its `request` output heads
+the robot's request path, and its mind lives in its Context.
 
-Every PERIOD s (after the SkillExecutor's events and the probes', so a request that one of
-them finished is followed by the next one at the executor's next event) an
-unrestricted-update event moves the agent on as far as it can without the robot:
-
-- "idle": once a policy is attached, the episode starts: "deciding", or "failed" when the
-  start-up check found a problem (given to `attach`);
-- "deciding": the event looks through the camera ports and the policy decides and writes the
-  next code block (`AgentLoop.think`); the mind goes to "executing";
-- "executing": the event starts the block (`AgentLoop.open_block`) in the child process
-  started ahead for it (see below) and serves its calls (`sandbox.CallServer`): a call that
-  needs no robot (get_object_pose, the knowledge) is answered within the event; a robot
-  call's request is published on `request`, and the event that finds it finished on
-  `status` answers the child (the result, or the SkillRefused / SkillFailed the code may
-  catch) and takes its next call. When the code ends, a failed block holds the arm still
-  (a Wait request) before the mind takes in what the block did and goes back to "deciding".
-
-Model calls: with `background=False` (the simulated station) `think` runs inside the event,
-so simulated time stands still while models answer and robot time and metrics are
-reproducible. With `background=True` (the real arm, paced at real time) the event starts
-`think` on a worker thread and a later event collects the decision, while the diagram runs on:
-the arm holds, the recorder logs, and a fault ends the run while the model is still thinking.
-The child's own computing between calls is waited for inside the events on either station.
-
-Each block's child process is started ahead (`sandbox.SpareChild`): the first when the
-episode starts, each next one as soon as the block before it runs, so the interpreter is up
-and its imports done when the code arrives (simulated time stands still while a child
-starts: the wait is pure wall time). It is still a fresh process with its own folder for each
-block, locked down only once it has the code, and its idle wait counts against no budget.
-The spare left when the episode ends is killed with its folder.
-
-Resources, not state: the running block's child process (its CallServer), the child
-waiting for the next block and the worker thread of a thought are held in the Context as
-handles, inside the same immutable cell as the mind; an event replaces the cell, and only
-the events (and `release`, when the episode ends) act on the handles. An event that ends
-with an error closes the handles it reached (the next block's child, a started block).
-
-An arm fault (the station raises ArmFault from inside the simulator's advance) ends the run
-where it surfaces, outside any event: the episode's owner calls `release(context, fault)`,
-which ends the child or gives up on the thought and returns the final mind ("failed", kind
-"arm"); that mind is the episode's result and is not written back into a Context the fault
-left mid-step.
+Design notes: docs/design/agent.md.
 """
 
 from __future__ import annotations
@@ -153,11 +107,31 @@ class Thought:
 
 
 class AgentSystem(LeafSystem):
-    """See the module docstring. `perception` finds the objects in view (an RgbdPerception
-    or the simulator's LabelPerception; its `input_ports` become this system's); the policy
-    is attached with `attach` before the episode starts (it needs the robot API, which
-    needs the built diagram); `on_observe()` hears each look at the scene. `background`:
-    model calls run on a worker thread while the diagram runs on (the real arm)."""
+    """The agent as the robot's client inside the diagram: every `period` s (12 ms, 8 ms
+    after the skill executor's events) an event moves it on as far as it can without the
+    robot: deciding (the policy looks and writes one code block), then executing (the
+    block's sandboxed child runs; each robot call becomes a request).
+
+    `perception` finds the objects in view (an RgbdPerception or the simulator's
+    LabelPerception; its `input_ports` become this system's); the policy is attached with
+    `attach` before the episode starts; `on_observe()` hears each look at the scene.
+    `background`: model calls run on a worker thread while the diagram runs on (the real
+    arm); otherwise inside the event, so simulated time stands still while models answer.
+
+    Input ports:
+        camera.rgb, camera.depth (images): what the camera shows; depth in m.
+        camera.label (image): the simulator's segmenter, for LabelPerception only.
+        piper.position_measured (6): measured joints, rad, for RgbdPerception only (to
+            leave the arm out of the view).
+        status (SkillStatus): the request path's answer to this system's latest request.
+    Output ports:
+        request (RobotRequest): the code's current robot call, client "agent", sequence
+            numbers 1, 2, ...
+        agent.progress (AgentProgress): phase, code blocks run, OI.
+    State (abstract, changed only by the periodic event):
+        AgentState: the agent's mind (`AgentMind`: phase, blocks run, the block running),
+        the running block's child, the spare child and a background thought.
+    """
 
     def __init__(self, perception, period: float = PERIOD, *, background: bool = False):
         super().__init__()
@@ -224,8 +198,8 @@ class AgentSystem(LeafSystem):
         return _progress_of(self.mind(context))
 
     def release(self, context: Context, fault: ArmFault | None = None) -> AgentMind:
-        """Ends what the agent has running when the episode's run stops (see the module
-        docstring): the child of a running block is stopped (as by `fault`, if given, which
+        """Ends what the agent has running when the episode's run stops (see the design
+        notes): the child of a running block is stopped (as by `fault`, if given, which
         then ends the episode the way a fault inside the block does), the child waiting for
         the next block is killed, a thought is given up on. Returns the final mind; nothing
         is written into `context`."""
@@ -282,8 +256,8 @@ class AgentSystem(LeafSystem):
         return None
 
     def _advance(self, context: Context, reached: list[AgentState]) -> AgentState:
-        """Moves the agent on as far as it goes without the robot (see the module
-        docstring): the state to keep (`reached[0]` follows it, step by step)."""
+        """Moves the agent on as far as it goes without the robot (see the design
+        notes): the state to keep (`reached[0]` follows it, step by step)."""
         policy, s = self._policy, reached[0]
         status = self._status.Eval(context)
         while not s.mind.over:

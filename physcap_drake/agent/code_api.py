@@ -1,14 +1,6 @@
 """The robot functions generated code may call, and their description for the prompts.
 
-The functions are the RobotAPI's own methods (plus `breakpoint_code_block`), so the text the
-models read is generated from the same docstrings the code runs: one source of truth. Only
-these functions cross into the sandbox; the RobotAPI object itself (with its simulator) never
-does.
-
-Every call is checked in the parent before it reaches the RobotAPI: bound to the method's
-own signature, each argument checked by the kind in `PARAMETER_KINDS` (positions are three
-finite numbers, names one line of at most `MAX_NAME_CHARS` characters, ...). A call that
-does not fit is refused to the code as a TypeError or ValueError.
+Design notes: docs/design/agent.md.
 """
 
 from __future__ import annotations
@@ -39,7 +31,7 @@ PHYSX_FUNCTIONS = ("get_mass", "get_weight", "get_stiffness")
 MAX_NAME_CHARS = 120
 _POSITION = Vector(3)
 _NAME = Text(MAX_NAME_CHARS)
-#: What each parameter of each function must be (see the module docstring).
+#: What each parameter of each function must be (see the design notes).
 PARAMETER_KINDS: dict[str, dict[str, ParameterKind]] = {
     "get_object_pose": {"name": _NAME},
     "goto_pose": {"position": _POSITION, "quaternion_wxyz": OrNone(Vector(4)),

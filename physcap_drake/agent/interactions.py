@@ -1,14 +1,6 @@
 """Counting a code block's interactions with objects, from what the robot reports.
 
-An interaction is a grasp or a probe that touched an object, judged only by what a real arm
-reports (never by the simulator's ground truth):
-- close_gripper: the SkillExecutor reports that the fingers stopped on something ("holding
-  something") rather than closing fully;
-- get_mass / get_weight: the probe got as far as weighing a load (its loaded joint-torque
-  window exists: the grasp held the object);
-- get_stiffness: at least one squeeze found contact (a deformation was measured).
-A call that was refused, failed before reaching an object, or closed on nothing does not
-count. The paper's OI is the number of interactions made while exploring.
+Design notes: docs/design/agent.md.
 """
 
 from __future__ import annotations

@@ -1,50 +1,10 @@
 """The agent's policy for one episode: observe, decide, write code, run it, learn, repeat.
 
-The AgentSystem calls it at its discrete events; its state between them is an `AgentMind`
-kept in the AgentSystem's Context:
+The AgentSystem calls it at its events; its state between them is an `AgentMind` in the
+AgentSystem's Context ("deciding": `think` writes one code block; "executing": the block
+runs; then "done" or "failed"). `execute` runs a block in one blocking call instead.
 
-- in phase "deciding", `think(mind, observation)` finishes the code block just run (what
-  appeared or disappeared in view), checks whether the episode is over and, if not, lets the
-  variant's decider choose between exploring one candidate and finishing the task and has
-  the coder write one code block: the mind goes to phase "executing" holding it;
-- in phase "executing" the block runs in the sandbox and the mind takes in what it printed
-  and measured, going back to "deciding". The AgentSystem runs it event by event
-  (`open_block`: each robot call becomes a request on its port; `block_stopped` and
-  `block_done` once the code ended, with the arm held for SAFE_HOLD s between them after a
-  failure); `execute(mind)` runs it in one blocking call (the RobotAPI advances the clock).
-
-`think` reads nothing from the diagram (the robot time is read once, when it starts: the
-robot does not move while the agent decides), so the AgentSystem may run it on a worker
-thread while the diagram runs on (the real arm); a thought it gave up on (`silence`) writes
-nothing more and makes no more model calls. On the simulated station it runs inside an
-event, so simulated time stands still while models answer (and while generated code
-computes between robot calls). The agent ends the episode itself: after
-the final code block (the planner found the information sufficient, or the coder said the
-task is complete), or at the step limit, the robot-time limit, or when an agent gives no
-usable answer: the mind is then "done" or "failed". The task's success check (ground truth)
-runs only after that, the same way for every variant, and is never shown to the agents.
-
-A code block that fails goes back to the coder with its error and its code, to be written
-again for the same step (`rewrite_wanted`), as long as the episode's budget of rewrites lasts
-(`block_retries`): a final block always, an exploration only when it failed before the robot
-moved (a fault of the code: syntax, an unknown function, a refused argument; after a motion
-the planner decides again, seeing the error). A rewrite that repeats the failed code and
-fails the same way is not rewritten again: the planner decides afresh, seeing both errors.
-Beyond the budget the episode ends with the last block's error. An episode that ends early
-says why in `failure`, and what kind of reason it is in `failure_kind`: "model" (a model or
-its server failed: no usable answer, an error that retries did not cure), "limit" (steps,
-robot time, the wall clock), "code" (failed code blocks beyond the budget), "arm" (an arm
-fault) or "internal".
-
-OI counts interactions with objects made while exploring (a grasp or probe that touched an
-object, as the robot reports it: see `interactions`), not code blocks.
-
-A code block is untrusted input: each robot call it makes is checked in the parent before
-it reaches the RobotAPI (`code_api`), and its budgets are checked per call (API calls, wall
-time, robot time before each motion: at most what is left of the episode's, and what it
-adds to the scene knowledge). A block that breaks any of these ends with the reason, which
-the next model call sees; an arm fault stops the code at once (it cannot catch it) and ends
-the episode with the reason, the arm holding where it stopped.
+Design notes: docs/design/agent.md.
 """
 
 from __future__ import annotations
@@ -152,7 +112,7 @@ class AgentMind:
     entries already in the transcript. observation: the last look at the scene.
     last_decision: what the last code block was for (a failed block is written again for
     it). retries: failed blocks written again so far. failure / failure_kind: why the
-    episode ended early, and what kind of reason that is (see the module docstring).
+    episode ended early, and what kind of reason that is (see the design notes).
     """
 
     phase: Phase = Phase.IDLE
@@ -187,8 +147,8 @@ class AgentMind:
 class EpisodeOutcome:
     """How the episode went. success: the task's check (None if no check was given).
     oi: exploratory object interactions (grasps and probes that touched an object while
-    exploring). failure: why the agent stopped early ("" if it finished); failure_kind: see
-    the loop's module docstring."""
+    exploring). failure: why the agent stopped early ("" if it finished); failure_kind: "model",
+    "limit", "code", "arm" or "internal" (see the design notes)."""
 
     success: bool | None
     reason: str
@@ -201,7 +161,7 @@ class EpisodeOutcome:
 
 
 class AgentLoop:
-    """The policy of one episode (see the module docstring); it keeps no episode state of
+    """The policy of one episode (see the design notes); it keeps no episode state of
     its own: that is the AgentMind it is handed and returns.
 
     check(): the task's ground-truth check (an object with .success and .reason), run once
@@ -239,7 +199,7 @@ class AgentLoop:
 
     def think(self, mind: AgentMind, observation: Observation,
               robot_time: float | None = None) -> AgentMind:
-        """One decision (see the module docstring); `mind` must be "deciding". `robot_time`:
+        """One decision (see the design notes); `mind` must be "deciding". `robot_time`:
         the robot time now, s (read from the RobotAPI if not given; the robot does not move
         while the agent decides, so nothing else is read from the diagram meanwhile)."""
         if mind.phase != Phase.DECIDING:
@@ -456,7 +416,7 @@ class AgentLoop:
 
     def _end(self, mind: AgentMind, stop, kind: FailureKind = FailureKind.NONE) -> AgentMind:
         """Ends the episode: `stop` is (how, why) from _stop_reason (a limit) or the reason
-        of a failure of `kind` (see the module docstring)."""
+        of a failure of `kind` (see the design notes)."""
         how, failure = stop if isinstance(stop, tuple) else (Phase.FAILED, stop)
         kind = (kind or FailureKind.LIMIT) if failure else FailureKind.NONE
         if kind == FailureKind.LIMIT and mind.steps and not mind.steps[-1].ok:
@@ -484,8 +444,8 @@ class AgentLoop:
                 self.transcript.add(kind, len(mind.steps), robot_time, text, data)
 
     def _robot_time(self) -> float:
-        """The robot time now: while thinking, the one it started with (see the module
-        docstring), else the RobotAPI's."""
+        """The robot time now: while thinking, the one it started with (see the design
+        notes), else the RobotAPI's."""
         during = getattr(self._thinking, "robot_time", None)
         return self.api.robot_time if during is None else during
 
@@ -565,7 +525,7 @@ class AgentLoop:
 
 def rewrite_wanted(steps: tuple[StepRecord, ...]) -> bool:
     """Whether the last block, which failed, should go back to the coder to be written
-    again (see the module docstring): a final block, or an exploration that failed before
+    again (see the design notes): a final block, or an exploration that failed before
     the robot moved; not when it was itself a rewrite repeating the failed code and error."""
     failed = steps[-1]
     if failed.retry and len(steps) > 1 and (steps[-2].code, steps[-2].error) == (

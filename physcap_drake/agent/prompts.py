@@ -1,12 +1,6 @@
 """Builds the requests of each agent from the prompt templates in `agents/prompts/`.
 
-Templates use `$name` placeholders (string.Template); a missing value is an error, never
-silently left blank. Each request carries the rendered text (for remote models) and the same
-content as structured data in `context` (for the offline reference reasoner).
-
-With `images=False` (a text-only model) requests carry no camera image: the prompts say so
-(`view_text` instead of `view_image`) and describe the scene in words (`scene_text`: the
-objects with where they appear in the image) next to the objects list.
+Design notes: docs/design/agent.md.
 """
 
 from __future__ import annotations
@@ -76,7 +70,7 @@ def json_schema(model: type[BaseModel]) -> dict:
 
 class PromptBook:
     """The templates of one prompt folder, and the requests built from them (with the camera
-    image, or for a text-only model without it: see the module docstring)."""
+    image, or for a text-only model without it: see the design notes)."""
 
     def __init__(self, folder: Path | None = None, images: bool = True):
         self.folder = folder or agents_dir() / "prompts"

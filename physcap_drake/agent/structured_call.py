@@ -1,12 +1,6 @@
 """Asking a model for a structured answer, with a bounded number of repair attempts.
 
-The answer is looked for where it is: every JSON object in the text (outermost ones, in
-order; prose, brackets or a Markdown fence around it do not matter) is tried against the
-pydantic model, and the first that fits is the answer; a further check may still reject it.
-A malformed answer goes back to the model with what was wrong, at most `repairs` times;
-after that, `AgentAnswerError` ends the episode with the reason. Failures of the model call
-itself (LLMError: the server, the network, a cut answer) are not repaired here: they go to
-the caller.
+Design notes: docs/design/agent.md.
 """
 
 from __future__ import annotations

@@ -2,12 +2,7 @@
 what was measured, in order; and how it reads, as markdown (transcript.md) and as plain text
 (the console).
 
-The markdown reads like the paper's code-policy listings: the task's instruction first, then
-each decision with the planner's and prioritizer's answers as compact tables, each code block
-headed "# Code block N" after the coder's thought, its output and the measurements, and at
-the end the outcome: the answer the success check gave, OI and robot time. It can be written
-as the episode goes (`markdown_header`, then `entry_markdown` per entry) and once more whole
-at the end (`Transcript.as_markdown` with the summary).
+Design notes: docs/design/agent.md.
 """
 
 from __future__ import annotations

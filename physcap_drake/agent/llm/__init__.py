@@ -1,13 +1,6 @@
 """Language-model backends of the agent behind one small interface (see `base`).
 
-Remote: Gemini (`GeminiClient`), Claude (`AnthropicClient`), OpenAI (`OpenAIClient`); their
-SDKs are optional (`pip install 'physcap-drake[llm]'`) and imported only when such a client
-is built. Any OpenAI-compatible server (`OpenAICompatibleClient`: vLLM, Ollama, llama.cpp)
-over plain HTTP, no SDK needed. Offline: replay of recorded calls (`ReplayClient`) and the
-reference reasoner (through `make_llm("reference")`).
-Layers: `DeadlineClient` bounds each attempt of a call, `RetryingClient` retries transient
-failures, `RecordingClient` writes every call down (failed ones too). `ModelSettings` holds
-what the command-line flags set; `check_client` checks a server before an episode.
+Design notes: docs/design/agent.md.
 """
 
 from physcap_drake.agent.llm._common import LLMConfigError

@@ -1,13 +1,6 @@
 """The one small interface every language-model backend implements.
 
-An agent builds an `LLMRequest` (a role, a system text, a prompt, JPEG images, optionally the
-JSON schema its answer must follow) and a backend turns it into an `LLMResponse`. Every call is
-written down as a `CallRecord`, so runs can be inspected, costed and replayed.
-
-`LLMRequest.context` is a structured copy of what the prompt already says (the task text, the
-objects in view, the scene knowledge, the candidates). Remote models read only the text and the
-images; the offline reference reasoner reads the structured copy instead of parsing prose. It
-must never hold anything the prompt does not show (tests guard this).
+Design notes: docs/design/agent.md.
 """
 
 from __future__ import annotations
@@ -61,7 +54,7 @@ class LLMRequest:
     images: JPEG-encoded images sent with the prompt, in order.
     json_schema: if given, the answer must be one JSON value following this JSON Schema
         (backends that can enforce a schema are asked to).
-    context: the structured copy of the prompt's content (see the module docstring).
+    context: the structured copy of the prompt's content (see the design notes).
     """
 
     role: str

@@ -2,11 +2,7 @@
 OpenAI-compatible services): the request body built from an `LLMRequest`, and the answer read
 back from whatever came, trusting none of it.
 
-Servers differ in how they accept a schema, hence the schema mode:
-  "json_schema"  response_format of type json_schema carrying the schema (OpenAI, vLLM,
-                 recent Ollama and llama.cpp);
-  "json_object"  response_format of type json_object (plain JSON mode), schema in the text;
-  "none"         no response_format at all, schema and instruction in the text only.
+Design notes: docs/design/agent.md.
 """
 
 from __future__ import annotations

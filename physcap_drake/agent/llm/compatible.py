@@ -1,24 +1,7 @@
 """Any OpenAI-compatible server (vLLM, Ollama, llama.cpp, LM Studio, a hosted service),
 spoken to directly over HTTP, trusting nothing it sends.
 
-Not through the `openai` SDK: the SDK reads OPENAI_API_KEY, OPENAI_ORG_ID, OPENAI_PROJECT_ID
-and OPENAI_CUSTOM_HEADERS from the environment and sends them to whatever URL it is given,
-and it hides the body a broken server sent. Here a key is sent (as a bearer token) only when
-one is given (`api_key`; the factory reads it from the variable `--api-key-env` names);
-nothing is read from the environment. No extra package is needed.
-
-Every failure is an LLMError that names the server (its URL), the model and the role, and
-quotes what came back:
-- no connection, a broken connection, a body cut short or not JSON (an HTML page from a
-  proxy with HTTP 200, ...): TransientLLMError, retried by `RetryingClient`;
-- no complete answer within `timeout_s` (the whole exchange, not one read): LLMTimeout;
-- HTTP 408/429/5xx: retried (with the server's Retry-After); other statuses: LLMError;
-  an image the model cannot take (a text-only model: vLLM answers 400, llama.cpp 500):
-  LLMError at once, saying to run without images;
-- finish reason "length": the request is sent again with more room for the answer
-  (`_common.more_room`), not handed on as broken JSON;
-- a prompt the server evidently cut to fit a small context window (it reports far fewer
-  prompt tokens than the prompt's text can have, as Ollama does silently): LLMError.
+Design notes: docs/design/agent.md.
 """
 
 from __future__ import annotations
@@ -60,7 +43,7 @@ IMAGE_REFUSAL = re.compile(r"image|vision|multi-?modal|mmproj", re.IGNORECASE)
 
 class OpenAICompatibleClient:
     """A chat model on an OpenAI-compatible server at `base_url` (e.g.
-    http://localhost:8000/v1). See the module docstring for what it does with each failure.
+    http://localhost:8000/v1). See the design notes for what it does with each failure.
 
     timeout_s: the deadline of one HTTP exchange, s (all of it: connecting, waiting, reading).
     schema_mode: see `chat_format`. images: False for a text-only model (the agent then

@@ -1,19 +1,7 @@
 """A total deadline for each model call, for any backend, and calls that are started now and
 collected later.
 
-`DeadlineClient.start(request)` hands the call to a worker thread and returns a `PendingCall`
-at once; `PendingCall.result()` collects the answer, waiting at most until the call's
-deadline (`deadline_s` after it started): then LLMTimeout, however the server dribbles its
-answer. `complete(request)` is the two in a row. (An owner that works by events, like the
-real arm's AgentSystem, can start a call in one event and collect it in a later one.)
-
-A call whose time is up is abandoned: its answer, if it ever comes, is dropped. Its worker
-ends by itself, since every backend bounds its own reads (the OpenAI-compatible client stops
-reading at this same deadline).
-
-Whatever the inner client raises that is not an LLMError (an SDK surprise, a decoding error
-deep in a library) becomes an LLMError naming the backend and model: nothing a server sends
-can make a call raise anything else.
+Design notes: docs/design/agent.md.
 """
 
 from __future__ import annotations
@@ -34,7 +22,7 @@ from physcap_drake.agent.llm.base import (
 
 
 class PendingCall:
-    """A call under way (see the module docstring). `deadline` is on time.monotonic()."""
+    """A call under way (see the design notes). `deadline` is on time.monotonic()."""
 
     def __init__(self, client: LLMClient, request: LLMRequest, deadline_s: float):
         self.request = request
@@ -53,7 +41,7 @@ class PendingCall:
             self._response = client.complete(self.request)
         except LLMError as error:
             self._error = error
-        except Exception as error:  # noqa: BLE001 - see the module docstring
+        except Exception as error:  # noqa: BLE001 - see the design notes
             self._error = LLMError(f"{self._where}: the call failed with "
                                    f"{type(error).__name__}: {one_line(str(error), 300)}")
             self._error.__cause__ = error

@@ -1,18 +1,7 @@
 """Building a language-model client from a short text spec (what the CLI and the agent
 configuration files name).
 
-Specs:
-  reference                      the offline rule-based reasoner (the default; no key needed)
-  gemini                         Gemini via google-genai (API key or Vertex AI)
-  anthropic                      Claude via the anthropic SDK
-  openai                         OpenAI via the openai SDK
-  openai-compatible:<base_url>   an OpenAI-compatible server, e.g. http://localhost:8000/v1
-                                 (plain HTTP; a key only with api_key / --api-key-env)
-  replay:<path.jsonl>            answers replayed from a recording
-
-A remote backend is wrapped in a `DeadlineClient` (the total deadline of each attempt) and a
-`RetryingClient`; every client is wrapped in a `RecordingClient`, the outermost layer, whose
-`records` hold the calls made (failed ones too).
+Design notes: docs/design/agent.md.
 """
 
 from __future__ import annotations
@@ -52,7 +41,7 @@ _REMOTE: dict[str, type] = {
 
 
 def make_llm(spec: str | ModelSettings, model: str | None = None, **options: Any) -> LLMClient:
-    """Build the client named by `spec` (see the module docstring), or described by a
+    """Build the client named by `spec` (see the design notes), or described by a
     `ModelSettings` (whose own model and options are used; `options` may add more).
 
     `model` overrides the backend's default model; the offline backends (reference,

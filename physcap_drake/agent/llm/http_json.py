@@ -1,12 +1,6 @@
 """One HTTP exchange with a model server, with the standard library, under a total deadline.
 
-`exchange(...)` sends one request and reads the whole answer, or raises an LLMError that says
-what went wrong in words a user can act on. The deadline covers everything (connecting,
-waiting for the status line, every read of the body): before each blocking step the
-socket's timeout is set to the time that is left, so a server that trickles its answer in
-slow pieces is cut off on time, not one read timeout after each piece.
-
-Nothing from the environment is used: no proxy variables, no netrc, no default headers.
+Design notes: docs/design/agent.md.
 """
 
 from __future__ import annotations

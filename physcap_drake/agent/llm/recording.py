@@ -1,14 +1,6 @@
 """Writing down every language-model call as a `CallRecord`, answered or failed.
 
-`RecordingClient` sits outermost (around a `RetryingClient` when there is one), so a record
-holds the answer (or the error) the agent actually got, the wall time it waited and how many
-attempts it took. Records are kept in memory, can be saved as JSON Lines and loaded back for
-replay, and each one is also handed to an optional `on_record` callback as soon as it exists.
-Because failures are recorded too, a replay of a run that ended on a server error ends the
-same way, at the same call.
-
-The outermost layer also keeps the episode's wall-clock limit (`stop_calls_at`): a call asked
-for after it is refused with EpisodeTimeUp, and recorded like any other failure.
+Design notes: docs/design/agent.md.
 """
 
 from __future__ import annotations

@@ -1,18 +1,6 @@
 """The start-up check of a model server, before an episode begins.
 
-For an OpenAI-compatible server (`check_client` does nothing for other backends):
-1. GET /models: the model must be among those served (else the error lists them); the
-   model's context window, where the server says it (vLLM `max_model_len`, llama.cpp's
-   `n_ctx` from /props, `context_length` and the like), must hold the agent's prompts;
-   where it does not (Ollama), the check's line carries a warning;
-2. one tiny request, with a tiny image unless the model is set up as text-only: it must be
-   answered. A refused image with the same request answered without it means a text-only
-   model; a refused response_format means another --schema-mode.
-
-A passing failure (a 429 or 5xx, an HTML page or a cut body with HTTP 200, a broken
-connection, a timeout) is retried as the client's own calls are (its `RetryingClient`: the
-same number of attempts and waits). Every problem is an LLMError naming the server, on one
-line, saying what to change.
+Design notes: docs/design/agent.md.
 """
 
 from __future__ import annotations
@@ -47,7 +35,7 @@ _TINY_SCHEMA = {"title": "Check", "type": "object",
 
 
 def check_client(client: LLMClient, context_needed: int = CONTEXT_NEEDED) -> str:
-    """Checks the server behind `client` (see the module docstring); returns one line
+    """Checks the server behind `client` (see the design notes); returns one line
     describing what was found ("" for backends that are not checked)."""
     backend = innermost(client)
     if not isinstance(backend, OpenAICompatibleClient):
@@ -66,7 +54,7 @@ def _retrying_layer(client: LLMClient) -> RetryingClient | None:
 
 
 class ServerCheck:
-    """One check of one server (see the module docstring); `run()` does it."""
+    """One check of one server (see the design notes); `run()` does it."""
 
     def __init__(self, client: OpenAICompatibleClient, context_needed: int):
         self.client = client

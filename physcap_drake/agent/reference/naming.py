@@ -1,17 +1,6 @@
 """Which object in the latest view the reference reasoner means by a name from an earlier one.
 
-Perception names the objects afresh at every observation. An object it sees differently
-after a code block (a squeezed avocado, flatter now, seen as a "dark object") comes back
-under another name, and its old name is gone from the view. The reasoner knows objects by
-the names they had when it chose or measured them (a candidate, a knowledge entry), but its
-code must use the names of the latest view, the only ones get_object_pose accepts.
-
-`current_name` follows an object through the steps so far, from the request's context alone:
-an object that went out of view during a step was replaced by the objects that came into
-view in the same step (the step's "disappeared" and "appeared" lists). Of those still in
-view, it keeps the ones whose look fits what the object was (`subject`, the category the
-reasoner chose it as): the same category, or one perception could not name (a changed
-look). Exactly one must be left; otherwise `ObjectNotInView` says why.
+Design notes: docs/design/agent.md.
 """
 
 from __future__ import annotations

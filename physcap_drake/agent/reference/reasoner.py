@@ -1,15 +1,6 @@
 """ReferenceReasoner: the offline default "model", a rule-based stand-in for an LLM.
 
-It answers the planner, prioritizer and coder requests from the request's structured
-context (the same content as the prompt: the task text, the objects in view with their
-visible attributes, the measurements and the steps so far) and nothing else. It reads the
-goal with `task_reading`, judges objects by `priors`, and writes code from the templates in
-`agents/code/`, naming objects as the latest view names them (`naming`: an object perception
-renamed after a block is followed to its new name; a measurement is kept under it). Its only
-randomness comes from its seed (the trial's): the vision-only coder's guess, and the order
-of candidates that look equally likely (a random rank per object name, the same all episode
-long), so that ties are not broken by position in the image, which would make its
-interaction count depend on where the answer happens to stand.
+Design notes: docs/design/agent.md.
 """
 
 from __future__ import annotations
@@ -44,7 +35,7 @@ COSTS = {"get_mass": "medium", "get_stiffness": "high", "lift_and_look": "medium
 
 
 class ReferenceReasoner:
-    """Answers agent requests by rule (see the module docstring)."""
+    """Answers agent requests by rule (see the design notes)."""
 
     name = "reference"
 

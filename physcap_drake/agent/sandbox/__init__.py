@@ -1,12 +1,6 @@
 """The sandbox that runs LLM-generated code: a static check, then a locked-down child process.
 
-`run_sandboxed(code, api, limits)` is the blocking entry point (`runner`); `SandboxSession`
-(`session`) is the same run in explicit steps, and `CallServer` (`runner`) serves its calls
-for an owner that drives it event by event (both runners share it).
-The parent trusts nothing the child sends: `messages` checks every message, `signatures`
-every call's arguments, `budget` the block's budgets per call. `child` is the child's side,
-`spare` a child started ahead of its block, `ast_check` and `policy` the filters, `lockdown`
-and `seccomp` the process wall, `protocol` the frames between the two.
+Design notes: docs/design/agent.md.
 """
 
 from .ast_check import CodeRejected, check_code

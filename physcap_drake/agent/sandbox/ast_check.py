@@ -1,26 +1,6 @@
 """The static check of generated code: the first filter, before any process is started.
 
-Everything is judged on the syntax tree, by allow-list: only the node types in `_ALLOWED_NODES`
-may appear, only the modules in `policy.ALLOWED_MODULES` may be imported, and every name,
-attribute, parameter and keyword is checked against `policy`.
-
-Decisions, for the record:
-
-- Allowed: functions (`def`, `lambda`, decorators), simple classes (no keyword arguments such
-  as `metaclass=`), comprehensions and generator expressions, `try`/`except`/`finally` (the
-  robot API raises SkillRefused and SkillFailed, which code may catch), `with` (harmless: the
-  only context managers in reach are numpy's, such as `np.errstate`), `assert`, `raise`,
-  `del`, the walrus operator and f-strings (their fields are ordinary expressions, checked
-  like any other).
-- Rejected: `global` and `nonlocal`, `yield` (generator functions; nothing needs them and
-  they hand out frames), `async`/`await`, `match` (class patterns look attributes up by name
-  without an attribute node), `type X = ...` aliases and type parameters, star imports,
-  relative imports, and any name or attribute starting with `_` (except the lone `_`).
-- `str.format` is rejected as an attribute, and the `format` builtin as a name: a format
-  string such as "{0.__class__}" looks attributes up at run time, where no check sees them.
-
-This is a filter, not the wall: numpy alone reaches files, `os` and `ctypes` through
-attributes no static check can enumerate. The wall is the child process (see `runner`).
+Design notes: docs/design/agent.md.
 """
 
 from __future__ import annotations

@@ -1,18 +1,6 @@
 """The budgets of one code block, checked per call from readings the caller passes in.
 
-`BlockBudget` holds what a block may spend (calls, its own wall time, robot time,
-knowledge) and checks it at two moments of every API call: `before_call` (before the call
-is made: the call count, the own wall time, and, for a motion, the robot time) and
-`after_call` (after it returned: the own wall time and what the block added to the scene
-knowledge). Each check takes the readings (monotonic clock, robot time, knowledge size) as
-arguments and returns a `Stop` or None, so any owner of a block (the blocking runner, the
-event-driven AgentSystem) can apply them. Pure: it reads no clock or robot itself.
-
-The block's own wall time is the wall time since the code started minus the time the
-parent spent answering its calls (from `call_taken`, when the parent took a call, to
-`after_call`, when its answer is about to be sent): the robot's motions, and the simulation
-of them, however slow the host is, do not count; the code computing, printing, or the parent
-idling while the code runs, do.
+Design notes: docs/design/agent.md.
 """
 
 from __future__ import annotations
@@ -43,7 +31,7 @@ class Meters:
 
 
 class BlockBudget:
-    """What one block may still spend (see the module docstring).
+    """What one block may still spend (see the design notes).
 
     `robot_time_s`: the robot time this block may spend (s), at most limits.robot_time_s;
     pass less when the episode has less left. The start readings are taken by `start`.
@@ -74,7 +62,7 @@ class BlockBudget:
         self._taken_at = now
 
     def own_wall_s(self, now: float) -> float:
-        """The block's own wall time at `now` (s; see the module docstring)."""
+        """The block's own wall time at `now` (s; see the design notes)."""
         end = now if self._taken_at is None else self._taken_at
         return end - self._started - self._answering
 

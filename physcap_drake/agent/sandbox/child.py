@@ -1,25 +1,6 @@
 """The child process that runs generated code.
 
-Started by `runner` through a tiny bootstrap that loads this folder as a standalone package,
-so neither drake nor the rest of physcap_drake is ever imported here: only the standard
-library, numpy, pyseccomp (for the syscall filter) and the sandbox's own small modules. The steps:
-
-1. Move the protocol pipes off fds 0 and 1 and put /dev/null there, so nothing that writes to
-   stdout (numpy's own print calls, C code) can corrupt the protocol.
-2. Import numpy (with its allowed submodules) and math and touch what numpy loads on first
-   use, while files can still be opened. Nothing here depends on the start message, so a
-   child started ahead of its code block (`spare`) has done it all before the code arrives.
-3. Read the start message: the code, the robot API's function names, the limits (the
-   test-only "raw" runs import a few more modules now).
-4. Lock down (see `lockdown` and `seccomp`). If a PID namespace was made, fork: the new
-   process (the namespace's first) runs the code, this one only waits for it and exits with
-   its status (128 + signal number if it was killed).
-5. Send "ready" with the isolation achieved, run the code in a namespace with restricted
-   builtins and one stub per API function, then send "done" and exit.
-
-Each stub sends a "call" and waits for the parent's "return" or "raise". Printed text is sent
-as "out" messages: before every call, before "done", and while printing, at least every 20 ms
-or 4096 characters, so the parent keeps what was printed even if it has to kill the code.
+Design notes: docs/design/agent.md.
 """
 
 from __future__ import annotations
@@ -96,7 +77,7 @@ class _Session:
         self._isolation: list[str] = []
 
     def lock_down(self) -> None:
-        """Build the wall (see the module docstring); what the code may use was loaded
+        """Build the wall (see the design notes); what the code may use was loaded
         before the start message (`_load_modules`)."""
         if self._raw:
             for name in _RAW_PREIMPORTS:

@@ -1,15 +1,6 @@
 """The sandboxed child as its parent handles it: start, talk, kill, reap.
 
-`ChildProcess.start` runs a fresh interpreter (`-I -B`: no environment variables, no user
-site, no bytecode written) in its own session, with an environment built from nothing
-(PATH, LANG, HOME and TMPDIR pointing at the private folder, one BLAS thread) and the private
-folder as its working directory. Its stdin and stdout are the protocol pipes, its stderr a
-third pipe whose last few kilobytes are kept for diagnosis.
-
-All reads and writes have deadlines and never block past them; frames are checked for size
-as soon as their header arrives. `terminate` kills the code's process first (so its own
-parent can reap it), then the whole process group, and reaps the child: nothing is left
-running, and no zombie is left behind.
+Design notes: docs/design/agent.md.
 """
 
 from __future__ import annotations

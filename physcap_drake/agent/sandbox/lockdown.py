@@ -1,32 +1,6 @@
 """The process wall, built by the child around itself before it runs generated code.
 
-Each step is tried and recorded; a step the kernel refuses (EPERM, EINVAL, ENOSYS: no user
-namespaces for unprivileged users, a container without the right capabilities, ...) is
-skipped, and what was achieved is reported to the parent. The steps, in order:
-
-1. `close_other_fds`: only the two protocol pipes and 0/1/2 (now /dev/null and the stderr
-   pipe) stay open.
-2. `enter_namespaces`: new network, mount, IPC and PID namespaces (as root: directly; as any
-   other user: inside a new user namespace). A new network namespace has no interfaces but a
-   downed loopback; a new PID namespace means the code cannot name, and so cannot signal,
-   any process outside it, the parent included.
-3. `drop_root`: if we run as root, become nobody (no groups) so the code cannot signal or
-   ptrace the parent, write its files, or raise its own limits.
-4. (in the process that runs the code, after the PID-namespace fork) `set_rlimits`: CPU
-   seconds, address space, no new processes or threads, no file data written, few open
-   files, no core dumps; then `seccomp.install` loads an allow-list of system calls: only
-   those the code's process needs (memory, the open pipes, clocks, its own signal handlers,
-   exiting) pass; making processes, signalling, opening files, sockets, pipes, SysV IPC and
-   changing namespaces, mounts, ids or limits fail with EPERM.
-   That process also asks to be killed if its parent dies (`die_with_parent`).
-
-Where the wall is thin: with neither a PID namespace nor seccomp (an unprivileged user on a
-kernel without user namespaces, on a machine without libseccomp), code that got
-past the filters runs under the parent's own user id and could signal that user's other
-processes (fork is still stopped by RLIMIT_NPROC). `CodeOutcome.isolation` says which case
-a machine is in.
-
-Standard library only.
+Design notes: docs/design/agent.md.
 """
 
 from __future__ import annotations

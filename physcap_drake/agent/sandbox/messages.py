@@ -1,12 +1,6 @@
 """Every message from the child, checked in the parent before anything reads it.
 
-The child runs generated code, so its messages are the code's to forge: each one is checked
-here against the protocol (see `protocol`): exact keys, types, bounded text, known names.
-`read_message` turns a decoded frame into one typed message, or raises ProtocolError (the
-child broke the protocol: the parent stops it) or returns a `RefusedCall` (a call whose
-arguments do not fit the function's signature: the code receives the error and goes on).
-
-Pure: no processes, no I/O, no clock.
+Design notes: docs/design/agent.md.
 """
 
 from __future__ import annotations

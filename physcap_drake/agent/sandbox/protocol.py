@@ -1,31 +1,6 @@
 """The messages between the sandboxed child and its parent.
 
-A frame is a 4-byte big-endian length followed by that many bytes of ASCII JSON (non-ASCII
-text is escaped, so lone surrogates survive too). Never pickle: the parent must not run
-anything the child chose, and `json.loads` only builds plain values. NaN and infinities are
-written as JSON's common extension tokens (NaN, Infinity, -Infinity), which `json` reads back.
-
-A frame may hold at most `MAX_MESSAGE_BYTES`; a bigger one from the child is a protocol
-violation and the parent kills it. The parent's "start" frame alone may hold up to
-`MAX_START_BYTES`, enough for any code the static check accepts (100 000 characters, each
-at most 12 bytes escaped).
-
-Messages are dicts with a "t" (type) key:
-
-    parent -> child   start   {"code", "api": [names], "limits": {...}, "raw": bool}
-                      return  {"value"}
-                      raise   {"type": class name, "message"}
-    child -> parent   ready   {"isolation": [what the lockdown achieved]}
-                      out     {"text": printed text since the last "out"}
-                      call    {"name", "args": [...], "kwargs": {...}}
-                      done    {"error": null or {"type", "message", "line", "memory"},
-                               "truncated": whether output was cut at the limit}
-
-Values on the wire are None, bools, numbers, strings, lists and dicts with string keys.
-`to_wire` turns numpy arrays and scalars into these on the way out; `from_wire` (used in the
-child only) turns lists of numbers back into numpy float arrays.
-
-Standard library and numpy only: the child loads this before it locks itself down.
+Design notes: docs/design/agent.md.
 """
 
 from __future__ import annotations

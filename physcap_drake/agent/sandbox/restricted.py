@@ -1,16 +1,6 @@
 """The world generated code runs in, inside the child: its builtins, modules and output.
 
-- `OutputBuffer` captures print (and anything numpy or warnings write to sys.stdout and
-  sys.stderr) up to a character limit, then adds one marker line and drops the rest.
-- `SandboxedModule` stands in for numpy, its allowed submodules and math: attributes the
-  policy forbids, and modules that are not allowed, raise AttributeError; nothing can be
-  assigned. It is the runtime twin of the static attribute check.
-- `make_builtins` builds the restricted `__builtins__`: plain functions and types, the
-  exception classes of `policy`, the robot API's errors, print, and an `__import__` that only
-  admits the allowed modules.
-- `error_from_parent` rebuilds an exception the robot API raised in the parent.
-
-Standard library only, plus `policy`.
+Design notes: docs/design/agent.md.
 """
 
 from __future__ import annotations

@@ -1,30 +1,7 @@
 """Serve generated code's robot API calls: blocking until it ends, or step by step for an
 owner that waits on its own (the AgentSystem, between its events).
 
-`CallServer` holds the serving logic both use. It drives one `session.SandboxSession`: the
-static check (rejected code never starts a process), the child started in a private
-temporary folder, the child's API calls served one at a time, here in the parent. Each call
-reaches its function only after the parent checked it against the function's signature
-(`signatures`): arrays arrive as numpy arrays where the spec says so, plain values
-otherwise. The result goes back to the code; if the function raised, the code receives an
-exception of the same class name (SkillRefused, ...) it may catch, unless the exception is
-one of `fatal`: then the code is stopped at once, without a reply, and the outcome's kind is
-"fault" (an arm fault must never be caught by generated code).
-
-A function may also answer in steps: it returns a generator, which yields each thing it
-must wait for (an "action", e.g. a skill request for the robot) and is sent what came of it
-(e.g. the request's status); its return value (or the exception it raises) answers the call.
-The server stops at each action (`Waiting`) and goes on when its owner `resume`s it with the
-action's result. `run_sandboxed` is the blocking owner: it hands each action to `wait`.
-
-Limits (see `limits.SandboxLimits`), enforced in the parent whatever the child does: CPU
-and memory (rlimits the child sets on itself), compute and total wall time, API calls,
-robot time (before each motion), what the block adds to the knowledge (after each call),
-and output (cut, with a marker; not an error). Anything the child does that breaks the
-protocol stops it. On every ending the whole process group is killed and reaped, and the
-temporary folder is deleted. Never raises for anything the code or the API does (except
-a BaseException such as KeyboardInterrupt raised by the API, which passes through after
-the child was stopped).
+Design notes: docs/design/agent.md.
 """
 
 from __future__ import annotations
@@ -64,7 +41,7 @@ def _then(steps: Generator, finish: Callable[[Any], Any]) -> Generator:
 
 
 class CallServer:
-    """Serves the calls of one session (see the module docstring). `start()`, then, while
+    """Serves the calls of one session (see the design notes). `start()`, then, while
     it returns `Waiting`, `resume(result)` with what came of the action; both return how
     the run ended once it is over (a CodeOutcome). `abort(error)` stops the code at once,
     as a fatal error of the call that waits; `close()` kills whatever is left."""

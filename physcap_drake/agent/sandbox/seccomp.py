@@ -1,21 +1,6 @@
 """The syscall filter of the code's process: an allow-list built with libseccomp.
 
-Only the system calls in `ALLOWED` may be made; every other one fails with EPERM. The list
-fails closed: a call it does not name (a new one the kernel adds, one nobody thought of) is
-refused. What is left out, and so refused: making processes or threads and running
-programs; sending signals (to anything, the parent included) and tracing; opening files
-and changing the file system; sockets and pipes; SysV IPC (shared memory, message queues,
-semaphores), memfd, io_uring, bpf, userfaultfd, keyrings and the other routes to kernel
-memory that the address-space limit does not count; namespaces, mounts, ids,
-capabilities, and setting resource limits. A call made through a foreign ABI (32-bit or
-x32 on x86_64) kills the process.
-
-libseccomp (through `pyseccomp`, which binds the system's libseccomp.so.2) resolves the
-names for the machine's own architecture, so one list serves x86_64, aarch64 and the rest;
-a name an architecture does not have (aarch64 has no `open`) is skipped. Without
-libseccomp, `install` returns False and the child reports no "seccomp" isolation.
-
-Standard library and pyseccomp only: the child loads this before it locks itself down.
+Design notes: docs/design/agent.md.
 """
 
 from __future__ import annotations

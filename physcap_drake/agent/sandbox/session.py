@@ -1,29 +1,6 @@
 """One code block's run in the sandbox, step by step: the parent's side of the conversation.
 
-A `SandboxSession` is driven by its owner in explicit steps, so the same object serves a
-blocking caller (`runner.run_sandboxed`) and an event-driven one:
-
-    session.start()          static check, start the child (or take the spare child
-                             given) and send it the code, wait for "ready"
-    session.next_call()      the next checked API call the code makes, or how the run ended
-    session.answer(value)    reply to that call with its result ...
-    session.answer_error(e)  ... or with the error it raised (the code can catch it)
-    session.abort(kind, why) end now: the child is killed and never hears of it
-    session.close()          kill and reap whatever is left, delete the private folder
-
-Each step returns a `CodeOutcome` once the run is over (then every later step returns the
-same outcome). Nothing the child sends is used before `messages.read_message` checked it;
-a call whose arguments do not fit its function's signature is answered with a TypeError or
-ValueError here, without reaching the owner. The block's budgets (`budget.BlockBudget`)
-are checked before and after every call, from the owner's `Meters`. Time spent between
-`next_call` returning a call and its answer is the owner's: it counts neither as the code's
-computing time nor as the block's own wall time (`budget`), so a slow simulation of the
-robot's motions cannot use up the code's budgets.
-
-What the parent sends is its own responsibility: the start message has room for any code the
-static check accepts (a larger one, possible only without the check, is rejected with that
-reason); a result that cannot be sent, or an oversized error message, is
-answered as a RuntimeError or cut short; none of these is ever blamed on the child.
+Design notes: docs/design/agent.md.
 """
 
 from __future__ import annotations
@@ -62,7 +39,7 @@ class _Ended(Exception):
 
 class SandboxSession:
     """One run of `code` against `api` (name -> function or ApiFunction; plain functions
-    are checked against their own signatures). See the module docstring for the steps.
+    are checked against their own signatures). See the design notes for the steps.
 
     limits: SandboxLimits() if not given. meters: where robot time and knowledge size are
     read for the budgets. robot_time_s:

@@ -1,19 +1,6 @@
 """What the arguments of each robot API function must be, checked in the parent.
 
-The child's own argument checks run inside the process generated code controls (an `ndarray`
-subclass can override `tolist` and send whatever it likes), so the parent trusts none of
-them: every call is bound to the function's real signature and each argument is checked
-here, in the parent, by the kind its parameter declares. A bad call is refused to the code
-as a `Refused` error (TypeError or ValueError with a message naming the function and the
-parameter); nothing unchecked reaches the function.
-
-Parameter kinds: `Vector(n)` (n finite numbers, delivered as a float numpy array), `Text`
-(one line of printable text, at most `max_chars` characters), `Number` (a finite number in
-a range), `OrNone(kind)` (None or the kind), and `PlainValue` (any JSON value, bounded in
-depth, size and string length, numbers finite: the default for functions that declare
-nothing, such as those of tests).
-
-Pure: no processes, no I/O.
+Design notes: docs/design/agent.md.
 """
 
 from __future__ import annotations

@@ -1,19 +1,6 @@
 """A child started ahead of its code block: a pool of one.
 
-Starting a child costs about a quarter of a second of wall time (a fresh interpreter,
-numpy, pyseccomp, the modules the code may use), most of it before the child even reads
-its start message. A `SpareChild` is such a child, started before its block's code is known
-(in its own private folder, as `spawn_child` starts every child), waiting for the start
-message: `SandboxSession(..., spare=...)` takes it over and sends that message at once.
-
-Isolation is the same as for a child started when the code arrives: a spare has run no
-code, it is handed to one session only (`take` works once), and it locks itself down only
-after it read the start message, as every child does. While it waits, it holds no budget of
-any block: the session's start-up deadline and the block's wall time begin after `take`.
-
-Its owner closes it when it is no longer wanted (`close`: the child is killed and reaped,
-its folder deleted). A spare that is neither taken nor closed is closed when it is garbage
-collected or when the interpreter exits, so none outlives its owner.
+Design notes: docs/design/agent.md.
 """
 
 from __future__ import annotations
@@ -49,7 +36,7 @@ def discard(child: ChildProcess, home: str) -> None:
 
 class SpareChild:
     """One child started now, waiting for the start message of a later code block (see the
-    module docstring). `take` hands it over once; `close` discards it if it was not taken."""
+    design notes). `take` hands it over once; `close` discards it if it was not taken."""
 
     def __init__(self) -> None:
         child, home = spawn_child()
