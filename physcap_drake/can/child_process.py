@@ -1,13 +1,6 @@
 """ChildProcess: a Python function run in a fresh interpreter, talked to over a pipe.
 
-Like multiprocessing's spawn start method (a new interpreter, nothing inherited but what is
-handed over), but the child imports only the module of its function, not the parent's
-main module again (a `physcap` command line would otherwise be imported twice), and file
-descriptors (a socket end, shared memory) are handed over as such. The child runs
-`function(conn, *args)`, `args` being sent pickled over the pipe `conn`; when the parent
-goes away, the pipe closes and the child's function sees EOFError.
-
-    python -m physcap_drake.can.child_process <module:function> <pipe fd>
+Design notes: docs/design/can.md.
 """
 
 from __future__ import annotations

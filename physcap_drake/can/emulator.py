@@ -1,22 +1,6 @@
 """PiperEmulator: a virtual PiPER on a python-can bus, answering like the arm.
 
-It runs the emulated firmware (`firmware.Firmware`) in its own thread: every 1/rate s it
-applies the frames that arrived (answering queries and settings at once), runs one
-firmware cycle and sends the arm's feedback: status (0x2A1), end pose (0x2A2-0x2A4),
-joints (0x2A5-0x2A7), gripper (0x2A8), driver high-speed feedback (0x251-0x256) and, every
-fifth cycle, low-speed feedback (0x261-0x266).
-
-How the arm moves is up to its motion backend: `motion.KinematicMotion` puts the joints on
-their reference and takes holding torques from an optional `gravity_torque(q)` model;
-`station.simulated_motion.SimulatedMotion` runs the simulated station (a MultibodyPlant scene with
-the task's objects), so joint torques and gripper effort come from its physics. Torques go
-on the bus as motor currents with the firmware's scaling. A slow world is wrapped in a
-`paced_world.PacedWorld`, which steps it in a thread of its own so the cycle never waits
-for its physics.
-
-The loop keeps count of its own lateness (`timing()`: cycles that started late, the
-largest delay, spells with their times, and the paced world's figures): a host whose
-watchdog trips can tell the emulator's stall from a fault of the link.
+Design notes: docs/design/can.md.
 """
 
 from __future__ import annotations

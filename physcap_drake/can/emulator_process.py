@@ -1,19 +1,7 @@
 """EmulatorProcess: the emulated arm in a process of its own, like the real arm is a device
 of its own.
 
-The child builds the motion backend (the scenario's simulated station, or the kinematic
-arm) and runs a PiperEmulator on its end of a socket pair (`socket_bus`). A simulated
-world is stepped in the firmware's cycle (a slow step delays the feedback, and the
-emulator's own lateness figures show it), or, with `pace_world`, in a thread of its own
-below the firmware's priority, paced by the wall clock (`paced_world.PacedWorld`), so its
-physics never holds up the cycle. After every step the world's state (plant positions and
-velocities, and the simulation time) is published to a shared block. The parent keeps a
-copy of the world's model (`station.can_scene.EmulatedScene`) and reads that block to
-render the camera and report ground truth, so rendering in the parent never holds up the
-arm. The world's hidden parameters (a task's object masses, the scenario's `body_masses`)
-come with the start-up message, in the scenario the world is built from, and are the
-world's from its first step; moving things in it later (`set_world`: an operator placing
-a calibration board) goes the other way over the pipe.
+Design notes: docs/design/can.md.
 """
 
 from __future__ import annotations

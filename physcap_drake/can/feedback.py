@@ -1,14 +1,6 @@
 """FeedbackListener: the host's view of the arm, filled from CAN frames by a python-can Notifier.
 
-Every frame is decoded with `codec` in the Notifier's thread and kept, under a lock, as the
-latest value of its kind: the periodic feedback (status, end pose, joints, gripper, drivers)
-and the replies to queries and settings (firmware, limits, accelerations, end-effector
-limits, collision levels, gripper parameters, acknowledgements). Frames that cannot be
-decoded (wrong length) or carry impossible values are rejected and remembered as garbled;
-the arm's error states (0x2A1 status, joint communication errors, angle limits, the
-drivers' collision and stall bits) are remembered as a fault. The drag-teach states
-(arm_status 11-13) are states, not faults. `health(now)` judges whether the feedback can
-be trusted right now.
+Design notes: docs/design/can.md.
 """
 
 from __future__ import annotations

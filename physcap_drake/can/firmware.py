@@ -1,17 +1,6 @@
 """Firmware: the emulated PiPER's controller, frame in, frames out, one cycle at a time.
 
-`handle(identifier, data)` applies a host frame and returns the arm's immediate replies;
-`cycle(dt)` plans the joint reference, moves the arm through its motion backend, watches
-for collisions and limits, and returns the periodic feedback. No threads, no bus: the
-`PiperEmulator` drives it. What each frame does follows piper_sdk 0.6.2's protocol
-definitions and reference/piper.md §2; where the emulator cannot do what the arm would, it
-says so in arm_status 0x0A ("other error") and in `arm.refusal`, never silently.
-
-Modes (0x151): targets are accepted only in CAN control (ctrl_mode 1) and only by the move
-mode they belong to: joint targets (0x155-0x157) in MOVE J, end poses (0x152-0x154) in
-MOVE P and MOVE L, MOVE C points (0x158) in MOVE C. MIT mode is refused (MIT_REFUSAL).
-An out-of-range joint target is refused and reported (arm_status 4 "target over limit",
-err_code bits 8-13 for the joints); an unreachable end pose reports 2 ("no IK solution").
+Design notes: docs/design/can.md.
 """
 
 from __future__ import annotations

@@ -1,26 +1,6 @@
 """PiperLink: the host's connection to a PiPER over CAN, with its own streaming thread.
 
-`open()` starts listening (a python-can Notifier fills a FeedbackListener). Queries ask
-and wait for the answer, asking again every QUERY_RETRY s: the firmware version (0x4AF),
-the joint limits and accelerations (0x472), the end-effector limits, collision levels and
-gripper parameters (0x477). Operator actions wait until the arm shows they took effect:
-`emergency_stop()` (0x150 = 1), `resume()` (0x150 = 2, which cuts motor power: the real arm
-falls unless supported) and `clear_errors()` (0x475).
-
-Start-up (`start`): open, read the firmware version (it picks the torque scaling) and the
-joint limits, switch to CAN control in joint mode (0x151), enable the motors (0x471) until
-every driver reports its enabled bit, set the gripper stroke (0x47D). Then a streaming
-thread sends, every 1/control_rate s, the latest joint targets (0x155-0x157) and gripper
-command (0x159) that `command()` left.
-
-The streaming thread is independent of whoever calls `command()`: a Drake simulator that
-stops while a language model thinks leaves the last target in place, and the arm keeps
-receiving it. Before sending, every cycle asks the watchdog: while the feedback is stale
-(see FeedbackListener.health) or the arm reports a fault, no motion command is sent and
-the arm holds its last target. Targets are clamped to the joint limits, and a target that
-jumps is approached within the firmware's joint speed and acceleration limits, before they
-are encoded. `close()` stops streaming and leaves the arm enabled and holding; the link
-never sends the resume (0x150 = 2) by itself.
+Design notes: docs/design/can.md.
 """
 
 from __future__ import annotations

@@ -1,20 +1,6 @@
 """LinkProcess: a PiperLink streaming from a process of its own.
 
-The 200 Hz command stream must keep its period whatever the interpreter that runs the
-Drake diagram is doing (rendering a camera, collecting garbage, planning): nothing in that
-interpreter may stand between two frames to the arm. So the link lives in a child process
-(`child_process.ChildProcess`, a fresh interpreter), which opens the bus itself, runs the
-start-up sequence, streams, and runs the watchdog. The parent and the child share two
-blocks of memory (`shared_block.SharedBlock`, neither side ever waits for the other):
-
-- targets (parent -> child): joint positions (rad), gripper opening (m) and effort (N·m),
-  with the simulated time they are for, picked up at the start of every streaming cycle
-  (and played back at a steady pace, `playback.TargetPlayback`);
-- feedback (child -> parent): the latest feedback and the watchdog's verdict, published
-  every streaming cycle with the time it was published.
-
-Requests that are not periodic (start, fault drills, figures, close) go over a pipe. If
-the parent dies, the pipe closes and the child stops streaming (the arm holds) and exits.
+Design notes: docs/design/can.md.
 """
 
 from __future__ import annotations

@@ -1,28 +1,6 @@
 """PacedWorld: the emulated arm's world stepped in a thread of its own, paced by the wall clock.
 
-A real arm's controller keeps its 200 Hz feedback whatever happens around the arm; the
-emulated world (a MultibodyPlant scene with contact, `station.simulated_motion.SimulatedMotion`)
-can cost more than real time per step on a busy machine, and if the firmware cycle waited
-for it, the feedback would stretch and come in bursts. So the firmware hands each cycle's
-command to this wrapper and takes the world's latest reading back at once, and a world
-thread advances the world by the wall time that passed since its last step:
-
-- one firmware period at a time while it keeps up (it sleeps until the next one is due);
-- behind, by several periods in one step (at most `max_step` s), with the latest command's
-  gripper and settings and a joint reference that follows the path the firmware's
-  references took since the last step, in order, at most the arm's top joint speed over
-  the step (`along_path`): never the latest reference alone, which the world's joint loop
-  would reach on a straight line across the path's corners (an arm that cuts the corner
-  from a lift to the point above a tray descends early, onto the tray's rim);
-- more than `max_lag` s behind, it lets the excess go (the world's time slips against the
-  wall clock, like a simulator that cannot keep real time) instead of sprinting after it;
-- after every step it rests for at least `REST` of the step's wall time, so a world that
-  cannot keep up never takes a whole CPU: at real-time priority that would starve the
-  machine and make the kernel throttle every real-time thread on that CPU (the
-  firmware's among them) for 50 ms of each second.
-
-Every step's lateness is tracked (`lateness.LagTracker`: steps a period or more late, the
-largest lateness, spells with their times), with the time let go (`WorldTiming`).
+Design notes: docs/design/can.md.
 """
 
 from __future__ import annotations

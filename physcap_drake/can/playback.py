@@ -1,19 +1,6 @@
 """TargetPlayback: the diagram's joint targets, replayed at the arm's steady pace.
 
-The diagram samples its trajectory once per control period of simulated time, but those
-samples reach the streaming process in bursts: the Simulator paces simulated time to wall
-time only on average, and the diagram's interpreter renders, plans and collects garbage
-between them. Sent as they come, the targets would stop and jump, and the rate limiter in
-front of the arm would turn each jump into a lag and then an overshoot.
-
-So the streaming process keeps the samples of the last moments (with the simulated time
-each is for) and plays them back a little behind the newest one (`DELAY`), interpolating
-between them: the played target moves along the diagram's trajectory with the
-trajectory's own speed. The pace of the playback follows the diagram's: it slows down when
-the samples stop coming (the diagram runs behind wall time, or stalls) and stops at the
-newest one. It never goes faster than lets it brake on the newest sample (`BRAKING`), so
-a stalled diagram never makes the arm run past the last target it sent; a fast move just
-plays further behind (v / 2·BRAKING s at v rad/s).
+Design notes: docs/design/can.md.
 """
 
 from __future__ import annotations

@@ -1,12 +1,6 @@
 """Real-time scheduling for the processes that stand between the host and the arm.
 
-A process streaming to the arm (and an emulated arm, which stands in for the arm's own
-controller) must run when its period comes, not when the scheduler gets round to it on a
-busy machine. `use_realtime(priority)` asks Linux for round-robin real-time scheduling
-(SCHED_RR) of the calling thread, which the threads it starts afterwards inherit. That
-needs the CAP_SYS_NICE capability (root, or `setcap cap_sys_nice+ep` on the interpreter,
-or an rtprio limit in /etc/security/limits.conf); without it the process keeps normal
-scheduling and says so once.
+Design notes: docs/design/can.md.
 """
 
 from __future__ import annotations

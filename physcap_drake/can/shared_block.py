@@ -1,13 +1,7 @@
 """SharedBlock: a fixed set of numbers and texts in memory shared with a child process,
 written by one side and read by the other without either ever waiting (a sequence lock).
 
-The memory is an anonymous file (memfd) the parent creates and hands to the child as a
-file descriptor: no names, nothing to clean up if a process dies. The writer bumps a
-sequence counter to an odd value, writes, and bumps it to even again; a reader copies the
-block and keeps the copy only if the counter was even and unchanged around the copy. A
-writer stalled in the middle of a write therefore never blocks a reader: the reader keeps
-its previous copy. (The ordering this relies on, plain stores seen in program order,
-holds on x86-64 and for CPython's separate statements.)
+Design notes: docs/design/can.md.
 """
 
 from __future__ import annotations

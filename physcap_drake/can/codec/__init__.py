@@ -1,14 +1,6 @@
 """The PiPER's CAN protocol as pure functions: frames to SI values and back.
 
-Classic CAN, 11-bit identifiers, 8 data bytes, multi-byte fields big-endian (see
-`shared/reference/piper.md` §2 and piper_sdk 0.6.2's protocol definitions). Every decoder
-takes the 8 data bytes and returns a value in SI units (rad, rad/s, m, N·m, A, V, °C);
-every encoder takes SI values and returns (arbitration_id, data). Scaled values outside a
-field's range are clamped to it, never wrapped; enumerated fields accept only their
-documented codes. A frame of the wrong length raises FrameError.
-
-`ids` lists the identifiers, `fields` the shared encodings; `feedback`, `commands` and
-`parameters` hold the frames; everything is importable from here.
+Design notes: docs/design/can.md.
 """
 
 from physcap_drake.can.codec.commands import (

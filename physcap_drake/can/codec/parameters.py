@@ -1,14 +1,6 @@
 """Settings, queries and their replies (0x470-0x47E, 0x481-0x486), frame by frame.
 
-Units follow piper_sdk 0.6.2's protocol definitions. Two of them disagree with other
-sources and are taken as the SDK has them, the host-side test peer:
-- joint maximum speed (0x473, 0x474) in 0.001 rad/s, range 0-3000 (pyAgxArm scales it by
-  0.01 instead);
-- joint maximum acceleration in 0.01 rad/s² both when set (0x475, range 0-500 = 0-5 rad/s²)
-  and when reported (0x47C). The SDK's 0x47C docstring says 0.001, but a reply in those
-  units could not carry the 0-5 rad/s² the setting accepts in the same counts, and pyAgxArm
-  decodes 0x47C as 0.01 and checks a setting by reading it back in the same counts.
-0x475's clear-error byte is byte 5, where the SDK encodes it (reference/piper.md says 6).
+Design notes: docs/design/can.md.
 """
 
 from __future__ import annotations
