@@ -1,14 +1,6 @@
 """Camera-to-robot calibration with a ChArUco board laid on the table at known places.
 
-The board (`charuco`) is put at a series of known poses on the table, in the robot's base
-frame (the world): on a real rig at marked spots, in simulation by moving the board model
-`models/calibration/charuco_board/`. In each view the camera's colour image shows some of
-its corners; with the known board pose every corner seen is a world point at a pixel, and
-the camera pose X_WC that best explains all of them together (PnP over all views) is the
-calibration. Its result is a `CameraCalibration` file a `!RealSense` entry includes.
-
-In simulation the scenario's own camera pose is known, so the calibration's error can be
-measured (`position_error_mm`, `rotation_error_deg`).
+Design notes: docs/design/perception.md.
 """
 
 from __future__ import annotations
@@ -86,7 +78,7 @@ def view_of(rgb: np.ndarray, X_WB: RigidTransform) -> BoardView:
 
 
 def solve(views: Sequence[BoardView], camera: CameraGeometry) -> charuco.PoseFit:
-    """The camera pose from all views (see the module docstring). Raises BoardNotSeen."""
+    """The camera pose from all views (see the design notes). Raises BoardNotSeen."""
     corners = charuco.corner_points()
     world = [view.X_WB.multiply(corners[view.ids].T).T for view in views if len(view.ids)]
     pixels = [view.pixels for view in views if len(view.ids)]

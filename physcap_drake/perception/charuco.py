@@ -1,14 +1,7 @@
 """The ChArUco calibration board: its layout, finding its corners in an image, and the camera
 pose that explains them (OpenCV's `aruco` module).
 
-The board (`BOARD`) is a chessboard of `SQUARES` squares of `SQUARE` metres with an ArUco
-marker in each white square; the same layout is printed for a real rig and textured on the
-simulated model `models/calibration/charuco_board/` (written by its `generate_board.py`).
-
-Board frame B: origin at the board's centre on its printed face, x along its long side
-(the image's rows left to right), y along its short side (the image's columns bottom to
-top), z out of the printed face. A corner that OpenCV numbers `i` sits at
-`corner_points()[i]` in B.
+Design notes: docs/design/perception.md.
 """
 
 from __future__ import annotations

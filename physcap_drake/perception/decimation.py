@@ -1,14 +1,6 @@
 """Working on a fine image at a coarser grid: the depth geometry at about 640 columns.
 
-A RealSense streaming 1280 x 720 colour delivers depth aligned to it at the same size, but
-the depth's noise (about a centimetre per pixel at a metre) does not get finer with it: the
-table plane, the regions and their grasp points are worked out on every `factor`-th pixel
-(`decimation_factor`, at least `WORK_WIDTH` columns left: the cost of a look and the pixel
-sizes of the region filters stay as they are at 640 x 360; a 2 x 2 median, as
-librealsense's decimation filter takes, mixes an object's edge with the table behind it
-into points floating between them), while details a pixel or two wide (a straw) are looked
-for in the full colour image. `upsample` brings coarse masks back to the full image's
-pixels.
+Design notes: docs/design/perception.md.
 """
 
 from __future__ import annotations

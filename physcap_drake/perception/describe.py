@@ -1,14 +1,6 @@
 """What the camera shows of one region: its kind, colour, size, a straw, and where to grasp it.
 
-Geometry comes from the region's own depth, median-filtered over a small window of its
-pixels only (`SceneGeometry.smoothed_points`): its top height above the table, its footprint, and
-the top-down grasp point (`grasp_point_from_points`, the same rule as for the simulated
-segmenter). A straw is a thin part standing above the object's top, in the depth or in the
-full-resolution colour image (`straw`).
-
-A container's region comes from smoothed heights, which spread past its rim; its outline is
-sharpened by colour (the pixels nearer the colour of its inside than of the table around
-it), and its middle and grasp point come from those pixels.
+Design notes: docs/design/perception.md.
 """
 
 from __future__ import annotations
@@ -148,8 +140,8 @@ def _straw_in_colour(region: Region, rgb: np.ndarray, geometry: SceneGeometry,
 
 
 def sharpen_container(region: Region, rgb: np.ndarray, geometry: SceneGeometry) -> Region:
-    """The container region with its outline sharpened by colour (see the module
-    docstring); unchanged if too few pixels are nearer the inside's colour than the
+    """The container region with its outline sharpened by colour (see the design
+    notes); unchanged if too few pixels are nearer the inside's colour than the
     table's."""
     mask = region.mask.astype(np.uint8)
     inside = cv2.erode(mask, np.ones((9, 9), np.uint8)).astype(bool)

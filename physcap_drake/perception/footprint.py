@@ -1,16 +1,7 @@
 """An object's footprint on the table as the camera sees it: the outline of its 3D points
 seen from above.
 
-The camera gives depth at an object's pixels; back-projected, they are points of its
-visible surface (world frame, m). Their horizontal positions (x, y) cover the part of the
-table the object stands over. `footprint_outline` is their convex hull, less the stray
-points depth noise throws outward: along each of `HEADINGS` directions, the points beyond
-the `STRAY_PERCENT` and `100 - STRAY_PERCENT` percentiles of their extent are left out
-before the hull is taken (a few points per direction on a task object).
-
-What the camera cannot see is not in it: the side of a round object facing away from the
-camera (about a fifth of a dome's radius, along the camera's viewing direction), the edge
-pixels a stereo camera loses, and whatever another object hides.
+Design notes: docs/design/perception.md.
 """
 
 from __future__ import annotations
@@ -29,8 +20,8 @@ MIN_POINTS = 3
 
 def footprint_outline(points: np.ndarray) -> np.ndarray:
     """The footprint (K × 2 corners of a convex polygon, counter-clockwise, world x y, m) of
-    an object's visible surface points (N × 3 or N × 2, world frame, m); see the module
-    docstring. Raises ValueError with fewer than MIN_POINTS points."""
+    an object's visible surface points (N × 3 or N × 2, world frame, m); see the design
+    notes. Raises ValueError with fewer than MIN_POINTS points."""
     xy = np.asarray(points, dtype=np.float64)[:, :2]
     xy = xy[np.all(np.isfinite(xy), axis=1)]
     if len(xy) < MIN_POINTS:

@@ -1,24 +1,6 @@
 """Eye-to-hand calibration: a fixed camera's pose from a ChArUco board carried by the arm.
 
-The board is mounted on the arm's flange (link6, frame G) at a fixed pose X_GB that need not
-be known. For each view i the arm reports its joint angles, whose forward kinematics (the
-PiPER's DH model, what a real arm's feedback gives; never the simulator's body poses) is the
-flange pose X_WG_i, and the colour image shows some of the board's corners. The unknowns are
-the camera pose X_WC (the colour camera's optical frame in the world, i.e. the robot's base
-frame) and X_GB, tied in every view by
-
-    X_WC · X_CB_i = X_WG_i · X_GB.
-
-The solution is found in two steps:
-1. A closed-form start. Each view's own PnP gives X_CB_i. For pairs of views,
-   A = X_WG_j · X_WG_i⁻¹ (the flange's motion, world frame) and B = X_CB_j · X_CB_i⁻¹ (the
-   board's motion, camera frame) satisfy A · X_WC = X_WC · B: the rotation follows from
-   the pairs' rotation axes (Kabsch), the translation from a linear least-squares fit.
-2. A Levenberg-Marquardt refinement of both poses (12 parameters) on the reprojection error
-   of every corner in every view, the figure reported.
-
-The rotations between views must turn about at least two different axes, or X_WC is not
-determined; `solve_eye_to_hand` refuses such a set with a message.
+Design notes: docs/design/perception.md.
 """
 
 from __future__ import annotations
@@ -177,7 +159,7 @@ def _refine(X_WC: RigidTransform, X_GB: RigidTransform, views: Sequence[HandView
 
 def solve_eye_to_hand(views: Sequence[HandView],
                       intrinsics: tuple[float, float, float, float]) -> HandEyeFit:
-    """The camera pose and the board's mount from `views` (see the module docstring), for a
+    """The camera pose and the board's mount from `views` (see the design notes), for a
     pinhole camera (fx, fy, cx, cy; px, no distortion). Views with fewer than
     `charuco.MIN_CORNERS` corners are left out. Raises BoardNotSeen for fewer than
     MIN_VIEWS usable views, ValueError for rotations about one axis only."""

@@ -1,16 +1,6 @@
 """Camera-to-robot calibration with the ChArUco board carried by the arm (eye-to-hand).
 
-The board is held by the gripper (clamped by one long edge between the fingers) and the arm
-shows it to the camera at several poses; `hand_eye.solve_eye_to_hand` finds the camera pose
-from the arm's joint angles and the corners seen, with the board's mount on the flange as a
-second unknown. Unlike the board laid on the table (`camera_calibration`), nothing has to be
-put at a measured place, and the views cover the space above the table where the arm works.
-
-In simulation the board model is welded to the flange at `SIMULATED_MOUNT`, the arm is posed
-at `POSES`, and the joint angles are read from the station's measured-position port (what a
-real arm reports); the errors against the scenario's camera pose and the mount are measured.
-On a rig the operator moves the arm (e.g. in teach mode) between views and the joint angles
-come from the arm's feedback.
+Design notes: docs/design/perception.md.
 """
 
 from __future__ import annotations

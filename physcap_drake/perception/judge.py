@@ -1,35 +1,6 @@
 """Judging a task's outcome from the final camera view, as an observer at the rig would.
 
-Without a simulator there is no ground truth to check; the camera can still tell where
-things ended. `contents` says which objects lie wholly in each container's area: the
-object's footprint (the outline of its 3D points seen from above, `SeenObject.footprint`)
-within the rectangle the container covers on the table (`SeenObject.area`), reaching past
-its edges by at most `EDGE_TOLERANCE`. `judge_placement` decides a "put the right one in
-the container" task: the object the task was about (named as the perception names
-objects) is wholly in the container, and no other object of its kind stands in it (its
-grasp point over the container's area, even if part of it hangs over the rim).
-`judge_uncovered` decides a "find the hidden ones" task: at least `count` objects of the
-sought kind are in view.
-
-This mirrors the simulator's ground truth (`tasks.placement.check_in_tray`: the object's
-base axis plus its radius inside the container's inner walls; another object counts as in
-the container when its base is within the walls, `tasks.ground_truth.near_container`) as
-far as the camera allows. Where they still differ:
-
-- The ground truth knows the object's radius and the walls' inner faces; the camera sees
-  the object's outline (not its far side: about a fifth of a dome's radius, along the
-  viewing direction, is hidden) and the container's outline (its 2nd to 98th percentile
-  extent, about at the inner faces of a tray's 6 mm walls).
-- Depth noise: the emulated RealSense's depth (like a D400's) has 13 mm RMS noise along
-  the ray at the task's 1.15 m, about 7 mm of it horizontal, per pixel; the outline drops
-  the 1 % of points farthest out in each direction, and its edges still come out up to
-  about 4 mm past an object's own (measured on rendered scenes of objects wholly inside a
-  tray). The container's rectangle is good to about 5 mm. `EDGE_TOLERANCE` (8 mm) covers
-  both, so the judge calls "outside" an object reaching a centimetre or more past the
-  walls; one within about a centimetre of them can go either way.
-- The ground truth takes a tipped object's base frame as its axis (a tipped avocado's
-  base point moves up to its 36 mm half-height sideways); the camera takes its outline.
-  Whether an object stands upright, or rests on the floor, is not judged from the image.
+Design notes: docs/design/perception.md.
 """
 
 from __future__ import annotations
@@ -42,7 +13,7 @@ from physcap_drake.perception.phrases import PointingError, resolve
 from physcap_drake.perception.seen_object import SeenObject
 
 #: How far an object's footprint may reach past the edge of a container's area and still
-#: count as inside, m (depth noise at the edges; see the module docstring).
+#: count as inside, m (depth noise at the edges; see the design notes).
 EDGE_TOLERANCE = 0.008
 
 

@@ -1,20 +1,6 @@
 """Names for the objects perception sees, kept from one look to the next.
 
-The agent refers to objects by name across a whole episode ("weigh the red can", later "put
-the red can on the tray"), while the camera gives only regions. `ObjectMemory` names each
-object when it first appears and recognizes it in later looks:
-
-- **Names** say what the object looks like: "<size> <colour> <category>" (size only where
-  objects of one category clearly differ in size: "large" and "small" by the largest gap
-  in their volume, when the largest is at least `SIZE_RATIO` times the smallest). Objects
-  that look alike are numbered left to right as first seen ("dark avocado 1", "dark
-  avocado 2"); one that appears later takes the next number ("blue cube 3").
-- **Recognition** pairs the objects in view with the remembered ones that look the same
-  (category and colour), nearest first on the table: an object that stayed put keeps its
-  name, one that was moved (to the tray) is recognized where it went.
-
-A name never changes and never passes to another object. What is not in view now stays
-remembered (a phrase naming it is "not in view"). Nothing here reads the simulator.
+Design notes: docs/design/perception.md.
 """
 
 from __future__ import annotations
@@ -47,7 +33,7 @@ class Remembered:
 
 
 class ObjectMemory:
-    """The named objects of one episode (see the module docstring)."""
+    """The named objects of one episode (see the design notes)."""
 
     def __init__(self):
         self.objects: list[Remembered] = []

@@ -1,12 +1,6 @@
 """Resolving a referring expression against the objects in view.
 
-A phrase such as "second from left green can", "dark avocado on the right", "large cup",
-"the can with a straw" or "wooden tray" is matched against the objects' visible attributes
-(category, colour, straw, size, the number in a name) and their left-to-right order in the
-image. An exact name wins. Words the resolver does not know are refused rather than
-ignored; an ambiguous or unmatched phrase is an error listing the objects in view. Both
-perception modules (the simulated segmenter and RGB-D) resolve phrases here, and so
-does nothing else: the VLM pointer asks a model instead.
+Design notes: docs/design/perception.md.
 """
 
 from __future__ import annotations

@@ -1,21 +1,7 @@
 """Regions of an RGB-D image that stand above the table: objects, and the containers
 (trays, baskets) that objects are put in.
 
-From the depth image alone: every pixel with depth is back-projected with the camera's
-intrinsics and extrinsics, the table plane is fitted (`table_plane`), and each pixel gets
-its height above the table.
-
-- **Objects** are connected groups of pixels higher than `OBJECT_HEIGHT` above the table
-  (opened to drop single noisy pixels, closed to bridge holes in the depth), split where
-  their points fall apart on the table (two objects side by side in the image).
-- **Containers** are large and low: groups of pixels whose height, averaged over a
-  `LOW_WINDOW` window (the depth noise of one pixel is about a centimetre), is more than
-  `LOW_HEIGHT` above the table, whose footprint is at least `CONTAINER_SIZE` wide both
-  ways. A container keeps the objects inside it separate: they are objects of their own;
-  thin pieces along its edges are its walls (`is_wall_of`, once its outline is sharp).
-
-Pixels the caller excludes (the robot itself) take part in nothing. Nothing here knows
-what any region is; `describe` says what it looks like.
+Design notes: docs/design/perception.md.
 """
 
 from __future__ import annotations
@@ -121,7 +107,7 @@ def scene_geometry(depth: np.ndarray, camera: CameraGeometry,
 
 
 def find_regions(geometry: SceneGeometry) -> list[Region]:
-    """The object and container regions of the scene (see the module docstring), objects
+    """The object and container regions of the scene (see the design notes), objects
     first, each group left to right."""
     heights = np.nan_to_num(geometry.heights)
     tall = geometry.usable & (heights > OBJECT_HEIGHT) & (heights < MAX_HEIGHT)

@@ -1,23 +1,6 @@
 """RGB-D perception: the objects on the table from a colour image and an aligned depth image.
 
-No label image, no model names, no poses: what a real camera gives, and the robot's own
-joint positions (to leave its arm out of the picture). Each look:
-
-1. back-projects the depth with the camera's intrinsics and extrinsics (on a fine image,
-   every other pixel or so: `decimation`), leaves out the points on the robot
-   (`robot_mask`), and fits the table plane (`table_plane`);
-2. finds the regions standing above the table: objects, and containers such as a tray
-   (`regions`; pieces of a container's wall are not objects);
-3. describes each by what the camera shows: kind (by size, among the task's nouns),
-   colour, a straw (looked for in the full colour image: `straw`), its height, its
-   top-down grasp point (`describe`), and its footprint on the table (the outline of its
-   3D points seen from above, `footprint`; from the points as measured: the median filter
-   `describe` uses pulls an object's edge points towards its nearer middle, which moves a
-   round object's outline inwards by up to 2 cm);
-4. names them, recognizing the objects of earlier looks (`object_memory`).
-
-Phrases resolve against these objects (`phrases.resolve`), like the simulated segmenter's.
-A look at the same images twice is computed once.
+Design notes: docs/design/perception.md.
 """
 
 from __future__ import annotations
@@ -45,7 +28,7 @@ from physcap_drake.station import ports
 
 
 class RgbdPerception:
-    """See the module docstring. camera: the calibrated camera; vocabulary: the kinds of
+    """See the design notes. camera: the calibrated camera; vocabulary: the kinds of
     object to tell apart (e.g. the task's nouns; all known kinds when empty)."""
 
     #: The station outputs a look reads.

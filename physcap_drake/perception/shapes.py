@@ -1,14 +1,6 @@
 """What kind of object a region is, from its size: shape prototypes.
 
-Without a learned detector, perception names an object's kind by comparing the size of what
-it sees (the height of its top above the table and the two sides of its footprint) with
-the typical sizes of the kinds it knows (`PROTOTYPES`), as a person tells a soda can from a
-cup or a cube at a glance. The comparison ignores orientation (sides sorted by length), so a can
-lying on its side is still a can. Only the kinds in the vocabulary compete (the nouns of
-the task, as an open-vocabulary detector takes its queries); a region that fits none of
-them within `MAX_DISTANCE` is an "object".
-
-Containers (regions large both ways) are a "tray" when shallow, a "basket" when deep.
+Design notes: docs/design/perception.md.
 """
 
 from __future__ import annotations

@@ -1,21 +1,6 @@
 """A straw standing out of an object's top: in the depth, and in the colour image.
 
-An opened drink has a straw in it; the camera shows it as a thin part rising above the
-object's top. Two cues, either one enough:
-
-- **Depth** (`rises_in_depth`): depth pixels just above the object's outline in the image,
-  near its top on the table, higher than its top. A can's 6 cm straw stands out this way;
-  a lidded cup's 2.5 cm one does not (at 1.1 m its few pixels are within the depth noise).
-- **Colour** (`stands_out_in_colour`, on the full-resolution colour image): a thin vertical
-  run of pixels over the object's top that differ from the pixels on both sides of them
-  while those two look alike (a straw in front of the lid or of the table behind it),
-  long and narrow enough to be a straw (sizes in metres, turned into pixels at the
-  object's depth), reaching the top edge of the object's silhouette. A lid's rim, a
-  cylinder's shaded side or a box's edge has different things on its two sides, so it is
-  no such run; the arm's own pixels are left out.
-
-Neither cue knows what the straw or the object is made of: only that a straw is thin,
-upright, and differs from what lies around it.
+Design notes: docs/design/perception.md.
 """
 
 from __future__ import annotations
@@ -56,7 +41,7 @@ ROBOT_MARGIN = 3
 
 def rises_in_depth(region: Region, geometry: SceneGeometry, top: float,
                    centre: np.ndarray) -> bool:
-    """The depth cue (see the module docstring): `top` is the object's top height above
+    """The depth cue (see the design notes): `top` is the object's top height above
     the table (m), `centre` its middle on the table (x, y, m)."""
     rows, cols = np.nonzero(region.mask)
     first, last = max(rows.min() - DEPTH_REACH, 0), rows.min() + (rows.max() - rows.min()) // 2
@@ -73,7 +58,7 @@ def rises_in_depth(region: Region, geometry: SceneGeometry, top: float,
 
 def stands_out_in_colour(rgb: np.ndarray, silhouette: np.ndarray, ignore: np.ndarray,
                          pixels_per_metre: float) -> bool:
-    """The colour cue (see the module docstring). rgb: the colour image (H × W × 3 uint8);
+    """The colour cue (see the design notes). rgb: the colour image (H × W × 3 uint8);
     silhouette: the object's pixels (H × W bool, from its depth); ignore: pixels not to look
     at (the arm's, H × W bool); pixels_per_metre: the image scale at the object's depth."""
     rows, cols = np.nonzero(silhouette)
