@@ -1,16 +1,7 @@
 """One agent episode in simulation: build the task's diagram with an AgentSystem, run the agent
 loop with the chosen variant and language model, and report the paper's metrics.
 
-The episode is one run of the clock until the AgentSystem's mind is over (`run_agent`): the
-system decides and runs its code blocks at its own events.
-
-Before the first decision the model's server is checked (`llm.check_client`: an
-OpenAI-compatible server must serve the model, answer, and take images unless the model is
-text-only); what it found opens the transcript (with a warning when the server does not say
-its context window), and a failed check ends the episode at once with the reason, like any
-model failure.
-The episode has a wall-clock limit: model calls asked for after it are refused (and
-recorded), so the episode ends at its next decision.
+Design notes: docs/design/app.md.
 """
 
 from __future__ import annotations

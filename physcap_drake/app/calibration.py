@@ -1,19 +1,6 @@
 """Calibration runs of the probes on reference specimens (`physcap calibrate ...`).
 
-Each trial builds the calibration scene with one specimen from models/calibration/ at a
-randomly perturbed place, measures it through the robot API (the probes see only what the
-arm reports), and returns the figures; the specimen's true value comes from its file name.
-Trial k of a run with --seed s has the trial seed 1000·s + k: it fixes the place (with the
-specimen), the sensor noise and, with a mismatch, the arm.
-
-Held out: the stiffness thresholds are fitted on one set of trial seeds and scored on
-another, disjoint one (`split_trials`). get_mass's model is the arm's file; the one thing it
-may fit from data is its torque sensors' gains (`--fit-gain`): on each trial's arm they are
-fitted by weighing the gain weight (500 g, not a reference mass, at a place of its own), and
-the reference masses are then weighed with them, so those stay held out.
-
-Mismatch (see app/mismatch.py): each trial's simulated arm departs from its model by
-drawn deviations; the estimators keep the nominal model.
+Design notes: docs/design/app.md.
 """
 
 from __future__ import annotations

@@ -1,17 +1,6 @@
 """Building one episode of a task: scenario + objects + hidden properties + perception.
 
-The scene is simulated either by the sim station or, with `station: !PiperCan {emulate:
-true}`, by the emulator behind the CAN station; the objects, their hidden masses and the
-success check live in that simulated world (`Episode.ground_truth`). The hidden
-masses are the scenario's `body_masses` (the task's layout puts them there): model data of
-the simulated world's plant, the sim station's or the emulated arm's world's, built in the
-emulator's process (`station/body_masses.py`).
-
-Perception (what get_object_pose and the agent's observations use) is either "rgbd", the
-RGB-D perception that sees from the colour and depth images alone, or "label", the
-simulator's perfect segmenter (an ablation). RGB-D perception sees the scene the way a
-RealSense delivers it: a rendered main camera is replaced by an emulated RealSense of the
-same view (stereo depth faults, through librealsense's software device).
+Design notes: docs/design/app.md.
 """
 
 from __future__ import annotations
@@ -134,7 +123,7 @@ def make_episode(task_name: str, seed: int, answer: str = "", meshcat=None, *,
                  perception: str | None = None, judge: str | None = None) -> Episode:
     """Loads stations/<task>.yaml (or `scenario_file`), lays out the objects for `seed`,
     builds and initializes the simulation with the objects' hidden masses, and wires camera
-    perception (`perception`: "rgbd" or "label", see the module docstring) to the API (and,
+    perception (`perception`: "rgbd" or "label", see the design notes) to the API (and,
     `with_agent`, to an AgentSystem in the diagram: the client of the robot's request path,
     whose model calls run in the background on the real arm's station, the diagram running
     on in real time). With a `sink`, an McapRecorder in the

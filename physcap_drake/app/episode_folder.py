@@ -1,20 +1,6 @@
 """A folder per episode: everything a user needs to judge and debug one run.
 
-    <folder>/episode.mcap     the recording (open it in Foxglove or any MCAP reader)
-    <folder>/transcript.md    instruction, thoughts, code blocks ("# Code block N"), outputs,
-                              measurements, the planner's answers, and the outcome
-    <folder>/summary.json     task, variant, seed, success, OI, robot and wall time, model
-                              calls with tokens and latency, git commit and dirty flag
-    <folder>/calls.jsonl      the model calls, for `physcap run --llm replay:<file>`
-    <folder>/meshcat.html     with meshcat_html=True: a replay of the run in any browser
-
-Nothing waits for the end: the recording is readable after every flush (see mcap_sink), and
-transcript.md and calls.jsonl grow entry by entry and call by call, so a run killed outright
-leaves all three up to the moment it died. When the episode ends, transcript.md is written
-once more whole, with the outcome. `summary.json` is written last and only for an episode that
-ran to its end (success or not), so its presence marks a finished episode (`physcap eval`
-resumes on it). When a run stops on an exception or Ctrl-C, the recording is closed properly
-and `error.json` says what stopped it; then the exception goes on.
+Design notes: docs/design/app.md.
 """
 
 from __future__ import annotations

@@ -1,27 +1,7 @@
 """An arm that is not its model: deviations drawn per calibration trial
 (`physcap calibrate mass|stiffness --mismatch`).
 
-The estimators compute with the arm's model file (masses, centres of mass) and assume an ideal
-torque sensor, frictionless joints and rigid fingers; no real arm is that. With a mismatch,
-each trial's simulated world departs from the model by values drawn uniformly from these
-ranges (the estimators keep the nominal model):
-
-| group | what | range |
-|---|---|---|
-| links | mass (and rotational inertia) of link1..link6 | × [0.8, 1.2] each |
-| links | centre of mass, each coordinate in the link's frame | × [0.8, 1.2] each |
-| torque_gain | torque sensor gain, J1..J6 | × [0.95, 1.05] each |
-| torque_offset | torque sensor offset | ± 0.05 N·m on J1–J3, ± 0.01 N·m on J4–J6 |
-| friction | Coulomb friction with presliding memory | [0, 0.03] N·m on J1–J3, [0, 0.01] on J4–J6 |
-| friction | viscous friction | [0, 0.05] N·m·s/rad each |
-| fingers | series compliance of each finger | [0, 2e-5] m/N (up to 0.5 mm more travel at f̂ = 0.5) |
-| moduli | hydroelastic modulus of the specimen | × [0.85, 1.15] |
-
-The offsets are about ten counts of motor current; the friction levels are assumptions (no
-figure is published for the PiPER), small next to J2's 4.7 N·m of gravity torque at home but
-as large as the torque a 13 g mass makes at 30 cm (0.04 N·m). Each group is drawn from a
-random stream of its own, so a run with some groups drawn gives them the same values a run
-with all groups gives: running one group at a time shows which one costs accuracy.
+Design notes: docs/design/app.md.
 """
 
 from __future__ import annotations

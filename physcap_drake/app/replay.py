@@ -1,14 +1,6 @@
 """Replaying a recorded episode's motion in Meshcat, from its MCAP file alone.
 
-The recording's metadata names the task and seed; the scene is rebuilt from them (geometry
-only: its plant is never simulated), and each recorded sample becomes the scene's positions:
-the arm's joints and the gripper's fingers from `/piper/joint_states`, every free object from
-`/tf`. A small diagram plays them (a TrajectorySource holding each sample until the next,
-posing the geometry through MultibodyPositionToGeometryPose) into a Meshcat animation, which
-the browser plays (and `save_meshcat_html` can keep as one file); the clock runs it.
-The animation runs on the episode's axis: log times minus the recorded start date (simulated
-time, or wall-clock time since the start for an episode on the CAN station; see
-`reading.Recording.time_base_note`).
+Design notes: docs/design/app.md.
 """
 
 from __future__ import annotations
@@ -84,7 +76,7 @@ class ReplaySample:
 
 def replay_samples(recording: Recording) -> list[ReplaySample]:
     """The recording's joint states, each with the transforms of the same moment, on the
-    episode's axis (see the module docstring). Raises ReplayError without joint states."""
+    episode's axis (see the design notes). Raises ReplayError without joint states."""
     states = recording.on(topics.JOINT_STATES)
     if not states:
         raise ReplayError(f"{recording.path} holds no joint states ({topics.JOINT_STATES}) "
@@ -97,7 +89,7 @@ def replay_samples(recording: Recording) -> list[ReplaySample]:
 
 def replay_in_meshcat(path: str | Path, meshcat: Meshcat) -> ReplayedEpisode:
     """Builds the recorded episode's scene in `meshcat` and loads its motion as an animation
-    (see the module docstring). Raises ReplayError or FileNotFoundError."""
+    (see the design notes). Raises ReplayError or FileNotFoundError."""
     recording = read_recording(path)
     task, seed = episode_particulars(recording)
     samples = replay_samples(recording)
