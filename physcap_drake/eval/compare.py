@@ -1,12 +1,6 @@
 """Two evaluation folders compared episode by episode: did a change alter the results?
 
-Reads every finished episode (`<folder>/<task>/<agent>/seed_<NNN>/summary.json`, as `physcap
-eval` writes them) of both folders and pairs them by task, variant and seed. A pair differs
-when its success or its object interactions (OI) differ, or its robot execution time
-(simulated seconds) differs by more than a tolerance. Per cell it gives both folders'
-figures as `results.md` computes them (SR, mean OI and mean robot time over successes) and
-how many pairs differ; then every differing pair, with the failure reasons of failed
-episodes, and the episodes found in one folder only.
+Design notes: docs/design/eval.md.
 """
 
 from __future__ import annotations

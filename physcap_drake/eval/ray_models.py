@@ -1,16 +1,7 @@
 """Model calls of a Ray episode task, made by a zero-CPU actor so the task's CPU is free
 while a model thinks.
 
-An episode's simulated time stands still while a model answers, so an episode waiting for a
-model computes nothing. On a Ray cluster the episode task (one CPU) sends each request to an
-actor of its own that reserves no CPU and calls the backend; the task waits in `ray.get`,
-and Ray lends the CPU of a task blocked in `ray.get` to other tasks until the answer is back.
-So with remote models a cluster of N CPUs simulates N episodes while many more wait on their
-models. The offline backends (reference, replay) answer at once and stay in the task's process.
-
-The actor builds its backend with `make_llm` (retries included); the task wraps the remote
-client in a `RecordingClient`, so calls are recorded where the episode runs, with their
-latency as the task saw it.
+Design notes: docs/design/eval.md.
 """
 
 from __future__ import annotations

@@ -1,22 +1,6 @@
 """Running the evaluation grid on a Ray cluster (`physcap eval --ray [ADDRESS]`).
 
-Each unfinished episode is one Ray task reserving one CPU:
-
-- Folders: the task runs its episode into a temporary folder on whatever node it lands on and
-  returns the folder's files; this process writes them into `<out>/<task>/<agent>/seed_NNN/`
-  (summary.json last), so the nodes need no shared file system and the folders are those the
-  process pool writes. Resuming is the same too: an episode with a summary is not submitted.
-- Failures: a task whose worker process dies (killed, out of memory, node lost) is run again
-  by Ray, up to `RETRIES` more times, from the start. An exception inside the episode is not
-  retried: its folder gets error.json and the transcript so far, and rerunning the command
-  retries it, as with the process pool.
-- Memory: a worker process runs at most `EPISODES_PER_WORKER` episodes (Ray's `max_calls`)
-  and is then replaced, as in the process pool: a guard, since a finished episode is freed.
-- Model calls of networked backends go through a zero-CPU actor per episode (see
-  `eval.ray_models`), so a task waiting for a model lends its CPU to another episode.
-
-Without an address a local Ray instance is started with `workers` CPUs and shut down at the
-end. The nodes of a cluster need physcap-drake (the same version) installed.
+Design notes: docs/design/eval.md.
 """
 
 from __future__ import annotations

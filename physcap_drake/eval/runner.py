@@ -1,18 +1,6 @@
 """Running the evaluation grid: episodes in parallel processes, resumable.
 
-An episode whose folder holds a summary is finished and is not run again; any other (never
-started, or cut short by a crash or Ctrl-C) is run from the start, replacing what is there.
-An episode that raises is recorded as unfinished (its folder's error.json says why) and the
-grid carries on.
-
-A worker process runs at most `EPISODES_PER_WORKER` episodes and is then replaced by a fresh
-one. A finished episode is freed: a worker's memory stays at about 0.4 GB (tests/
-test_weak_method.py). Each episode used to stay in its process for good, about 0.1 GB each,
-and workers were replaced every 4 episodes for it. The limit remains as a guard against
-whatever a future leak would pile up. It costs a few seconds of imports per replacement. The
-workers are a `multiprocessing.Pool` with `maxtasksperchild`: `ProcessPoolExecutor`'s
-`max_tasks_per_child` deadlocks before Python 3.13.x (CPython gh-115634; no worker is
-started in place of the ones that reached their limit).
+Design notes: docs/design/eval.md.
 """
 
 from __future__ import annotations

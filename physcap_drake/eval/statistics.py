@@ -1,18 +1,6 @@
 """Interval estimates and a two-proportion test for the evaluation's small samples.
 
-- Success rate: the Wilson score interval (95 %), which stays inside [0, 1] and is not
-  degenerate at 0/n or n/n, where the normal ("Wald") interval collapses to a point.
-- Means (object interactions, robot time): Student's t interval (95 %), mean ± t·s/√n with
-  the sample standard deviation s (n − 1 in the denominator), cut at 0 below since neither
-  quantity can be negative. It needs two values at least; with one it is undefined (None).
-- Two success rates: Fisher's exact test (two-sided, on the 2 × 2 table). With ten trials per
-  cell it is the honest question to ask: 10/10 and 8/10 give p = 0.47, so they are not
-  distinguishable at the 5 % level.
-
-No SciPy: the t quantile comes from closed forms for one and two degrees of freedom and the
-Cornish-Fisher expansion beyond (within 0.004 of the exact value from three degrees of
-freedom on, see tests/test_eval_statistics.py), and Fisher's test from exact binomial
-coefficients.
+Design notes: docs/design/eval.md.
 """
 
 from __future__ import annotations

@@ -1,12 +1,7 @@
 """Turning episode summaries into the paper's tables: results.md, results.csv, results.json
 (and the figure results.png, see `eval.plots`).
 
-Per task and variant (a cell), as the paper reports them: SR = successes / trials, with its
-95 % Wilson interval; OI = mean exploratory object interactions over the successful trials;
-Time = robot execution time in simulated seconds, mean ± std over the successful trials (a
-cell with one success has std 0); OI and Time with 95 % Student-t intervals (see
-`eval.statistics`). OI over all trials is kept too (`oi_all_mean`). Episodes that did not
-finish (an error, not a task failure) are counted apart and left out of the figures.
+Design notes: docs/design/eval.md.
 """
 
 from __future__ import annotations
