@@ -1,13 +1,6 @@
 """empty_cup: the LIBERO replica — four lidded cups, one empty; put it in the basket.
 
-Straws: the paper builds its simulated replica to look like the real can task (its cups are
-8.27 cm tall, about 10.74 cm with a straw in the lid) and its prompt treats a straw as a weak
-hint that a cup has been drunk from. In the real can task two of the four cans are opened (the
-empty one and a half-full one) and two are sealed. So here two of the four cups carry a straw:
-the empty one and one of the three full ones, drawn per seed (the answer can only be pinned to
-a straw cup). Weighing the straw cups first takes 1.5 probes on average, a blind search 2.25.
-The empty cup's colour is drawn per seed too (the paper always empties the white cup; a fixed
-answer would let an agent learn it instead of exploring).
+Design notes: docs/design/tasks.md.
 """
 
 from __future__ import annotations
@@ -22,7 +15,7 @@ from physcap_drake.tasks.placement import PlaceCheck, check_in_tray, move_to_tra
 from physcap_drake.tasks.task_instance import SceneObject, TaskInstance
 
 COLORS = ("red", "yellow", "blue", "white")
-#: How many of the full cups carry a straw besides the empty one (see the module docstring).
+#: How many of the full cups carry a straw besides the empty one (see the design notes).
 FULL_WITH_STRAW = 1
 EMPTY_KG, FULL_KG = 0.035, 0.350
 #: Spawn region of the cups (world frame, m) and the least distance between two of them:

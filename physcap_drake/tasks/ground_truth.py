@@ -1,13 +1,7 @@
 """What the tasks' success checks share: drawing the answer, and judging end poses from the
 simulator's ground truth (never shown to agents).
 
-The answer is drawn from a random stream of its own, separate from the layout's, so which
-object carries the hidden property is independent of where the objects stand (and of their
-left-to-right order, which an agent breaking ties by position would exploit), and pinning an
-answer leaves the layout as it is.
-
-Check reasons name objects as the camera describes them ("the red can", "large cup 2"), the
-names the agent knows them by.
+Design notes: docs/design/tasks.md.
 """
 
 from __future__ import annotations
