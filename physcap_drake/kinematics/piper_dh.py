@@ -1,27 +1,6 @@
 """Forward kinematics of the AgileX PiPER arm from the vendor's modified DH table.
 
-The PiPER SDK computes the flange pose with modified (Craig) Denavit-Hartenberg
-parameters. This module re-implements that computation with numpy so the Drake model
-(`models/piper/piper_arm.sdf`) can be checked against it, and so code that talks to
-the real arm can predict the pose the firmware reports.
-
-Conventions
------------
-* Angles are in radians, lengths in metres (the vendor tables are in mm and degrees).
-* Joint angles use the same signs and zeros as the CAN joint feedback (0x2A5-0x2A7)
-  and as the joints ``joint1``..``joint6`` of our SDF model.
-* Frame ``base`` is the arm's ``base_link`` frame: origin at the centre of the
-  mounting face, +z up, +x forward (the direction the gripper points at q = 0).
-* Frame ``flange`` is ``link6``: origin on the tool flange face, +z pointing out of
-  the flange along the gripper. The tool centre point (between the finger tips)
-  is ``TCP_OFFSET`` metres along the flange's +z.
-
-Modified DH: the transform from frame i-1 to frame i is
-
-    T = RotX(alpha[i]) @ TransX(a[i]) @ RotZ(q[i] + theta_offset[i]) @ TransZ(d[i])
-
-where the i-th table entry holds (alpha_{i-1}, a_{i-1}, theta_i, d_i) in Craig's
-notation, which is how the SDK lays out its arrays.
+Design notes: docs/design/kinematics.md.
 """
 
 from __future__ import annotations
