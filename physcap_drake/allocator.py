@@ -1,20 +1,6 @@
 """The memory allocator a `physcap` process runs with: TCMalloc when the machine has it.
 
-A simulated episode allocates and frees small blocks at a high rate: Drake's contact solver
-builds its problem anew at every plant step, and each port evaluated from Python is a fresh
-NumPy array. glibc's allocator spends about a sixth of an episode's CPU time on that (its
-free lists, consolidation and page faults); gperftools' TCMalloc (Debian's
-`libtcmalloc-minimal4`, which `./run setup` installs) serves the same calls from per-thread
-caches. Episodes are the same to the last bit either way; only the time changes.
-
-An allocator must be chosen before a process allocates anything, so `physcap` (the console
-command, `launch.main`) starts itself again with TCMalloc in `LD_PRELOAD` when it is not
-loaded yet. `LD_PRELOAD` stays set, so the processes it starts with its environment (the
-evaluation's workers, the CAN emulator) run with it too; a code block's sandboxed child does
-not (its environment is built from nothing, see `agent.sandbox.child_process`), and it
-allocates little. `PHYSCAP_ALLOCATOR=system` keeps glibc's
-allocator; when TCMalloc is not installed the command says so on stderr once and runs with
-glibc's.
+Design notes: docs/design/physcap_drake.md.
 """
 
 from __future__ import annotations

@@ -1,20 +1,6 @@
 """The threads of the BLAS library under NumPy in a `physcap` process: one, unless asked.
 
-NumPy's wheels bring OpenBLAS, which starts one thread per core and, after every call it
-splits between them, keeps the extra threads spinning (`sched_yield`) for a while in case
-another call comes. An episode's matrices are small (3 × 3 rotations applied to a point
-cloud, the arm's 6 × 6 Jacobians), so splitting gains nothing, and on a 2-core machine the
-spinning thread takes the core that the renderer's threads and the sandboxed code block
-need. Measured with `physcap bench episode`, five runs alternated with OpenBLAS's default
-of 2 threads: find_blue_cube's rtf 3.42 → 3.75 on average and its CPU time 9.8 → 8.4 s; the
-other tasks as fast as before within the machine's noise. Episodes are the same to the last
-digit (the reference grid: 200 of 200 identical).
-An evaluation runs one episode per worker process and core, so one BLAS thread per process
-is also what keeps its workers from oversubscribing the machine.
-
-OpenBLAS reads OPENBLAS_NUM_THREADS once, when the library is loaded (the first NumPy
-import), so `physcap` (`launch.main`) sets it before anything imports NumPy; the processes
-it starts inherit it. A value the user has set is kept: set it to use more threads.
+Design notes: docs/design/physcap_drake.md.
 """
 
 from __future__ import annotations

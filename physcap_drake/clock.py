@@ -1,31 +1,10 @@
 """The Clock: the one object that advances a diagram's time.
 
-Everything that waits for the robot (a RobotAPI call, an agent episode, `physcap sim`, the
-benchmarks) asks the clock to run: either for a duration, or until a condition on the
-diagram's Context holds. Waiting for something is Drake's simulator monitor: the condition is
-checked after every simulator step and ends the run at the first step after which it holds
-(`EventStatus.ReachedTermination`), so one `AdvanceTo(deadline)` replaces a polling loop.
-Only this module (and the CAN emulator's own simulator, which stands for the world behind the
-bus) calls `AdvanceTo`.
+Everything that waits for the robot asks it to run for a duration or until a condition on
+the Context holds (Drake's simulator monitor, one `AdvanceTo`). It also paces a run at the
+scenario's real-time rate, without making up for pauses or stalls.
 
-Pacing also lives here: with the scenario's `simulator_config.target_realtime_rate` > 0 the
-simulator runs no faster than that multiple of real time. Time spent outside the clock (a
-model answering, a caller computing) is a pause: every run restarts Drake's pacing
-statistics, so a run never makes up for a pause by going faster than the rate. Nor does a
-run make up for a stall within it: Drake's Simulator paces against the wall time since the
-run began, so after a step that took long (a rendered frame, an RGB-D look) it would run
-flat out until it caught up, and a robot that moves in real time (the arm over CAN) would
-see its diagram's deadlines and trajectories pass faster than life. A paced run that falls
-more than MAX_CATCH_UP behind the wall clock restarts its pacing there: the lost time is
-lost, as on a real controller.
-
-A paced run also keeps Python's garbage collector off what the process held before it
-(`gc.freeze()` as it starts, `gc.unfreeze()` as it ends): a full collection walks every
-object of the process and stops all its threads meanwhile (262 ms over 3 million objects;
-in the test suite's large process the arm's log once had a 414 ms gap while a model
-thought), longer than the 100 ms in which a fault must surface. Within the run only what
-it allocates is collected (the same collection with the older objects frozen: 0.3 ms); the
-rest is collected after it.
+Design notes: docs/design/physcap_drake.md.
 """
 
 from __future__ import annotations

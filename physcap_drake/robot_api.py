@@ -1,21 +1,6 @@
 """The robot API: what generated code calls to move the PiPER.
 
-Each call that moves the robot is written once, as steps (`robot_call`): a generator that
-yields the action of each request it needs (a skill, or a whole get_mass / get_stiffness) and
-is sent the SkillStatus that answered it; it returns the call's result or raises
-SkillRefused / SkillFailed. Two clients drive those steps:
-
-- called as a method, the RobotAPI is a thin blocking client of the robot stack's exported
-  `robot.request` port: it puts each request on it (`RobotStack.send`: the value of
-  that exported input, Drake's way for a caller outside a diagram to feed it; the systems on
-  the request path take it in through their own events) and asks the clock to run until
-  `robot.status` reports that request finished (succeeded, failed or refused). Sim time
-  does not pass between calls. (`physcap sim`, calibration, tests.)
-- `stepwise(name)` gives the steps themselves, for a client inside the diagram that sends
-  the requests on its own port and waits between its events (the AgentSystem).
-
-The docstrings of the public methods are the API text shown to the language model, so they
-state units and frames exactly.
+Design notes: docs/design/physcap_drake.md.
 """
 
 from __future__ import annotations
@@ -58,7 +43,7 @@ RobotSteps = Generator[object, SkillStatus, object]
 
 
 def robot_call(steps: Callable[..., RobotSteps]) -> Callable:
-    """Makes a RobotAPI method from its steps (see the module docstring): called, it runs
+    """Makes a RobotAPI method from its steps (see the design notes): called, it runs
     them on the blocking request path; `RobotAPI.stepwise(name)` hands them out instead.
     The method keeps the steps' name, signature and docstring (the API text)."""
 
@@ -270,7 +255,7 @@ class RobotAPI:
 
     def stepwise(self, name: str) -> Callable:
         """The function `name` for a client that waits on its own: a robot call returns its
-        steps (a generator, see the module docstring), any other function (get_object_pose)
+        steps (a generator, see the design notes), any other function (get_object_pose)
         answers at once."""
         method = getattr(type(self), name)
         steps = getattr(method, "steps", None)

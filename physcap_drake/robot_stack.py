@@ -3,20 +3,8 @@ one request path.
 
     client --robot.request--> MassProbe --> StiffnessProbe --> SkillExecutor --> station
     client <--robot.status--- MassProbe <-- StiffnessProbe <-- SkillExecutor
-                                 |  window/estimate   | squeeze/result
-                              MassEstimator      StiffnessEstimator --> GripperCommandSelector
 
-Every request (a skill, MeasureMass, MeasureStiffness) enters at the top and is answered on
-the status port (see `physcap_drake.control.requests`). The client is either a system inside
-the diagram (an AgentSystem with `request` output and `status` input ports) or a caller
-outside it, through the exported `robot.request` input.
-
-The outside client's contract (`RobotStack.put_request`): a caller outside the diagram feeds
-it the way Drake feeds any diagram from outside, by fixing the value of an exported input
-port in the root context, between two runs of the clock. That value is the caller's say at
-the diagram's boundary, not any system's state: the probes and the SkillExecutor read it in
-their own update events and change their own state only there. Nothing else in the package
-fixes an input or writes a state of the running diagram (tests/test_context_writes.py).
+Design notes: docs/design/physcap_drake.md.
 """
 
 from __future__ import annotations
@@ -99,7 +87,7 @@ class RobotStack:
         return Clock(self.diagram, self.scenario.simulator_config, context)
 
     def put_request(self, root: Context, request: RobotRequest) -> None:
-        """The outside client's only way in (see the module docstring): `request` becomes
+        """The outside client's only way in (see the design notes): `request` becomes
         the value of the exported `robot.request` input in the root context `root` (the
         clock's `mutable_context`, between two runs). The first system on the request path
         takes it in at its next update event; `status_output` answers it there, with the

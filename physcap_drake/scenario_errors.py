@@ -1,12 +1,6 @@
 """Errors for scenario files that name the file, the key path and what was expected.
 
-Drake's `yaml_load_typed` reports *what* went wrong ("The fields ['seeds'] were unknown to the
-schema") but not *where*. `locate_yaml_error` recovers the key path from the loader's own
-recursion: each nested call of pydrake's private `_merge_yaml_dict_item_into_target` holds the
-field name it is filling (`name`) and, for lists, the list built so far (`new_value`), so the
-traceback spells out the path (for example ``directives[2].add_weld``). Should a future Drake
-rename that private function, the path simply comes back empty and the message still names the
-file and the problem; `tests/test_scenario.py` would flag the regression.
+Design notes: docs/design/physcap_drake.md.
 """
 
 from __future__ import annotations
