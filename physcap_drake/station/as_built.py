@@ -1,12 +1,7 @@
 """Building the simulated world as built rather than as drawn (`station.as_built`), and
 with its hidden masses (`Scenario.body_masses`, see `body_masses`).
 
-The arm's links get the masses and centres of mass of `as_built.links`, and its joints the
-damping of `as_built.joint_damping`: the text of its model file with those values in place of
-the drawn ones is parsed (the controller's and the estimators' own models keep the file as it
-is), so they are the model's own data, as a measured model file would have them. The compliant
-geometries of named models get their hydroelastic modulus scaled. All of it happens while the
-plant is built, before it is finalized.
+Design notes: docs/design/station.md.
 """
 
 from __future__ import annotations

@@ -1,15 +1,6 @@
 """A simulated world's hidden masses, as model data of its plant.
 
-A task's layout gives some bodies masses other than their model files' (`Scenario.body_masses`,
-by scoped body name: an empty can, a full cup). They are written into the text of each such
-model (the link's inertial mass, its moments of inertia scaled with it: the same shape, so
-the same unit inertia) and the model is parsed from that text while the world's plant is
-built (`sim_station.MakeSimStation`, through `as_built.add_directives_as_built`): they are
-the plant's default masses, as a weighed model file would have them. No context is written:
-every context of that world (an episode's clock, the emulated arm's world) starts with them,
-and nothing changes them while it runs. Only the simulated world has them: the controller's
-and the estimators' models, and the CAN station's copy of an emulated world
-(`can_scene.EmulatedScene`), keep the model files' masses.
+Design notes: docs/design/station.md.
 """
 
 from __future__ import annotations

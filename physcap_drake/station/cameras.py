@@ -1,18 +1,7 @@
 """The simulated station's cameras: rendered ones (Drake `CameraConfig`), and emulated
 RealSense cameras (`!RealSense {emulate: true}`) whose rendered frames go through librealsense.
 
-Drake's `ApplyCameraConfig` adds an `RgbdSensor` on the simulation's SceneGraph and an LCM
-image publisher that renders at the camera's fps throughout a simulation; the station has no
-LCM consumers and must not pay for rendering nobody reads, so it builds a `RenderCamera` from
-the same config itself, rendering in a pooled render world (`render_world.py`). Images are
-computed when their output port is evaluated (a test, the perception code, a recorder),
-never per step.
-
-An emulated RealSense renders its view with a `RenderCamera` too (`RealSense.rendering_config`)
-and feeds it to an `EmulatedRealSenseCamera`, which exports `<name>.rgb` and `<name>.depth`
-(stereo depth faults, z16, through the software device); `<name>.label` still comes from the
-renderer (simulation only). A live or recorded RealSense cannot see a simulated world and is
-refused here.
+Design notes: docs/design/station.md.
 """
 
 from __future__ import annotations
@@ -43,7 +32,7 @@ _LIVE_REALSENSE = ("camera '{name}': a simulated station's RealSense must be emu
 
 def add_cameras(builder: DiagramBuilder, plant: MultibodyPlant, scene_graph: SceneGraph,
                 scenario) -> None:
-    """Adds every camera of `scenario.cameras` (see the module docstring), looking at a
+    """Adds every camera of `scenario.cameras` (see the design notes), looking at a
     render world (`render_world.py`) that shows the visible geometry of `plant` (finalized,
     registered with `scene_graph`); the emulated RealSense cameras' depth faults are seeded
     by `scenario.random_seed`. Raises ValueError for an unsupported renderer or a live

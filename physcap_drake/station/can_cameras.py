@@ -1,23 +1,6 @@
 """The CAN station's cameras: a camera driver for each entry of the scenario's `cameras:`.
 
-The real arm reports joints and gripper only; images come from cameras beside it. Each
-entry of the scenario's `cameras:` becomes, on a `PiperCan` station:
-
-- `!RealSense` (live device or `.db3` recording): a `RealSenseCamera` driver system
-  (librealsense's pipeline) exporting `<name>.rgb` and `<name>.depth` with the device's
-  intrinsics, depth aligned to colour. `<name>.label` refuses to be evaluated: a camera
-  gives no labels.
-- `!RealSense {emulate: true}` (needs `station.emulate: true`): the emulator's simulated
-  world renders the camera's view (`RealSense.rendering_config`) and an
-  `EmulatedRealSenseCamera` on the CAN station pushes each rendered frame, with the stereo
-  depth faults, through librealsense's software device, exactly as on the simulated station.
-  `<name>.label` is the rendered label image (simulation only).
-- a rendered camera (Drake `CameraConfig`): the emulator's world renders it; without an
-  emulator its ports refuse to be evaluated.
-
-`body_poses` is the emulator world's ground truth, or refuses without one. The emulator's
-world renders only the cameras that need it (`emulated_world`), so a live camera's entry
-never reaches the simulated station.
+Design notes: docs/design/station.md.
 """
 
 from __future__ import annotations

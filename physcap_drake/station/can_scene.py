@@ -1,12 +1,6 @@
 """What the CAN station's camera and ground-truth ports show: the emulator's scene, or nothing.
 
-The real arm reports joints and gripper only. Camera images come from a camera, and the
-simulation-only outputs (`camera.label`, `body_poses`) exist only where there is a
-simulation. With an emulator, its simulated scene is that world: the emulated arm runs it
-in its own process and publishes its state; `EmulatedScene` keeps a copy of the same scene
-(built from the same scenario) to render and read. Without one, `NoScene` keeps the port
-contract but refuses to be evaluated, naming the port. Camera drivers (a live or emulated
-RealSense) hang off either: see `can_cameras`.
+Design notes: docs/design/station.md.
 """
 
 from __future__ import annotations
@@ -37,6 +31,10 @@ class EmulatedScene(LeafSystem):
     `cameras` (names of the emulator's simulated station's cameras; the station camera by
     default) and body_poses, all of the emulator's simulated scene.
 
+    Output ports:
+        <camera>.rgb (ImageRgba8U), <camera>.depth (ImageDepth32F, m),
+        <camera>.label (ImageLabel16I) of each camera in `cameras`.
+        body_poses (list of RigidTransform): X_WB by body index, world frame.
     Discrete state: the emulated plant's positions and velocities (`world_size` values) as
     the emulated arm last published them, latched by this system's own events: at
     initialization and every period at which the emulated arm publishes its world (1 /
@@ -156,7 +154,10 @@ def _parameters(context: Context) -> dict[int, np.ndarray]:
 
 class NoScene(LeafSystem):
     """Ports of a station without a simulation that keep the port contract but refuse to be
-    evaluated, naming the port (see module docstring).
+    evaluated, naming the port (see the design notes).
+
+    Output ports (each raises RuntimeError naming itself and `why` when evaluated):
+        camera.rgb, camera.depth, camera.label, body_poses: those of `names`.
 
     Args:
         camera_width, camera_height: size of the images the refused camera ports allocate, px.

@@ -1,16 +1,6 @@
 """CanSession: what a CAN station holds outside Drake, started only when asked.
 
-Building a CAN station connects to nothing, so a diagram can be built, drawn and
-inspected without powering the arm. `prepare()` and `wait_ready()` (run when the station
-is built) start the processes without connecting them: the streaming process
-(`can.link_process`) and, with `emulate: true`, the emulated arm (`can.emulator_process`,
-which builds its simulated world) on the two ends of a socket pair. `start()` (run by the
-PiperCanInterface's initialization event, or explicitly) connects: the streaming process
-opens its bus and runs the arm's start-up sequence (firmware, limits, mode, enabling).
-Keeping the slow part out of `start()` keeps the initialization event short, so a
-simulator paced to real time does not start far behind the clock.
-`close()` stops streaming (the arm stays enabled and holds) and then the emulated arm.
-These are resources, like a socket; the station's state stays in its Contexts.
+Design notes: docs/design/station.md.
 """
 
 from __future__ import annotations
@@ -38,7 +28,7 @@ TRIP_MARGIN = 0.02
 
 
 class CanSession:
-    """See module docstring. `world_size`: positions + velocities of the emulated world's
+    """See the design notes. `world_size`: positions + velocities of the emulated world's
     plant (the scene's copy of it), 0 without an emulator."""
 
     def __init__(self, scenario, world_size: int = 0):
@@ -117,7 +107,7 @@ class CanSession:
         return self
 
     def start(self) -> CanSession:
-        """Connects (see module docstring); does nothing if already started. Raises
+        """Connects (see the design notes); does nothing if already started. Raises
         ConnectionError / StartupError naming the bus and what failed (nothing is left
         running then)."""
         if self.started:

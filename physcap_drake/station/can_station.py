@@ -1,12 +1,6 @@
 """The CAN station: the PiPER over CAN behind the sim station's port contract.
 
-`MakeCanStation` builds a Diagram whose ports are exactly those of `ports`: the
-PiperCanInterface (commands and feedback) and, beside it, the scene system (the emulated
-world's camera and ground truth, or NoScene; a camera driver goes here). Building connects
-to nothing (it starts the station's processes, see `can_session`): the arm is connected,
-enabled and streamed to when the simulator initializes the diagram (the interface's
-initialization event), or earlier with `start_can_station`.
-`close_can_station` stops streaming (the arm stays enabled and holds) and the emulator.
+Design notes: docs/design/station.md.
 """
 
 from __future__ import annotations
@@ -26,8 +20,8 @@ INTERFACE, SCENE = "piper_can", "scene"
 
 
 def MakeCanStation(scenario, meshcat=None) -> Diagram:
-    """Builds the CAN station for `scenario` (whose `station` is a `PiperCan`); see module
-    docstring. Nothing is connected yet."""
+    """Builds the CAN station for `scenario` (whose `station` is a `PiperCan`); see the design
+    notes. Nothing is connected yet."""
     config: PiperCan = scenario.station
     if meshcat is not None:
         raise ValueError("station: !PiperCan does not draw in Meshcat yet; run without "

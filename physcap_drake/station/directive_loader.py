@@ -1,18 +1,6 @@
 """Adding model directives to a plant, each SDFormat model parsed from its text.
 
-Drake's `ProcessModelDirectives` hands every `add_model` file to libsdformat's file loader,
-which rebuilds SDFormat's schema description for each file: about 60 ms a file on a 2-core
-machine, however small the model (0.6 s for the ten files of a task's scene, paid by every
-episode). The same model parsed from its text takes 3–15 ms. `load_directives` does what
-`ProcessModelDirectives` does, in the same order and with the same results (the same model
-instances, bodies, joints, default poses and collision filters: `tests/test_directive_loader.py`
-compares the two on every scenario), but reads each SDFormat file once per process and
-parses it from its text under the directive's model name.
-
-What it takes from text: `.sdf` files without `<include>` (relative `<uri>`s are made
-absolute first, so meshes beside the file are still found). Any other model file (URDF,
-MJCF, an SDFormat file that includes others) is added by Drake's own directive processing,
-one `add_model` at a time: the same result, at the file loader's speed.
+Design notes: docs/design/station.md.
 """
 
 from __future__ import annotations

@@ -1,13 +1,6 @@
 """EndLoadWeight: the emulated firmware's end-load compensation as a force on the plant.
 
-The PiPER's firmware can be told that the gripper carries a payload (the end-load setting,
-CAN 0x477: empty, half or full). It then adds the torques that would hold that payload's
-weight at the fingertip to its joints' feed-forward. The emulated arm carries no such
-payload, so the extra torque pushes the arm as an upward force at the tool centre point
-would, and the joint loop holds against it: what the emulated firmware's users see on the
-measured torques. This system produces that force for the plant's applied spatial force
-input, from the end-load mass on its input; the plant applies it at the fingertip each step,
-so the torques follow the arm's pose without anything set from outside the diagram.
+Design notes: docs/design/station.md.
 """
 
 from __future__ import annotations
@@ -27,7 +20,7 @@ _Force = ExternallyAppliedSpatialForce_[float]
 
 
 class EndLoadWeight(LeafSystem):
-    """The upward force that carries an end load's weight at `tcp` (see module docstring).
+    """The upward force that carries an end load's weight at `tcp` (see the design notes).
 
     Input port: mass (1, kg), the end load the firmware compensates (0: none).
     Output port: spatial_forces (a list of ExternallyAppliedSpatialForce, for the plant's

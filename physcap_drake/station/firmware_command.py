@@ -1,22 +1,6 @@
 """The emulated firmware's command as a source system of the emulated world.
 
-The emulated arm's world (`simulated_motion.SimulatedMotion`) is the simulated station
-driven by the emulated firmware: each firmware period the firmware's joint reference,
-gripper opening and gripper force limit must reach the station's inputs. The firmware is
-not a Drake system; it hands its command over the way Drake's LcmSubscriberSystem receives
-a message from outside the diagram: the outside writes a small holder (`CommandMailbox`,
-like the subscriber's message buffer), and the source system latches the holder's latest
-value into its own state in an unrestricted update event; its outputs read only that
-state. So the command enters the world's context only through the world's own event, and
-every output is a function of the context.
-
-Why a per-step unrestricted update: the world's owner advances its simulator exactly to
-each of the joint loop's updates and puts the command meant for that update in the
-mailbox before each advance, so every simulator step must begin with the latest command
-(per-step), and the latch must come before the plant's and the servos' discrete updates at
-the same time (Drake handles a step's unrestricted updates before its discrete updates).
-A periodic latch would need the owner's schedule twice; an input port fixed from outside
-(what this replaces) writes into the context behind its systems' backs.
+Design notes: docs/design/station.md.
 """
 
 from __future__ import annotations
@@ -61,7 +45,7 @@ class CommandMailbox:
 
 
 class FirmwareCommandSource(LeafSystem):
-    """The emulated firmware's latest command (see module docstring).
+    """The emulated firmware's latest command (see the design notes).
 
     Discrete state: the command [q (6, rad), opening (m), force limit (N), end load (kg)]
     latched from `mailbox` at initialization and at the start of every simulator step.

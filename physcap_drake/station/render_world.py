@@ -1,26 +1,6 @@
 """The cameras' own copy of the simulated world, kept warm from one station to the next.
 
-Cameras do not look at the simulation's SceneGraph: a render engine there would have every
-geometry pose pushed to it at each plant step, though images are taken a few times per
-episode. They look at a `RenderWorld` instead: a SceneGraph in a diagram of its own, with
-one context, holding a copy of the station's visible geometry (each geometry with the
-perception role: its shape, pose in its body's frame and perception properties, so also its
-render label, the index of its body). Its frames are posed from the plant's body poses just
-before an image is rendered.
-
-A render engine's first images are slow: a new engine (or a clone, which is what a new
-context holds) builds its OpenGL pipelines and touches some 60 MB of fresh memory, about
-0.1 s per station on this project's CPU renderer. So a closed station gives its world back
-(`RenderWorldLease.release`, called by `close_station`), and the next station of the same
-process, thread and renderers borrows it (`lease_render_world`) and shows its own scene in the
-world's context: a body whose geometry is exactly a previous body's (shapes, poses on the
-body, colours, render label) takes over that body's frame, the rest of the previous scene is
-removed and the rest of the new one registered (a find_blue_cube scene of 77 geometries:
-about 4 ms when the scene is the same, 65 ms when all of it is new). A station that is dropped
-without being closed takes its world with it.
-
-The copy is taken from the world's SceneGraph as it was built, not parsed again from the
-scenario's models.
+Design notes: docs/design/station.md.
 """
 
 from __future__ import annotations
@@ -105,7 +85,7 @@ def unique_renderers(configs: list[CameraConfig]) -> tuple[RendererSpec, ...]:
 
 class RenderWorld:
     """A SceneGraph of the cameras' own, with its renderers, showing one station's scene at a
-    time (see the module docstring). Not a system: the cameras (`RenderCamera`) call it when
+    time (see the design notes). Not a system: the cameras (`RenderCamera`) call it when
     their images are evaluated; it keeps no state of the station's simulation."""
 
     def __init__(self, renderers: tuple[RendererSpec, ...], frames: int):

@@ -1,14 +1,6 @@
 """Parsing the scenario's models, and the robot's own model of itself (`RobotModel`).
 
-The controller model holds only the arm and its gripper, as a controller on the real robot
-knows them: no table, no objects, no payload. Gravity compensation, inverse kinematics and
-the mass estimator's Jacobians are computed from it, never from the simulated world.
-
-Parsing models takes time (tens of milliseconds a model), so the robot's model is built
-once per robot set-up (the directives that add the arm, its gripper and the fixed workcell)
-and shared by every system and check that needs it: `robot_model(...)` returns the same
-`RobotModel` for the same set-up. Finalized plants are only ever read (through each user's
-own context), so sharing them is safe, also across threads.
+Design notes: docs/design/station.md.
 """
 
 from __future__ import annotations
@@ -67,13 +59,13 @@ def make_model_plant(directives: list, model_names: tuple[str, ...]) -> Multibod
 
 def make_controller_plant(directives: list, arm_model: str,
                           gripper_model: str) -> MultibodyPlant:
-    """The controller's model: the arm and gripper alone (see module docstring); the shared
+    """The controller's model: the arm and gripper alone (see the design notes); the shared
     one of `robot_model`."""
     return robot_model(directives, arm_model, gripper_model).controller_plant
 
 
 class RobotModel:
-    """What the robot knows of itself and its workcell, parsed once (see module docstring).
+    """What the robot knows of itself and its workcell, parsed once (see the design notes).
 
     Attributes:
         arm_model, gripper_model: the model instance names in the scenario's directives.

@@ -1,19 +1,6 @@
 """SimulatedMotion: the emulator's arm is the simulated station (MultibodyPlant physics).
 
-The world is a diagram of the simulated station and a `FirmwareCommandSource` wired to its
-inputs. Each firmware cycle leaves the joint reference and the gripper command in the
-source's mailbox and advances the world's simulator by one period; the source latches the
-command in its own event, so the station pulls it from the diagram and nothing writes it
-into the world's context. Joint motion, joint torques and gripper effort come from the
-same physics as the sim station, with the task's objects in the scene, weighing the
-scenario's hidden `body_masses` from the first step on. The scene is also what an emulated
-station's camera sees and what the task's success check reads (ground truth the real arm
-does not have).
-
-The end-load setting (0x477) is applied as the firmware applies it: the weight of a half
-(0.75 kg) or full (1.5 kg) payload at the fingertip is added to the joints' feed-forward,
-which pushes the unloaded arm up at the fingertip (`EndLoadWeight`, fed by the same
-command source).
+Design notes: docs/design/station.md.
 """
 
 from __future__ import annotations
@@ -49,7 +36,7 @@ NAMED_NON_FINITE = 6
 
 
 class SimulatedMotion:
-    """A motion backend for `PiperEmulator` (see module docstring).
+    """A motion backend for `PiperEmulator` (see the design notes).
 
     Args:
         scenario: a scenario whose `station` is a `SimPiper` (the scene to simulate); its

@@ -1,20 +1,6 @@
 """The RealSense driver systems: LeafSystems exporting `<name>.rgb` and `<name>.depth`.
 
-Both export the station's image types (ImageRgba8U; ImageDepth32F in metres, 0 where the
-camera measured nothing) from one aligned frame per evaluation time, held in a cache entry
-so the two ports always show the same frame:
-
-- `RealSenseCamera` takes the frames of a live device or a recording (`PipelineRealSense`);
-  a new frame is taken when the ports are evaluated at a new time.
-- `EmulatedRealSenseCamera` takes a rendered colour and depth image on its input ports
-  (`rendered.rgb`, `rendered.depth`: any renderer, e.g. the simulated station's
-  `RenderCamera`, an emulator's, or Drake's RgbdSensor), adds the stereo depth faults
-  (drawn from the scenario's seed and the evaluation time, so a run is reproducible) and
-  pushes them through librealsense's software device (`SoftwareRealSense`); the frames come
-  back through the same frame path.
-
-Neither knows which station it hangs off. `close()` releases the device (and finishes a
-recording); `close_station` calls it.
+Design notes: docs/design/station.md.
 """
 
 from __future__ import annotations
@@ -52,7 +38,14 @@ _NO_FRAME = RgbdFrame(np.zeros((0, 0, 3), np.uint8), np.zeros((0, 0), np.float32
 class RgbdCameraSystem(LeafSystem):
     """A camera driver: declares the two image outputs of camera `name`, both read from one
     frame cache entry computed by `_frame(context)` whenever its `prerequisites` change;
-    `close()` releases the device."""
+    `close()` releases the device.
+
+    Output ports:
+        <name>.rgb (ImageRgba8U, width × height): colour.
+        <name>.depth (ImageDepth32F, width × height): depth aligned to colour, m along the
+            optical axis, 0 where the camera measured nothing.
+    No state: the frame is a cache entry.
+    """
 
     def __init__(self, name: str, width: int, height: int, prerequisites: set):
         super().__init__()
@@ -100,7 +93,11 @@ class RgbdCameraSystem(LeafSystem):
 
 
 class RealSenseCamera(RgbdCameraSystem):
-    """A live or recorded RealSense's images (see the module docstring)."""
+    """A live or recorded RealSense's images (see the design notes).
+
+    No input ports. Output ports: <name>.rgb, <name>.depth (see RgbdCameraSystem), a new
+    frame from the device or recording whenever the time changes.
+    """
 
     def __init__(self, source: PipelineRealSense):
         entry = source.entry
@@ -116,10 +113,16 @@ class RealSenseCamera(RgbdCameraSystem):
 
 
 class EmulatedRealSenseCamera(RgbdCameraSystem):
-    """An emulated RealSense fed by rendered images (see the module docstring).
+    """An emulated RealSense fed by rendered images (see the design notes).
 
     entry: the scenario's camera entry (its intrinsics are the rendering camera's, from
     `entry.rendering_config()`); seed: the scenario's random seed.
+
+    Input ports:
+        rendered.rgb (ImageRgba8U): the rendering camera's colour image.
+        rendered.depth (ImageDepth32F, m): its perfect depth, which gets the stereo faults.
+    Output ports: <name>.rgb, <name>.depth (see RgbdCameraSystem), as librealsense's
+        software device delivers the pushed frames.
     """
 
     def __init__(self, entry: RealSense, seed: int):

@@ -1,17 +1,6 @@
 """A RealSense camera entry of a scenario (`cameras: - !RealSense {...}`).
 
-The entry names the device (its serial number), the colour resolution and frame rate it
-streams at, and where its pose comes from: a calibration file written by `physcap
-calibrate camera`, or `X_WC` given by hand. Depth is always aligned to colour, so
-`<name>.depth` has the colour image's size and intrinsics.
-
-Three sources share the entry:
-- a live device (`serial`, or the only one connected when empty);
-- a recording (`recording: F.db3`), played back through librealsense as if live;
-- an emulated camera (`emulate: true`): the simulated scene rendered from the camera's pose
-  with `emulation`'s field of view, with stereo depth faults, through librealsense's
-  software device (the same frames and frame path as the device's).
-`record_to: F.db3` records what any of them delivers.
+Design notes: docs/design/station.md.
 """
 
 # No `from __future__ import annotations`: yaml_load_typed reads the field types at run time.
@@ -60,7 +49,7 @@ class RealSenseEmulation:
 
 @dc.dataclass
 class RealSense:
-    """An Intel RealSense D400-series camera (see the module docstring)."""
+    """An Intel RealSense D400-series camera (see the design notes)."""
 
     # The camera's name: its ports are `<name>.rgb` and `<name>.depth`.
     name: str = "camera"

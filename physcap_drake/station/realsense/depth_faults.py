@@ -1,39 +1,6 @@
 """The faults of a stereo depth camera, applied to a perfect rendered depth image.
 
-An emulated RealSense must not hand perception a perfect depth image: a D400-series camera
-computes depth from the disparity between two infrared imagers, and its depth carries
-errors that perception has to live with. `StereoDepthFaults` models them at the levels of
-Intel's D400 series datasheet (document 337029) and its "Best Known Methods for Tuning
-Intel RealSense D400 Depth Cameras" white paper:
-
-- **Noise growing with the square of the distance.** Depth is f·B / disparity, so an error
-  of a fixed fraction of a pixel in disparity (the subpixel RMS) becomes a depth error
-  z² / (f·B) × that fraction. The datasheet bounds the spatial noise (RMS error of a plane
-  fit, 80 % of the field of view) of the D415 and D435 by 2 % of the distance at 2 m, so the
-  RMS here is `rms_at_2m` × 2 m × (z / 2 m)²: 40 mm at 2 m, 13 mm at 1.15 m (where the
-  task objects are), 10 mm at 1 m. The noise is drawn independently per pixel (a plane
-  fit's residual), in metres along the optical axis.
-- **Quantization.** The z16 stream counts depth units (1 mm by default: the
-  `depth_units` option); the emulated device converts to z16 after the faults, so every
-  depth is a whole number of units.
-- **Holes where the second imager cannot see.** The depth is referenced to the left imager;
-  the right one sits `baseline` to its right (50 mm on a D435, 55 mm on a D415) and cannot
-  see the background just left of a nearer object: those pixels have no depth (the
-  "invalid band" on the left of objects the white paper describes). Computed exactly from
-  the depth image and the focal length, row by row.
-- **Holes at depth edges.** Matching windows that straddle a depth step often fail: pixels
-  next to a jump of more than `edge_jump` lose their depth with probability
-  `edge_hole_fraction`.
-- **Holes on dark or shiny surfaces.** Too little light comes back from very dark surfaces,
-  too much from specular ones: pixels darker than `dark_luminance` (fraction of full scale)
-  lose depth with a probability rising to `dark_hole_fraction` on black, saturated pixels
-  (brighter than `bright_luminance`) with `bright_hole_fraction`. These holes come in
-  blobs about `hole_size` pixels across, like a real camera's.
-- **Range.** Nothing nearer than `min_depth` (the D435's minimum Z at 848 × 480) or farther
-  than `max_depth`.
-
-Invalid pixels are 0, as in a RealSense z16 frame. Every draw comes from the generator the
-caller passes (seeded by the episode's seed and the frame), so runs are reproducible.
+Design notes: docs/design/station.md.
 """
 
 # No `from __future__ import annotations`: yaml_load_typed reads the field types at run time.
@@ -47,7 +14,7 @@ from physcap_drake.config_checks import ConfigChecker
 
 @dc.dataclass
 class StereoDepthFaults:
-    """Stereo depth errors of an emulated RealSense (see the module docstring for the
+    """Stereo depth errors of an emulated RealSense (see the design notes for the
     sources of each figure). `enabled: false` passes the rendered depth through unchanged
     except for the range limits and the z16 quantization."""
 

@@ -1,12 +1,6 @@
 """A live RealSense, or a `.db3` recording of one, through `rs.pipeline`.
 
-`PipelineRealSense` enables the z16 depth and rgb8 colour streams at the entry's
-resolution and frame rate on the device with the entry's serial number (or plays the
-entry's recording back, not in real time so no frame is skipped), optionally recording to
-a `.db3` file. Each `next_frame()` takes the newest frameset (a recording's next one);
-depth that is not yet in the colour camera's frame (a live device's) goes through `rs.align`
-to colour, and the frameset then takes the frame path every source shares
-(`frame_from_frameset`).
+Design notes: docs/design/station.md.
 """
 
 from __future__ import annotations
@@ -45,7 +39,7 @@ def connected_serials() -> list[str]:
 
 
 class PipelineRealSense:
-    """A RealSense device or recording (see the module docstring); `close()` when done."""
+    """A RealSense device or recording (see the design notes); `close()` when done."""
 
     def __init__(self, entry: RealSense):
         rs = librealsense()

@@ -1,15 +1,6 @@
 """An emulated RealSense: rendered frames pushed through librealsense's software device.
 
-`SoftwareRealSense` builds a `pyrealsense2.software_device` with a "Stereo Module" sensor
-streaming z16 depth and an "RGB Camera" sensor streaming rgb8 colour, both with the camera's
-intrinsics (depth rendered in the colour camera's frame, so the two streams are registered:
-identity extrinsics, same intrinsics; `rs.align` is neither needed nor reliable on a
-software device). `capture(rgb, depth)` converts the depth to z16 in the device's depth
-units, pushes both frames, and collects their frameset from a `rs.syncer`, which then goes
-through the same `frame_from_frameset` as a live camera's.
-
-With `record_to`, an `rs.recorder` wraps the device from the start, so the `.db3` file
-holds every frame pushed and plays back through `rs.pipeline` like a live device.
+Design notes: docs/design/station.md.
 """
 
 from __future__ import annotations
@@ -28,7 +19,7 @@ SYNC_TIMEOUT_MS = 2000
 
 
 class SoftwareRealSense:
-    """A software device standing for a D400 camera (see the module docstring).
+    """A software device standing for a D400 camera (see the design notes).
 
     width, height: px; fx, fy, cx, cy: the colour intrinsics (px); fps: the frame rate the
     streams declare; depth_unit: m per z16 count; record_to: a `.db3` path or "".
