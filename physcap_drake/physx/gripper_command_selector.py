@@ -19,7 +19,11 @@ SOURCES = ("executor", "probe")
 
 
 class _ActiveSource(LeafSystem):
-    """Turns the probe's `active` flag into the index of the switches' input to pass."""
+    """Turns the probe's `active` flag into the index of the switches' input to pass.
+
+    Input port: probe.active (1): 1 while the stiffness estimator squeezes, else 0.
+    Output port: source (InputPortIndex): 1 (the probe's command) while active, else 0.
+    """
 
     def __init__(self, indices: dict):
         super().__init__()

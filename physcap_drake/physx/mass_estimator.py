@@ -136,6 +136,7 @@ class MassEstimator(LeafSystem):
     Input ports: piper.position_measured (6, rad), piper.torque_measured (6, N·m),
         window (WindowRequest).
     Output port: estimate (MassEstimate).
+    State (abstract): the window being averaged and the published estimate.
     """
 
     def __init__(self, controller_plant: MultibodyPlant, arm_joints: list, tcp_frame_name: str,

@@ -1,21 +1,6 @@
 """ProbeSequence: the base of the probes that run on the request path as a sequence of skills.
 
-A probe sits on the request path between a client (the RobotAPI, the AgentSystem) and the
-SkillExecutor:
-
-    client --request--> [probe] --request--> ... --request--> [SkillExecutor]
-    client <--status--- [probe] <--status--- ... <--status--- [SkillExecutor]
-
-Requests it does not serve pass through unchanged, and so do their statuses (the ports are
-direct feedthrough). A request whose action it serves (e.g. MeasureMass) is taken at the
-probe's next event: the probe then sends skill requests of its own (client = its name), each
-when the previous one has finished, and answers the client's request with its own status:
-RUNNING until the sequence ends, then SUCCEEDED with the measurement in `result`, or FAILED
-or REFUSED with the message of the step that failed.
-
-Its events come every PERIOD s, half a period after the executor's: a step that ended at an
-executor event is followed by the next step at the executor's next event, as when a client
-waits for each skill before sending the next.
+Design notes: docs/design/physx.md.
 """
 
 from __future__ import annotations
@@ -62,7 +47,9 @@ class SequenceState(Immutable):
 
 
 class ProbeSequence(LeafSystem):
-    """See the module docstring. A subclass serves the actions of type `serves` and says how
+    """A probe on the request path: passes on requests it does not serve, and runs the ones
+    it serves as a sequence of skill requests of its own, every PERIOD s (12 ms, 4 ms after
+    the executor's events). A subclass serves the actions of type `serves` and says how
     its sequence goes with `begin` and `advance`; it may declare more ports (e.g. to its
     estimator) whose values it derives from `memory(context)`.
 
@@ -70,6 +57,7 @@ class ProbeSequence(LeafSystem):
         executor side).
     Output ports: request (RobotRequest, on to the executor), status (SkillStatus, to the
         client).
+    State (abstract): SequenceState, the job served, its status and the subclass's memory.
     """
 
     def __init__(self, name: str, serves: type):

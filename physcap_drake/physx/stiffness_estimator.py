@@ -144,6 +144,8 @@ class StiffnessEstimator(LeafSystem):
         squeeze (SqueezeRequest).
     Output ports: gripper.position (1, m), gripper.force_limit (1, N), active (1: 1 while
         probing, else 0), result (StiffnessReport).
+    State (abstract): ProbeState, the squeeze request served, the gripper command, the
+        contact found, the readings and the report so far.
     """
 
     def __init__(self, config: StiffnessProbeConfig, thresholds: StiffnessThresholds, *,

@@ -1,16 +1,6 @@
 """Fitting the arm's torque sensor gains with a weight of known mass.
 
-A joint torque reading is `gain × true torque + offset`; the offset cancels in get_mass's
-loaded-minus-empty difference, the gain does not: a joint whose sensor reads 5 % high makes
-every mass it carries read up to 5 % heavy. Weighing a weight of known mass m once gives each
-loaded joint's gain directly: the load's true torque change is m·g·J_z (J_z at the weight,
-from the robot's model, plus the arm's own sag change), and the reported change divided by
-it is the gain. Joints the weight hardly loads at that pose (|m·g·J_z| below `min_share` of
-the largest: the base yaw, the tool roll) keep the gain 1, since their reading hardly moves a
-mass estimate either.
-
-The weight's centre of mass may hang a little beside the fingertip point; where, comes from
-the same torques (`horizontal_load_offset`), refitted with the gains found so far.
+Design notes: docs/design/physx.md.
 """
 
 from __future__ import annotations
