@@ -1,20 +1,7 @@
 """The time-optimal timing s(t) of a joint path q(s) under per-joint speed and acceleration
 limits, by TOPP-RA (time-optimal path parameterization by reachability analysis).
 
-It computes what Drake's `Toppra` computes for `AddJointVelocityLimit` and
-`AddJointAccelerationLimit` (interpolation discretization) on the same grid, starting and
-ending at rest: the same constraints at each knot, the same backward pass (the set of path
-speeds from which the end is still reachable), the same greedy forward pass and the same
-piecewise-quadratic s(t). The difference is how each knot's linear program is solved. Its
-two unknowns are x = ṡ² and u = s̈, and every constraint is a half-plane in (x, u). Drake
-solves each through a MathematicalProgram with Clp, three per knot: about 30 ms for a
-motion's 129 knots, some 0.28 s of a find_blue_cube episode's 2.2–2.6 s of wall time. Here u
-is eliminated in closed form (each pair of an upper and a lower bound on u bounds x), about
-4 ms a motion. `tests/test_path_timing.py` checks that both give the same timing (to 1e-9 s;
-1e-14 s measured).
-
-Units: s is the path parameter (dimensionless, as `path`'s breaks); speed limits in rad/s,
-acceleration limits in rad/s²; t in s.
+Design notes: docs/design/control.md.
 """
 
 from __future__ import annotations

@@ -91,6 +91,8 @@ class SkillExecutor(LeafSystem):
         piper.position_measured (6, rad), gripper.position_measured (1, m).
     Output ports: piper.position (6, rad), gripper.position (1, m), gripper.force_limit
         (1, N) for the station; status (SkillStatus).
+    State (abstract): ExecutorState, the arm's plan, the gripper's command, the running
+        skill, the status of the latest request taken and the requests served.
     """
 
     def __init__(self, planner: SkillPlanner, *, initial_force: float,
