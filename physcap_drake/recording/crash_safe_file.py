@@ -1,22 +1,6 @@
 """CrashSafeFile: the file an MCAP writer writes into, readable by any MCAP reader at any time.
 
-An MCAP file ends with a Footer (and the magic bytes); readers such as the `mcap` library's
-`make_reader(f).iter_messages()` look for it first, so a file whose writer was killed before
-it closed is, to them, not MCAP at all. This file object keeps a valid end on disk at every
-flush:
-
-- the writer is set up not to seek (`MCAPWriteOptions(disable_seeking=True)`), so it hands
-  over each chunk whole, with its lengths filled in, when the chunk is finished;
-- bytes are held in memory until the writer flushes; then they go to disk followed by a
-  *provisional end*: a DataEnd record and a Footer that points to no summary, then the magic.
-  Readers take a Footer without summary as "read the data section front to back", which is
-  exactly what such a file needs;
-- the next flush overwrites the provisional end with the new data and a new provisional end,
-  in one write; `close()` leaves the writer's own end (summary, Footer, magic) instead.
-
-A process killed between flushes leaves the file as it was at the last flush: complete up to
-there, for every reader. (A kill that lands inside the one write of a flush can leave a torn
-tail; `recording.recover` repairs such a file, and `physcap replay` does so by itself.)
+Design notes: docs/design/recording.md.
 """
 
 from __future__ import annotations
@@ -43,8 +27,8 @@ PROVISIONAL_END = _provisional_end()
 
 
 class CrashSafeFile:
-    """A write-only, forward-only file object for `foxglove.open_mcap` (see the module
-    docstring). Raises FileExistsError if `path` exists and not `overwrite`."""
+    """A write-only, forward-only file object for `foxglove.open_mcap` (see the design
+    notes). Raises FileExistsError if `path` exists and not `overwrite`."""
 
     def __init__(self, path: str | Path, *, overwrite: bool = False):
         self.path = Path(path)

@@ -1,22 +1,6 @@
 """McapRecorder: the diagram's recorder, writing the station's signals to an McapSink.
 
-It reads only station outputs, through input ports named like them: the arm's measured joint
-positions, velocities and torques, the gripper's opening and effort, the camera image and,
-where the station has it (simulation), `body_poses` for the frames of every body. A station
-without a simulated world (the real arm) gets its frames from the robot's own model instead:
-forward kinematics of the measured joints, for the arm, the gripper and the fixed scenery.
-From these it writes, by periodic publish events (so the simulation's state is untouched):
-
-- every `state_period` s: joint states (J1..J6 and the gripper's opening), the gripper's
-  opening and normalized effort, and the frame transforms (every body in the world frame,
-  plus the fingertip frame);
-- every `image_period` s: the camera image as JPEG (images are rendered only then);
-- every `flush_period` s: a flush, so a killed process leaves a readable file.
-
-The scene's geometry (SceneUpdate) is written once, when the diagram initializes; that is also
-when the recorder starts the sink's episode on its time base (see `time_base`: simulated time
-for the simulated arm, wall-clock time for a CAN station), so the recording's start date is
-the moment the episode's diagram started. All messages of one event share one log time.
+Design notes: docs/design/recording.md.
 """
 
 from __future__ import annotations
@@ -43,7 +27,16 @@ GRIPPER_JOINT = "gripper"
 
 
 class McapRecorder(LeafSystem):
-    """See the module docstring.
+    """Writes the station's signals to an McapSink by periodic publish events (joint states
+    and frames every `state_period`, images every `image_period`, a flush every
+    `flush_period`), so the simulation's state is untouched.
+
+    Input ports (named like the station outputs they read):
+        piper.position_measured (6, rad), piper.velocity_estimated (6, rad/s),
+        piper.torque_measured (6, N·m), gripper.position_measured (1, m),
+        gripper.effort_measured (1, 0..1), camera.rgb (ImageRgba8U),
+        body_poses (X_WB by body index; only with `plant` and without `kinematics`).
+    No outputs; no state (what it writes goes to the sink).
 
     Args:
         sink: where messages go (the recorder does not close it).

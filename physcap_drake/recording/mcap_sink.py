@@ -1,24 +1,6 @@
 """McapSink: one episode's MCAP file and its channels, written with foxglove-sdk.
 
-The sink owns the file; diagram systems and the agent loop hand it messages with their
-simulated time, and the sink's episode time base (see `time_base`) turns that into the log time:
-the episode's start date plus simulated time (simulated station) or plus wall-clock time since
-the start (CAN station). The recorder starts the episode when the diagram initializes
-(`start_episode`), which writes the time base's metadata record; a sink used without one
-starts a simulated-time episode at its first message. Every JSON message carries its
-simulated time as `sim_time_s`, and Foxglove's messages carry the log time as their timestamp.
-It keeps the file readable whatever happens to the process: `flush()` ends the current chunk
-and puts it on disk followed by a provisional end (see `crash_safe_file`; the recorder flushes
-every second of simulated time and after every agent message), and `close()` writes the
-summary section. A process killed between flushes loses at most what came after the last
-flush; what was flushed opens in any MCAP reader as it is.
-
-A sink may be written from more than one thread (on the CAN station the agent's model calls
-run on a thread of their own while the diagram's recorder keeps logging). foxglove-sdk holds
-its own lock while it writes to the file, and writing to a Python file needs the interpreter:
-a thread holding the interpreter and waiting for that lock, while the other holds the lock
-and waits for the interpreter, would wait forever. So every call into foxglove-sdk goes
-through the sink's own lock, whose waiters let go of the interpreter.
+Design notes: docs/design/recording.md.
 """
 
 from __future__ import annotations
@@ -117,7 +99,7 @@ class McapSink:
                 message_encoding="json")
             for topic, (name, schema) in agent_schemas().items()}
         self._time_base: TimeBase | None = None
-        self._lock = threading.Lock()  # see the module docstring
+        self._lock = threading.Lock()  # see the design notes
         self.closed = False
 
     # --- time ----------------------------------------------------------------------------

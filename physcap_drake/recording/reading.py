@@ -1,15 +1,6 @@
 """Reading a recording back with the `mcap` reader, including one cut short by a crash.
 
-A finished file is read through its summary; a file whose writer never closed (the process
-was killed) has no summary, so it is read front to back and reading stops cleanly where the
-data ends. Foxglove's protobuf messages are decoded with `mcap-protobuf-support`, the agent's
-JSON messages with `json`.
-
-Times: a message's log time is a date (ns since the Unix epoch, UTC) on the episode's time
-base, whose start the `time_base.TIME_METADATA` record gives; a message's `time_s` is its time
-on the episode's axis (log time minus the start: simulated time, or wall-clock time since the
-start on a CAN station). A recording from before the time base was recorded has none: its log
-times already count from 0, and `Recording.time_base_note` says so.
+Design notes: docs/design/recording.md.
 """
 
 from __future__ import annotations
@@ -154,7 +145,7 @@ def iter_messages(path: str | Path, start_ns: int = 0) -> Iterator[RecordedMessa
 
 
 def read_recording(path: str | Path) -> Recording:
-    """Reads a whole recording (see the module docstring). Raises FileNotFoundError for a
+    """Reads a whole recording (see the design notes). Raises FileNotFoundError for a
     missing file and RecordingError for a file that is not MCAP at all."""
     path = Path(path)
     check_is_mcap(path)

@@ -1,13 +1,6 @@
 """Making a recording whose writer never closed it a complete MCAP file again.
 
-A recording cut short (the process was killed) has no summary section. The recorder keeps
-such a file readable as it is (see `crash_safe_file`), but a kill in the middle of a write,
-or a file from an older recorder (whose last chunk has no length), can still end in a torn
-record that stops readers. `recover` reads the file front to back up to the last whole
-record, writes everything read (schemas, channels, messages, metadata, attachments, in their
-order) into a new file with a summary and indexes, and puts it in the original's place; the
-original is kept next to it as `<name>.orig`. `physcap recover F` runs it, and
-`physcap replay` runs it by itself on a file that needs it.
+Design notes: docs/design/recording.md.
 """
 
 from __future__ import annotations
@@ -59,7 +52,7 @@ def is_complete(path: str | Path) -> bool:
 
 
 def recover(path: str | Path) -> Recovery:
-    """Rewrites an incomplete recording as a complete one (see the module docstring); a
+    """Rewrites an incomplete recording as a complete one (see the design notes); a
     complete file is left alone. Raises FileNotFoundError, or reading.RecordingError for a
     file that does not start like an MCAP file."""
     path = Path(path)

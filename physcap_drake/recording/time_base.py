@@ -1,20 +1,6 @@
 """The episode's time base: what a recording's log times count, and from which real date.
 
-Every message of a recording is logged at `start_date_ns + episode time`, in ns since the Unix
-epoch (UTC), so Foxglove shows the date the episode ran rather than 1970:
-
-- `SimulatedTime` (the simulated station): the episode time is the simulator's time. Waits
-  the simulator does not see (a model thinking while the diagram stands still) take no log
-  time, and two runs of one seed differ only in their start date.
-- `WallClockTime` (the CAN station, real or emulated: the diagram is paced at real time and
-  the world goes on while the agent waits): the episode time is wall-clock time since the
-  episode started, read from a monotonic clock (never from differences of `time.time()`, which
-  jumps when the system clock is set). A recording then lines up with anything else logged on
-  the rig, and nothing collapses a wait.
-
-Either way the simulated time of a message stays in it where it matters (`sim_time_s` on the
-JSON topics), and the base is recorded once, in the metadata record `TIME_METADATA`, so a
-reader recovers the episode's axis (see `reading.Recording.episode_start_ns`).
+Design notes: docs/design/recording.md.
 """
 
 from __future__ import annotations
@@ -90,7 +76,7 @@ class TimeBase(abc.ABC):
 
 
 class SimulatedTime(TimeBase):
-    """Episode time = simulated time (see the module docstring)."""
+    """Episode time = simulated time (see the design notes)."""
 
     kind = SIMULATED
 
@@ -99,7 +85,7 @@ class SimulatedTime(TimeBase):
 
 
 class WallClockTime(TimeBase):
-    """Episode time = monotonic wall-clock time since `start()` (see the module docstring);
+    """Episode time = monotonic wall-clock time since `start()` (see the design notes);
     `monotonic_ns` (time.monotonic_ns by default) is that clock, in ns."""
 
     kind = WALL_CLOCK

@@ -1,16 +1,6 @@
 """The topics of a recorded run and the schemas their messages follow.
 
-Robot and scene topics use Foxglove's well-known schemas (protobuf), so Foxglove's panels show
-them without set-up; the agent's topics are JSON with a JSON Schema named `physcap.*`.
-Times: every message's log time is a real date, in ns since the Unix epoch (UTC): the
-episode's start date plus its time on the episode's time base (see `time_base`): simulated
-time on the simulated station (so two runs of one seed differ only in their start date),
-wall-clock time since the start on the CAN station (so waits are not collapsed and the log
-lines up with anything else recorded on the rig). The start and the kind of time base are in
-the metadata record `time_base.TIME_METADATA`; every JSON message also carries its simulated
-time as `sim_time_s`. Simulated time runs while the robot executes skills and while it holds
-still after one; the episode's robot execution time counts only the former, so it is a little
-shorter than the last simulated time.
+Design notes: docs/design/recording.md.
 """
 
 #: foxglove.JointStates: J1..J6 (position rad, velocity rad/s, effort N·m, measured) and the
