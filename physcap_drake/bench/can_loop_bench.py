@@ -59,7 +59,10 @@ class CanLoopResult:
 
 
 class CameraLoad(LeafSystem):
-    """Renders the image on its input every 1/rate s (a periodic publish), counting them."""
+    """Renders the image on its input every 1/rate s (a periodic publish), counting them.
+
+    Input port: rgb (ImageRgba8U): the camera image to render. No outputs, no state.
+    """
 
     def __init__(self, rate: float, model):
         super().__init__()

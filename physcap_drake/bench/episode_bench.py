@@ -1,25 +1,6 @@
 """`physcap bench episode`: how fast agent episodes run, robot time per wall-clock second.
 
-Runs the `physcap` variant with the offline reference reasoner on a few seeds of each task,
-one episode after the other in this process (as one worker of `physcap eval` does), and
-adds up per task the robot execution time (simulated seconds spent executing skills), the
-wall time of the whole episode (building its diagram included) and the CPU time (user +
-system) spent on it: this process's, and its child processes' (the sandboxed code blocks):
-figures that a machine loaded by other work disturbs less than wall time. `cpu_rtf` is the
-robot time per CPU second of both, what `rtf` would be on an idle machine were nothing
-waited for.
-
-On a shared machine the same episodes take CPU time that swings by a third from one run to
-the next, so one run's `rtf` says little about the code: `run_episode_bench` can be run
-several times (`run` numbers them) and `spread_over_runs` gives each task's median and
-range.
-
-The figures are those of a worker that has run an episode before, as every episode of an
-evaluation but each worker's first: an untimed warm-up episode (the first task's first seed)
-runs first and pays what a process pays once (importing the agent, the perception and the
-planners, parsing the models, starting the renderer). Each result names the memory
-allocator the process ran with (`physcap_drake.allocator`) and the number of threads of
-NumPy's BLAS (`physcap_drake.blas_threads`).
+Design notes: docs/design/bench.md.
 """
 
 from __future__ import annotations

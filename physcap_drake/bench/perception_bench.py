@@ -1,13 +1,6 @@
 """`physcap bench perception`: RGB-D perception against the simulator's ground truth.
 
-For each task and seed, the episode's first camera view (an emulated RealSense: stereo depth
-faults, through librealsense) goes through RGB-D perception, and every object the camera
-can see (the task's objects in view and its tray or basket) is located by the name the
-task gives it, as get_object_pose would. The grasp point is compared with the true one:
-the object's position from the simulator (x, y) and, for the height, the same grasp rule
-applied to the object's true top (from the perfect rendered depth at its label mask). The
-visible attributes perception reports are compared with the task's (category, colour,
-straw, size). Ground truth is read here only, to score; perception never sees it.
+Design notes: docs/design/bench.md.
 """
 
 from __future__ import annotations
@@ -83,7 +76,7 @@ def _mismatch(seen, truth) -> str:
 
 
 def bench_episode(task: str, seed: int) -> list[LocatedObject]:
-    """Locates every visible object of one episode's first view (see module docstring)."""
+    """Locates every visible object of one episode's first view (see the design notes)."""
     episode = make_episode(task, seed, perception="rgbd")
     try:
         station = episode.robot.station
