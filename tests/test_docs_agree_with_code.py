@@ -107,7 +107,7 @@ def test_the_synopsis_parser_sees_a_wrong_option_and_a_missing_command():
 
 
 def markdown_files() -> list[Path]:
-    return [REPO / "README.md", *sorted(DOCS.glob("*.md"))]
+    return [REPO / "README.md", *sorted(DOCS.rglob("*.md"))]
 
 
 def relative_links(page: Path) -> list[str]:
