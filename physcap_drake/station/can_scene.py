@@ -158,6 +158,7 @@ class NoScene(LeafSystem):
 
     Output ports (each raises RuntimeError naming itself and `why` when evaluated):
         camera.rgb, camera.depth, camera.label, body_poses: those of `names`.
+    No state.
 
     Args:
         camera_width, camera_height: size of the images the refused camera ports allocate, px.

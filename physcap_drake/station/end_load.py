@@ -26,6 +26,7 @@ class EndLoadWeight(LeafSystem):
     Output port: spatial_forces (a list of ExternallyAppliedSpatialForce, for the plant's
         applied spatial force input): one force of mass · g upward (world +z, N) at the
         tcp's origin on its body; none when the mass is 0.
+    No state.
     """
 
     def __init__(self, plant: MultibodyPlant, tcp: Frame):

@@ -34,6 +34,7 @@ class RenderCamera(LeafSystem):
     Output ports: color_image (ImageRgba8U), depth_image_32f (ImageDepth32F, m along the
         optical axis), label_image (ImageLabel16I: the render label of what each pixel
         sees, the body index for the station's geometry).
+    No state: the images are rendered when an output is evaluated.
 
     The camera body B sits at `X_PB` in the parent body's frame P (the world when `parent`
     is the world body's index 0); each `RenderCamera` core's `sensor_pose_in_camera_body`

@@ -123,6 +123,7 @@ class EmulatedRealSenseCamera(RgbdCameraSystem):
         rendered.depth (ImageDepth32F, m): its perfect depth, which gets the stereo faults.
     Output ports: <name>.rgb, <name>.depth (see RgbdCameraSystem), as librealsense's
         software device delivers the pushed frames.
+    No state: the frame is a cache entry of the inputs.
     """
 
     def __init__(self, entry: RealSense, seed: int):
