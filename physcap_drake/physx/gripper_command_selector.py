@@ -23,6 +23,7 @@ class _ActiveSource(LeafSystem):
 
     Input port: probe.active (1): 1 while the stiffness estimator squeezes, else 0.
     Output port: source (InputPortIndex): 1 (the probe's command) while active, else 0.
+    No state.
     """
 
     def __init__(self, indices: dict):

@@ -113,6 +113,7 @@ class MassProbe(ProbeSequence):
     Input ports: request, status (the request path, see ProbeSequence),
         gripper.position_measured (1, m), estimate (MassEstimate).
     Output ports: request, status, window (WindowRequest, to the MassEstimator).
+    State: ProbeSequence's, with a MassMemory (the stage, the grasp point, the window).
     """
 
     def __init__(self, config: MassProbeConfig, *, gripper_stroke: float, grasp_force: float):

@@ -89,6 +89,7 @@ class StiffnessProbe(ProbeSequence):
     Input ports: request, status (the request path, see ProbeSequence),
         result (StiffnessReport, from the StiffnessEstimator).
     Output ports: request, status, squeeze (SqueezeRequest, to the StiffnessEstimator).
+    State: ProbeSequence's, with a StiffnessMemory (the stage, the point, the squeeze).
     """
 
     def __init__(self, *, gripper_stroke: float, grasp_force: float):
