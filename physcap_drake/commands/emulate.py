@@ -10,6 +10,7 @@ import can
 import typer
 
 from physcap_drake.can.emulator import PiperEmulator
+from physcap_drake.can.firmware import START_STATES
 from physcap_drake.commands.common import console, fail, load_scenario_or_exit
 from physcap_drake.station.can_cameras import emulated_world
 from physcap_drake.station.simulated_motion import simulated_motion
@@ -26,6 +27,10 @@ def emulate_piper(
     scenario: Annotated[Path | None, typer.Option(
         "--scenario", help="Back the arm by this scenario's simulated station (its scene and "
                            "objects); without it the joints move kinematically.")] = None,
+    start: Annotated[str, typer.Option(
+        "--start", help="The state the arm powers up in: normal, teach (drag-teach: CAN "
+                        "motion ignored until reset), leader (a linkage's leader arm: no joint "
+                        "feedback) or standby (the first mode frame is lost).")] = "normal",
 ) -> None:
     """Answer on the bus like a PiPER arm: feedback at 200 Hz (status, end pose, joints,
     gripper, drivers), every command and query of the vendor's protocol (e-stop and resume,
@@ -33,6 +38,9 @@ def emulate_piper(
     limits and parameters); what it cannot emulate (MIT mode) it refuses in arm_status."""
     if interface not in ("socketcan", "virtual"):
         raise typer.BadParameter(f"--interface must be socketcan or virtual, not {interface!r}")
+    if start not in START_STATES:
+        raise typer.BadParameter(f"--start must be one of {', '.join(START_STATES)}, not "
+                                 f"{start!r}")
     motion = None
     if scenario is not None:
         # The world renders no camera here: cameras belong to the station that connects.
@@ -41,10 +49,10 @@ def emulate_piper(
         bus = can.Bus(interface=interface, channel=channel)
     except (OSError, can.CanError) as error:
         fail(f"cannot open {interface} channel {channel!r}: {error}")
-    console.print(f"emulating a PiPER (firmware {firmware}) on {interface}:{channel}; "
-                  "Ctrl-C to stop")
+    console.print(f"emulating a PiPER (firmware {firmware}, start state {start}) on "
+                  f"{interface}:{channel}; Ctrl-C to stop")
     try:
-        with PiperEmulator(bus, firmware=firmware, motion=motion):
+        with PiperEmulator(bus, firmware=firmware, motion=motion, start=start):
             start = time.monotonic()
             while not seconds or time.monotonic() - start < seconds:
                 time.sleep(0.1)
