@@ -76,3 +76,15 @@ def settled(sdk, reports: int = 2) -> bool:
         return len(seen) > reports
 
     return wait_until(newer)
+
+
+def sdk_on_unix_bus(path: str, monkeypatch):
+    """The vendor SDK on the rehearsal bus served at `path`: python-can is told of the
+    `unix` interface here (installed, the package's entry point does it)."""
+    monkeypatch.setitem(can.interfaces.BACKENDS, "unix",
+                        ("physcap_drake.can.unix_bus", "UnixSocketBus"))
+    monkeypatch.setattr(can.util, "VALID_INTERFACES", can.util.VALID_INTERFACES | {"unix"})
+    sdk = piper_sdk.C_PiperInterface_V2(can_name=path, judge_flag=False, can_auto_init=False)
+    sdk.CreateCanBus(path, bustype="unix", judge_flag=False)
+    sdk.ConnectPort(piper_init=False)
+    return sdk

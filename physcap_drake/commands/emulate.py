@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import signal
 import time
 from pathlib import Path
 from typing import Annotated
@@ -11,16 +12,22 @@ import typer
 
 from physcap_drake.can.emulator import PiperEmulator
 from physcap_drake.can.firmware import START_STATES
+from physcap_drake.can.unix_bus import UnixBusHub
 from physcap_drake.commands.common import console, fail, load_scenario_or_exit
 from physcap_drake.station.can_cameras import emulated_world
 from physcap_drake.station.simulated_motion import simulated_motion
 
+#: The buses it serves on.
+INTERFACES = ("socketcan", "unix", "virtual")
+
 
 def emulate_piper(
-    channel: Annotated[str, typer.Option("--channel", help="CAN channel, e.g. vcan0.")],
+    channel: Annotated[str, typer.Option(
+        "--channel", help="CAN channel, e.g. vcan0; with --interface unix a socket path.")],
     interface: Annotated[str, typer.Option(
-        "--interface", help="python-can interface: socketcan (a separate process can talk "
-        "to it) or virtual (in-process only).")] = "socketcan",
+        "--interface", help="socketcan (a separate process reaches it, e.g. on vcan0), unix "
+        "(serves a rehearsal bus on the Unix-domain socket --channel names, which any "
+        "number of physcap processes reach) or virtual (in-process only).")] = "socketcan",
     firmware: Annotated[str, typer.Option("--firmware", help="Version it reports.")] = "S-V1.8-2",
     seconds: Annotated[float, typer.Option(
         "--seconds", min=0.0, help="Stop after this long (0: run until Ctrl-C).")] = 0.0,
@@ -36,8 +43,9 @@ def emulate_piper(
     gripper, drivers), every command and query of the vendor's protocol (e-stop and resume,
     modes and speed, joint and end-pose moves, gripper, settings acknowledged on 0x476,
     limits and parameters); what it cannot emulate (MIT mode) it refuses in arm_status."""
-    if interface not in ("socketcan", "virtual"):
-        raise typer.BadParameter(f"--interface must be socketcan or virtual, not {interface!r}")
+    if interface not in INTERFACES:
+        raise typer.BadParameter(f"--interface must be one of {', '.join(INTERFACES)}, not "
+                                 f"{interface!r}")
     if start not in START_STATES:
         raise typer.BadParameter(f"--start must be one of {', '.join(START_STATES)}, not "
                                  f"{start!r}")
@@ -45,18 +53,30 @@ def emulate_piper(
     if scenario is not None:
         # The world renders no camera here: cameras belong to the station that connects.
         motion = simulated_motion(emulated_world(load_scenario_or_exit(scenario), cameras=False))
+    hub = None
     try:
-        bus = can.Bus(interface=interface, channel=channel)
+        if interface == "unix":
+            hub = UnixBusHub(channel)
+            bus = hub.member("emulator")
+        else:
+            bus = can.Bus(interface=interface, channel=channel)
     except (OSError, can.CanError) as error:
         fail(f"cannot open {interface} channel {channel!r}: {error}")
     console.print(f"emulating a PiPER (firmware {firmware}, start state {start}) on "
                   f"{interface}:{channel}; Ctrl-C to stop")
+    signal.signal(signal.SIGTERM, _interrupt)  # `kill` ends it as cleanly as Ctrl-C
     try:
         with PiperEmulator(bus, firmware=firmware, motion=motion, start=start):
-            start = time.monotonic()
-            while not seconds or time.monotonic() - start < seconds:
+            began = time.monotonic()
+            while not seconds or time.monotonic() - began < seconds:
                 time.sleep(0.1)
     except KeyboardInterrupt:
         pass
     finally:
         bus.shutdown()
+        if hub is not None:
+            hub.close()
+
+
+def _interrupt(signum, frame) -> None:
+    raise KeyboardInterrupt
