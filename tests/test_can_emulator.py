@@ -59,7 +59,7 @@ def acknowledged(sdk, index: int) -> bool:
                       == index, timeout=2.0)
 
 
-def test_an_emergency_stop_holds_and_resume_lets_the_arm_move_again(arm):
+def test_an_emergency_stop_ignores_targets_and_resume_lets_the_arm_move_again(arm):
     sdk, emulator = arm
     enable(sdk)
     first = READY + [0.3, 0, 0, 0, 0, 0]
@@ -67,12 +67,10 @@ def test_an_emergency_stop_holds_and_resume_lets_the_arm_move_again(arm):
                   and status(sdk).motion_status == 0)
     sdk.EmergencyStop(0x01)
     assert wait_until(lambda: status(sdk).arm_status == 1)  # EMERGENCY_STOP
-    stopped = joints(sdk)
     stream(sdk, READY, lambda: False, timeout=0.3)  # ignored while stopped
-    np.testing.assert_array_equal(joints(sdk), stopped)
-    # Stopped where it was, not on the way to READY (0.3 rad away). The arm can still be
-    # settling when the stop lands: 2 runs in 5 held just over 1e-4 rad short of `first`.
-    np.testing.assert_allclose(stopped, first, atol=1e-3)
+    # J1 holds no torque (its axis is vertical): it stays where the stop found it, not on
+    # the way to READY (0.3 rad away); the arm sinks under gravity (test_emulator_reflexes).
+    assert joints(sdk)[0] == pytest.approx(first[0], abs=1e-3)
     sdk.EmergencyStop(0x02)  # resume: errors cleared, motors off, standby
     assert wait_until(lambda: status(sdk).arm_status == 0 and status(sdk).ctrl_mode == 0)
     assert wait_until(lambda: not any(sdk.GetArmEnableStatus()))

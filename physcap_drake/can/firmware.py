@@ -22,7 +22,12 @@ import numpy as np
 
 from physcap_drake.can import codec
 from physcap_drake.can import firmware_settings as settings
-from physcap_drake.can.arm_state import EmulatedArm
+from physcap_drake.can.arm_state import (
+    ESTOP_DAMPING,
+    MECHANICAL_LOWER,
+    MECHANICAL_UPPER,
+    EmulatedArm,
+)
 from physcap_drake.can.end_pose import (
     end_pose,
     flange_transform,
@@ -45,6 +50,8 @@ TEACH_RECORD, TEACH_EXECUTE, TEACH_PAUSE = 11, 12, 13
 COLLISION_TORQUE_LEVEL1 = np.array([16.0, 16.0, 16.0, 6.0, 6.0, 4.0])
 #: Joint targets this far beyond a limit (rad, half a 0.001° count) are still within it.
 LIMIT_SLACK = 1e-5
+#: How far (rad) a sinking joint's reference may lead its measured angle.
+SINK_LEAD = 0.02
 #: Drivers' bus voltage (V) and temperatures (°C) the emulator reports.
 BUS_VOLTAGE, DRIVER_TEMPERATURE, MOTOR_TEMPERATURE = 24.0, 35.0, 30.0
 #: Low-speed driver feedback every this many cycles (about 40 Hz at 200 Hz).
@@ -96,6 +103,7 @@ class Firmware:
         self._target_age = np.zeros(3)  # s since each joint pair last came
         self._teach: list[np.ndarray] = []
         self._cycle = 0
+        self._sinking = False  # damped after an e-stop command (see _sink)
         self._reading = MotionReading(q.copy(), np.zeros(6), np.zeros(6), np.zeros(6),
                                       opening, 0.0)
         self._previous_end_motion = np.zeros((6, 2))
@@ -166,7 +174,7 @@ class Firmware:
         arm = self.arm
         if command.emergency == codec.EMERGENCY_STOP:
             self.planner.hold()
-            arm.arm_status = E_STOP
+            arm.arm_status, self._sinking = E_STOP, True
         elif command.emergency == codec.EMERGENCY_RESUME:
             self.resume()
         if command.trajectory:
@@ -180,6 +188,7 @@ class Firmware:
         arm = self.arm
         self.planner.hold()
         self.planner.paused = False
+        self._sinking = False
         arm.arm_status, arm.err_code, arm.refusal = NORMAL, 0, ""
         # A leader stays one (its role is kept in flash; it changes with 0x470 only).
         arm.teach_status = 0
@@ -364,6 +373,7 @@ class Firmware:
         """Reports an error state from now on (arm_status as in 0x2A1, err_code bits);
         the arm holds where it is."""
         self.arm.arm_status, self.arm.err_code = int(arm_status), int(err_code)
+        self._sinking = False
         self.planner.hold()
 
     # The cycle ---------------------------------------------------------------------------
@@ -377,6 +387,8 @@ class Firmware:
             self.planner.stream_velocity[2 * pair:2 * pair + 2] = 0.0
         if arm.stopped or arm.arm_status == TEACH_RECORD:
             arm.reference_speed = np.zeros(6)
+            if self._sinking and arm.arm_status == E_STOP:
+                self._sink(dt)
         else:
             status = self.planner.step(dt, fast)
             if status:
@@ -399,6 +411,18 @@ class Firmware:
         frames = self._feedback(dt)
         self._cycle += 1
         return frames
+
+    def _sink(self, dt: float) -> None:
+        """After an e-stop (0x150 = 1) the motors only damp: each powered joint gives way to
+        the torque it holds, at torque / ESTOP_DAMPING rad/s, so the arm sinks slowly under
+        gravity (piper_sdk issue 66), never past its mechanical stops nor further than
+        SINK_LEAD ahead of where it is (a joint held up by something stops)."""
+        arm = self.arm
+        start = np.clip(arm.reference, arm.q - SINK_LEAD, arm.q + SINK_LEAD)
+        sunk = start - arm.torque / ESTOP_DAMPING * dt
+        physical = np.clip(sunk + arm.zero_offset, MECHANICAL_LOWER, MECHANICAL_UPPER)
+        arm.reference = np.where(arm.enabled, physical - arm.zero_offset, arm.reference)
+        arm.target = arm.reference.copy()
 
     def _command(self) -> MotionCommand:
         arm = self.arm

@@ -14,7 +14,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from physcap_drake.can.arm_state import GRIPPER_SPEED
+from physcap_drake.can.arm_state import GRIPPER_SPEED, MECHANICAL_LOWER, MECHANICAL_UPPER
 
 
 @dc.dataclass(frozen=True)
@@ -46,7 +46,8 @@ class MotionReading:
 
 
 class KinematicMotion:
-    """Joints sit exactly on their reference; holding torques from `gravity_torque(q)` (N·m)."""
+    """Joints sit exactly on their reference, within their mechanical stops; holding torques
+    from `gravity_torque(q)` (N·m, e.g. `arm_gravity.ArmGravity()`; default none)."""
 
     def __init__(self, gravity_torque: Callable[[np.ndarray], np.ndarray] | None = None,
                  q0=None, opening0: float = 0.0):
@@ -59,7 +60,8 @@ class KinematicMotion:
         return self._q.copy(), self._opening
 
     def step(self, command: MotionCommand, dt: float) -> MotionReading:
-        q = np.where(command.powered, command.reference, self._q)
+        q = np.clip(np.where(command.powered, command.reference, self._q), MECHANICAL_LOWER,
+                    MECHANICAL_UPPER)  # nothing moves a joint past its stop
         velocity = (q - self._q) / dt
         self._q = q
         if command.gripper_enabled:

@@ -8,10 +8,14 @@ from pathlib import Path
 from typing import Annotated
 
 import can
+import numpy as np
 import typer
 
+from physcap_drake.can.arm_gravity import ArmGravity
+from physcap_drake.can.arm_state import MECHANICAL_LOWER, MECHANICAL_UPPER
 from physcap_drake.can.emulator import PiperEmulator
 from physcap_drake.can.firmware import START_STATES
+from physcap_drake.can.motion import KinematicMotion
 from physcap_drake.can.unix_bus import UnixBusHub
 from physcap_drake.commands.common import console, fail, load_scenario_or_exit
 from physcap_drake.station.can_cameras import emulated_world
@@ -38,6 +42,13 @@ def emulate_piper(
         "--start", help="The state the arm powers up in: normal, teach (drag-teach: CAN "
                         "motion ignored until reset), leader (a linkage's leader arm: no joint "
                         "feedback) or standby (the first mode frame is lost).")] = "normal",
+    joints_deg: Annotated[str, typer.Option(
+        "--joints-deg", help="Where the kinematic arm is at power-up: J1..J6 in degrees, comma "
+                             "separated, within the mechanical stops (e.g. J6 at 160, past its "
+                             "120° limit, as a hand may leave it). Default: a little "
+                             "off its rest pose (J2 15°, J3 -15°), where an e-stop shows "
+                             "the arm sinking; 0,0,0,0,0,0 is the rest pose, on J2's and "
+                             "J3's stops.")] = "0,15,-15,0,0,0",
 ) -> None:
     """Answer on the bus like a PiPER arm: feedback at 200 Hz (status, end pose, joints,
     gripper, drivers), every command and query of the vendor's protocol (e-stop and resume,
@@ -49,8 +60,9 @@ def emulate_piper(
     if start not in START_STATES:
         raise typer.BadParameter(f"--start must be one of {', '.join(START_STATES)}, not "
                                  f"{start!r}")
-    motion = None
-    if scenario is not None:
+    # Without a scenario the joints move kinematically and hold the model's weight.
+    motion = KinematicMotion(ArmGravity(), q0=_power_up_joints(joints_deg))
+    if scenario is not None:  # its world starts where the scenario puts the arm
         # The world renders no camera here: cameras belong to the station that connects.
         motion = simulated_motion(emulated_world(load_scenario_or_exit(scenario), cameras=False))
     hub = None
@@ -80,3 +92,21 @@ def emulate_piper(
 
 def _interrupt(signum, frame) -> None:
     raise KeyboardInterrupt
+
+
+def _power_up_joints(text: str) -> np.ndarray:
+    """--joints-deg as rad, checked against the mechanical stops."""
+    try:
+        degrees = np.array([float(v) for v in text.split(",")])
+    except ValueError:
+        raise typer.BadParameter(f"--joints-deg: six numbers separated by commas, not "
+                                 f"{text!r}") from None
+    if degrees.shape != (6,):
+        raise typer.BadParameter(f"--joints-deg: six numbers (J1..J6), got {len(degrees)}")
+    q = np.radians(degrees)
+    for joint in np.flatnonzero((q < MECHANICAL_LOWER - 1e-9) | (q > MECHANICAL_UPPER + 1e-9)):
+        raise typer.BadParameter(
+            f"--joints-deg: J{joint + 1} at {degrees[joint]:g}° is past its mechanical stops "
+            f"({np.degrees(MECHANICAL_LOWER[joint]):.1f}° .. "
+            f"{np.degrees(MECHANICAL_UPPER[joint]):.1f}°)")
+    return q
