@@ -114,3 +114,27 @@ def test_j6_goes_as_far_as_its_mechanical_stop():
         assert wait_until(lambda: (sdk.JointCtrl(*counts),
                                    abs(joints(sdk)[5] - target[5]) < 1e-5)[1], timeout=10.0)
         assert status(sdk).arm_status == 0
+
+
+def test_no_joint_powers_up_past_its_mechanical_stops():
+    KinematicMotion(q0=np.radians([0, 0, 0, 0, 0, 170.0]))
+    with pytest.raises(ValueError, match=r"J6 at 171° is past its mechanical stops"):
+        KinematicMotion(q0=np.radians([0, 0, 0, 0, 0, 171.0]))
+    with pytest.raises(ValueError, match=r"J2 at -1° is past"):
+        KinematicMotion(q0=np.radians([0, -1.0, 0, 0, 0, 0]))
+
+
+def test_one_set_zero_frame_disables_the_gripper_and_zeroes_its_opening():
+    with sdk_with_emulator(motion=KinematicMotion(q0=READY)) as (sdk, emulator):
+        sdk.GripperTeachingPendantParamConfig(100, 100, 1)
+        sdk.GripperCtrl(40000, 1000, 0x01, 0)  # enabled, opened to 40 mm
+        assert wait_until(lambda: sdk.GetArmGripperMsgs().gripper_state.grippers_angle
+                          == 40000)
+        sdk.GripperCtrl(0, 1000, 0x00, 0xAE)  # disable and set the zero here
+        assert wait_until(lambda: sdk.GetArmGripperMsgs().gripper_state.grippers_angle == 0)
+        assert emulator.snapshot().gripper_zero == pytest.approx(0.04)
+        sdk.GripperCtrl(10000, 1000, 0x01, 0)  # 10 mm from the new zero: 50 mm physically
+        assert wait_until(lambda: sdk.GetArmGripperMsgs().gripper_state.grippers_angle
+                          == 10000)
+        arm = emulator.snapshot()
+        assert arm.gripper_opening + arm.gripper_zero == pytest.approx(0.05)  # physically

@@ -53,6 +53,14 @@ class KinematicMotion:
                  q0=None, opening0: float = 0.0):
         self._gravity = gravity_torque or (lambda q: np.zeros(6))
         self._q = np.zeros(6) if q0 is None else np.asarray(q0, dtype=float).copy()
+        if self._q.shape != (6,):
+            raise ValueError(f"power-up joints: six angles J1..J6, got {self._q.size}")
+        for joint in np.flatnonzero((self._q < MECHANICAL_LOWER - 1e-9)
+                                    | (self._q > MECHANICAL_UPPER + 1e-9)):
+            raise ValueError(f"power-up joints: J{joint + 1} at {np.degrees(self._q[joint]):g}° "
+                             f"is past its mechanical stops "
+                             f"({np.degrees(MECHANICAL_LOWER[joint]):.0f}° .. "
+                             f"{np.degrees(MECHANICAL_UPPER[joint]):.0f}°)")
         self._opening = float(opening0)
 
     def initial_state(self) -> tuple[np.ndarray, float]:

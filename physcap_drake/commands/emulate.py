@@ -12,7 +12,6 @@ import numpy as np
 import typer
 
 from physcap_drake.can.arm_gravity import ArmGravity
-from physcap_drake.can.arm_state import MECHANICAL_LOWER, MECHANICAL_UPPER
 from physcap_drake.can.emulator import PiperEmulator
 from physcap_drake.can.firmware import START_STATES
 from physcap_drake.can.motion import KinematicMotion
@@ -61,7 +60,10 @@ def emulate_piper(
         raise typer.BadParameter(f"--start must be one of {', '.join(START_STATES)}, not "
                                  f"{start!r}")
     # Without a scenario the joints move kinematically and hold the model's weight.
-    motion = KinematicMotion(ArmGravity(), q0=_power_up_joints(joints_deg))
+    try:
+        motion = KinematicMotion(ArmGravity(), q0=_power_up_joints(joints_deg))
+    except ValueError as error:
+        raise typer.BadParameter(f"--joints-deg: {error}") from None
     if scenario is not None:  # its world starts where the scenario puts the arm
         # The world renders no camera here: cameras belong to the station that connects.
         motion = simulated_motion(emulated_world(load_scenario_or_exit(scenario), cameras=False))
@@ -95,18 +97,9 @@ def _interrupt(signum, frame) -> None:
 
 
 def _power_up_joints(text: str) -> np.ndarray:
-    """--joints-deg as rad, checked against the mechanical stops."""
+    """--joints-deg as rad."""
     try:
-        degrees = np.array([float(v) for v in text.split(",")])
+        return np.radians([float(v) for v in text.split(",")])
     except ValueError:
         raise typer.BadParameter(f"--joints-deg: six numbers separated by commas, not "
                                  f"{text!r}") from None
-    if degrees.shape != (6,):
-        raise typer.BadParameter(f"--joints-deg: six numbers (J1..J6), got {len(degrees)}")
-    q = np.radians(degrees)
-    for joint in np.flatnonzero((q < MECHANICAL_LOWER - 1e-9) | (q > MECHANICAL_UPPER + 1e-9)):
-        raise typer.BadParameter(
-            f"--joints-deg: J{joint + 1} at {degrees[joint]:g}° is past its mechanical stops "
-            f"({np.degrees(MECHANICAL_LOWER[joint]):.1f}° .. "
-            f"{np.degrees(MECHANICAL_UPPER[joint]):.1f}°)")
-    return q
