@@ -20,6 +20,8 @@ from physcap_drake.can.socket_bus import SocketBus, socket_pair
 from physcap_drake.config_checks import ConfigChecker
 from physcap_drake.scenario_errors import ScenarioError
 from physcap_drake.station.can_config import PiperCan
+from physcap_drake.station.can_operator import arm_report, operator_link
+from physcap_drake.station.can_session import CanSession
 
 pytestmark = [pytest.mark.emulated_hardware,
               pytest.mark.filterwarnings("ignore:The .bustype. argument is deprecated")]
@@ -134,3 +136,21 @@ def test_the_emulator_process_starts_in_the_state_asked_for():
     finally:
         host.shutdown()
         emulator.close()
+
+
+def test_an_emulated_station_starts_its_arm_in_the_scenarios_state(table_scenario):
+    table_scenario.station = PiperCan(interface="virtual", emulate=True,
+                                      emulated_start="teach")
+    session = CanSession(table_scenario).wait_ready()  # the emulated arm runs, unconnected
+    try:
+        arm = session.emulator.snapshot()
+        assert (arm.ctrl_mode, arm.arm_status, arm.teach_status) == (2, 0x0B, 1)
+    finally:
+        session.close()
+
+
+def test_the_operators_emulated_arm_starts_in_the_scenarios_state(table_scenario):
+    table_scenario.station = PiperCan(interface="virtual", channel="operator_leader",
+                                      emulate=True, emulated_start="leader")
+    with operator_link(table_scenario) as link:
+        assert arm_report(link).status.ctrl_mode == 6
