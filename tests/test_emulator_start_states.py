@@ -51,6 +51,9 @@ def test_a_scenario_names_a_bad_start_state_by_its_field():
         PiperCan(interface="virtual", emulate=True, emulated_start="drag").check(
             ConfigChecker("s.yaml", "station"))
     assert "'teach'" in str(error.value) and "'drag'" in str(error.value)
+    with pytest.raises(ScenarioError, match="station.emulated_start.*emulate: false"):
+        PiperCan(interface="socketcan", emulated_start="teach").check(
+            ConfigChecker("s.yaml", "station"))
 
 
 def test_a_normal_arm_confirms_can_control_at_once_and_follows_targets():
