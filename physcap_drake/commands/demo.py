@@ -1,4 +1,4 @@
-"""`physcap demo ...`: scripted demonstrations of the robot skills."""
+"""`physcap demo ...`: the PhysCaP agent (`agent`) and the robot skills (`pick-place`)."""
 
 from __future__ import annotations
 
@@ -10,6 +10,7 @@ import typer
 from physcap_drake.app.pick_place_demo import check_can_in_tray, pick_and_place
 from physcap_drake.app.scene_layout import check_placed, object_position
 from physcap_drake.app.sim_runner import save_meshcat_html
+from physcap_drake.commands.agent_demo import agent_demo
 from physcap_drake.commands.common import console, fail, load_scenario_or_exit, make_meshcat
 from physcap_drake.commands.live_view import hold_open, pace_in_real_time
 from physcap_drake.commands.options import ContactForces, Hold, HtmlOut, LiveMeshcat
@@ -18,7 +19,9 @@ from physcap_drake.robot_api import RobotAPI
 from physcap_drake.robot_stack import build_robot_stack
 from physcap_drake.station.view import frame_on_table
 
-app = typer.Typer(help="Scripted demonstrations of the robot skills.", no_args_is_help=True)
+app = typer.Typer(help="Demonstrations: the PhysCaP agent (agent) and the robot skills "
+                       "(pick-place).", no_args_is_help=True)
+app.command("agent")(agent_demo)
 
 #: The models the pick-and-place demo needs in its scenario.
 DEMO_MODELS = ("soda_can", "tray")

@@ -67,14 +67,19 @@ class EntryPrinter:
 
     def __call__(self, entry: TranscriptEntry) -> None:
         self._heartbeat.stop()
-        if entry.kind == "result":
+        text = self.render(entry)
+        if text is None:
             return
         style = STYLES.get(entry.kind, "dim")
         console.print(f"[{style}]{entry.kind}[/] [dim](block {entry.step}, robot time "
                       f"{entry.robot_time_s:.1f} s)[/]")
-        console.print(escape(entry_text(entry)), highlight=False)
+        console.print(escape(text), highlight=False)
         if entry.kind == "code":
             self._heartbeat.start(f"code block {entry.step} running")
+
+    def render(self, entry: TranscriptEntry) -> str | None:
+        """The entry's text on the console, or None to leave it out."""
+        return None if entry.kind == "result" else entry_text(entry)
 
     def stop(self) -> None:
         self._heartbeat.stop()
@@ -208,7 +213,7 @@ def run(task: Annotated[str, typer.Option("--task", help=f"One of: {', '.join(TA
     finally:
         if printer is not None:
             printer.stop()
-    _report(result.summary(), json_path, out)
+    report_outcome(result.summary(), json_path, out)
     if record is not None:
         save_jsonl(result.calls, record)
         console.print(f"model calls saved to {record}")
@@ -229,7 +234,8 @@ def exit_code(summary: dict) -> int:
     return SOLVED if summary["success"] else NOT_SOLVED
 
 
-def _report(summary: dict, json_path: Path | None, out: Path | None) -> None:
+def report_outcome(summary: dict, json_path: Path | None = None,
+                   out: Path | None = None) -> None:
     """The outcome, once: success or failure with the check's reason, then the figures."""
     verdict = "[bold green]success[/]" if summary["success"] else "[bold red]failure[/]"
     console.print(f"{verdict}: {escape(summary['reason'])}")
