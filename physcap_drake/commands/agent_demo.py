@@ -21,8 +21,9 @@ from physcap_drake.commands.common import console, error_console, fail, make_mes
 from physcap_drake.commands.run import EntryPrinter, exit_code, report_outcome
 from physcap_drake.tasks.registry import TASKS
 
-#: The demo's task and agent variant.
-TASK, AGENT = "identify_empty_can", "physcap"
+#: The demo's task and agent variant, and what sees the objects: the colour and depth
+#: images alone (the camera emulated as a RealSense), as on a real rig.
+TASK, AGENT, PERCEPTION = "identify_empty_can", "physcap", "rgbd"
 #: The layout the demo shows: the agent weighs a full can, then the empty one.
 DEMO_SEED = 1
 
@@ -68,11 +69,13 @@ def agent_demo(
     if out.exists() and not out.is_dir():
         fail(f"--out {out} is a file; give a folder for the episode")
     console.print(f"[bold]PhysCaP demo[/]: agent {AGENT}, offline (reference reasoner, no "
-                  f"API key), task {TASK}, seed {seed}")
+                  f"API key), task {TASK}, seed {seed}, objects seen in the camera's colour "
+                  f"and depth images")
     console.print(f"[bold]instruction:[/] {escape(TASKS[TASK].prompt)}", highlight=False)
     printer = StepPrinter()
     try:
-        result = record_episode(out, TASK, seed, agent=AGENT, meshcat_html=True,
+        result = record_episode(out, TASK, seed, agent=AGENT, perception=PERCEPTION,
+                                meshcat_html=True,
                                 overwrite=True, meshcat=make_meshcat(live=False),
                                 on_entry=printer)
     except LLMError as error:
