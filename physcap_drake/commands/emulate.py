@@ -11,6 +11,7 @@ import typer
 
 from physcap_drake.can.emulator import PiperEmulator
 from physcap_drake.commands.common import console, fail, load_scenario_or_exit
+from physcap_drake.commands.options import ScenarioText
 from physcap_drake.station.can_cameras import emulated_world
 from physcap_drake.station.simulated_motion import simulated_motion
 
@@ -26,6 +27,7 @@ def emulate_piper(
     scenario: Annotated[Path | None, typer.Option(
         "--scenario", help="Back the arm by this scenario's simulated station (its scene and "
                            "objects); without it the joints move kinematically.")] = None,
+    scenario_text: ScenarioText = "",
 ) -> None:
     """Answer on the bus like a PiPER arm: feedback at 200 Hz (status, end pose, joints,
     gripper, drivers), every command and query of the vendor's protocol (e-stop and resume,
@@ -36,7 +38,8 @@ def emulate_piper(
     motion = None
     if scenario is not None:
         # The world renders no camera here: cameras belong to the station that connects.
-        motion = simulated_motion(emulated_world(load_scenario_or_exit(scenario), cameras=False))
+        motion = simulated_motion(emulated_world(load_scenario_or_exit(scenario, scenario_text),
+                                                  cameras=False))
     try:
         bus = can.Bus(interface=interface, channel=channel)
     except (OSError, can.CanError) as error:

@@ -46,7 +46,7 @@ from physcap_drake.commands.model_options import (
     VertexProject,
 )
 from physcap_drake.commands.operator_judge import ask_operator, can_ask
-from physcap_drake.commands.options import ContactForces, Hold, LiveMeshcat
+from physcap_drake.commands.options import ContactForces, Hold, LiveMeshcat, ScenarioText
 from physcap_drake.commands.progress import Heartbeat
 from physcap_drake.config_checks import check_scenario_task
 from physcap_drake.scenario_errors import ScenarioError
@@ -94,6 +94,7 @@ def run(task: Annotated[str, typer.Option("--task", help=f"One of: {', '.join(TA
             "--scenario", metavar="FILE", help="Scenario file instead of the task's own (it "
             "must set up the same task), e.g. stations/identify_empty_can_piper_can.yaml "
             "(over CAN).")] = None,
+        scenario_text: ScenarioText = "",
         pointer: Annotated[str, typer.Option(
             "--pointer", help="How get_object_pose finds objects: offline (phrases resolved "
                               "against the perceived objects) or vlm (the model points; "
@@ -161,7 +162,7 @@ def run(task: Annotated[str, typer.Option("--task", help=f"One of: {', '.join(TA
             fail(f"{flag} {value!r} is not one of {', '.join(choices)}")
     scenario_task = None
     if scenario is not None:
-        scenario_task = load_scenario_or_exit(scenario).task
+        scenario_task = load_scenario_or_exit(scenario, scenario_text).task
         try:
             check_scenario_task(task, scenario_task.name, str(scenario))
         except ScenarioError as error:
@@ -189,6 +190,7 @@ def run(task: Annotated[str, typer.Option("--task", help=f"One of: {', '.join(TA
                       f"{escape(TASKS[task].prompt)}")
     options = dict(agent=agent, client=client, meshcat=viewer, pointer=pointer,
                    perception=perception, judge=judge, scenario_file=scenario,
+                   scenario_text=scenario_text,
                    on_entry=printer, on_start=on_start,
                    operator=lambda: ask_operator(console, before=printer and printer.stop))
     if episode_timeout is not None:
