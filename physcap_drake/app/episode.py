@@ -133,17 +133,18 @@ def make_episode(task_name: str, seed: int, answer: str = "", meshcat=None, *,
                  scenario_file: str | Path | None = None,
                  perception: str | None = None, judge: str | None = None,
                  scenario_text: str = "") -> Episode:
-    """Loads stations/<task>.yaml (or `scenario_file`; `scenario_text` laid over it), lays out
-    the objects for `seed`, builds and initializes the simulation with the objects' hidden
-    masses, and wires camera perception (`perception`: "rgbd" or "label", see the module
-    docstring) to the API (and, `with_agent`, to an AgentSystem in the diagram: the client of
-    the robot's request path, whose model calls run in the background on the real arm's station,
-    the diagram running on in real time). With a `sink`, an McapRecorder in the diagram records
-    the station's signals to it. `judge`: who decides success ("simulator", "perception" or
-    "operator", see Episode.check). `perception` and `judge` left None take the scenario's
-    `task.perception` / `task.judge`, else "label" and "simulator". Raises ValueError for a
-    choice the station cannot serve (ground truth or the label image on a rig without a
-    simulated world). Call `close()` on the episode when done."""
+    """Loads stations/<task>.yaml (or `scenario_file`), lays out the objects for `seed`,
+    builds and initializes the simulation with the objects' hidden masses, and wires camera
+    perception (`perception`: "rgbd" or "label", see the module docstring) to the API (and,
+    `with_agent`, to an AgentSystem in the diagram: the client of the robot's request path,
+    whose model calls run in the background on the real arm's station, the diagram running
+    on in real time). With a `sink`, an McapRecorder in the
+    diagram records the station's signals to it. `judge`: who decides success ("simulator",
+    "perception" or "operator", see Episode.check). `perception` and `judge` left None take
+    the scenario's `task.perception` / `task.judge`, else "label" and "simulator". Raises
+    ValueError for a choice the station cannot serve (ground truth or the label image on a
+    rig without a simulated world). Call `close()` on the episode when done.
+    `scenario_text`: YAML laid over the scenario file (as `--scenario-text`)."""
     task = get_task(task_name)
     scenario = load_scenario(scenario_file or stations_dir() / task.scenario_file,
                              scenario_text)

@@ -54,7 +54,6 @@ _STYLE = """<style>
 </style>
 """
 
-# Follows the replay (viewer.animator, Meshcat's) and lets a click move it.
 # Follows the replay (viewer.animator, Meshcat's): the steps written at the latest time the
 # replay has reached are highlighted; a click on a step moves the replay to its time.
 _SCRIPT = """<script>

@@ -17,7 +17,14 @@ from physcap_drake.app.episode_folder import (
     TRANSCRIPT_FILE,
     record_episode,
 )
-from physcap_drake.commands.common import console, error_console, fail, make_meshcat
+from physcap_drake.commands.common import (
+    BAD_INPUT,
+    MODEL_FAILURE,
+    console,
+    error_console,
+    fail,
+    make_meshcat,
+)
 from physcap_drake.commands.run import EntryPrinter, exit_code, report_outcome
 from physcap_drake.tasks.registry import TASKS
 
@@ -79,7 +86,9 @@ def agent_demo(
                                 overwrite=True, meshcat=make_meshcat(live=False),
                                 on_entry=printer)
     except LLMError as error:
-        fail(str(error), code=3)
+        fail(str(error), code=BAD_INPUT if isinstance(error, ValueError) else MODEL_FAILURE)
+    except (ValueError, ImportError) as error:
+        fail(str(error))
     except KeyboardInterrupt:
         error_console.print(f"[bold red]interrupted[/]; the recording so far is in "
                             f"{escape(str(out))}")
