@@ -65,13 +65,14 @@ def agent_demo(
         seed: Annotated[int, typer.Option("--seed", min=0, help="Layout seed of the cans.")
                         ] = DEMO_SEED,
         ) -> None:
-    """PhysCaP finds the empty can: the `physcap` agent on identify_empty_can, offline.
+    """Find the empty can with the PhysCaP agent, offline.
 
-    The agent's models are the reference reasoner (no API key, no network). Prints the
-    agent's steps as they happen: the planner's judgement that the camera cannot tell which
-    can is empty, the prioritizer's ranking, each weighing with the mass measured from the
-    joint torques, and the final action; then writes the replay page (--html) and the
-    episode's folder (--out). Exit code 0 if the task was solved, 1 if not.
+    The `physcap` agent on identify_empty_can. Its models are the reference reasoner (no API
+    key, no network). Prints the agent's steps as they happen: the planner's judgement that
+    the camera cannot tell which can is empty, the prioritizer's ranking, each weighing with
+    the mass measured from the joint torques, and the final action; then writes the replay
+    page (--html) and the episode's folder (--out). Exit code 0 if the task was solved, 1 if
+    not.
     """
     if out.exists() and not out.is_dir():
         fail(f"--out {out} is a file; give a folder for the episode")

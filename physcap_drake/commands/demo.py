@@ -25,8 +25,8 @@ from physcap_drake.robot_api import RobotAPI
 from physcap_drake.robot_stack import build_robot_stack
 from physcap_drake.station.view import frame_on_table
 
-app = typer.Typer(help="Demonstrations: the PhysCaP agent (agent) and the robot skills "
-                       "(pick-place).", no_args_is_help=True)
+app = typer.Typer(help="Demonstrations of the agent and of the robot skills.",
+                  no_args_is_help=True)
 app.command("agent")(agent_demo)
 
 #: The models the pick-and-place demo needs in its scenario.
