@@ -13,13 +13,7 @@ from physcap_drake.app.sim_runner import save_meshcat_html
 from physcap_drake.commands.agent_demo import agent_demo
 from physcap_drake.commands.common import console, fail, load_scenario_or_exit, make_meshcat
 from physcap_drake.commands.live_view import hold_open, pace_in_real_time
-from physcap_drake.commands.options import (
-    ContactForces,
-    Hold,
-    HtmlOut,
-    LiveMeshcat,
-    ScenarioText,
-)
+from physcap_drake.commands.options import ContactForces, Hold, HtmlOut, LiveMeshcat, ScenarioText
 from physcap_drake.control.errors import SkillError
 from physcap_drake.robot_api import RobotAPI
 from physcap_drake.robot_stack import build_robot_stack

@@ -16,13 +16,7 @@ from physcap_drake.commands.common import (
     sim_progress,
 )
 from physcap_drake.commands.live_view import hold_open, pace_in_real_time
-from physcap_drake.commands.options import (
-    ContactForces,
-    Hold,
-    HtmlOut,
-    LiveMeshcat,
-    ScenarioText,
-)
+from physcap_drake.commands.options import ContactForces, Hold, HtmlOut, LiveMeshcat, ScenarioText
 from physcap_drake.station.view import frame_on_table
 from physcap_drake.station_commands import build_commanded_station
 
