@@ -27,6 +27,7 @@ from physcap_drake.control.skills_config import SkillsConfig
 from physcap_drake.physx.physx_config import PhysxConfig
 from physcap_drake.resources import make_package_map
 from physcap_drake.scenario_errors import ScenarioError, file_label, locate_yaml_error
+from physcap_drake.scenario_layers import read_layers
 from physcap_drake.station.can_config import PiperCan
 from physcap_drake.station.realsense.config import RealSense
 from physcap_drake.station.robot_model import arm_joint_limits, make_controller_plant
@@ -100,6 +101,9 @@ class TaskConfig:
 class Scenario:
     """A station and its scene. See `stations/piper_table.yaml` for a commented example."""
 
+    # A scenario file this one overrides, relative to this file's folder: its keys replace
+    # the base's, the rest stays (see scenario_layers.py). Empty in a loaded scenario.
+    base: str = ""
     # Seed of every random choice in a run (sensor noise, later task layouts).
     random_seed: int = 0
     # Default length of `physcap sim`, s of simulated time.
@@ -137,31 +141,52 @@ class Scenario:
         default_factory=lambda: SimulatorConfig(target_realtime_rate=0.0))
 
 
-def load_scenario(filename: str | Path) -> Scenario:
-    """Loads and checks a scenario file. Raises ScenarioError naming the file and key path."""
+#: How a `--scenario-text` overlay is named in errors.
+TEXT_LABEL = "--scenario-text"
+
+
+def load_scenario(filename: str | Path, scenario_text: str = "") -> Scenario:
+    """Loads and checks a scenario file, read over its `base` (if any) and under
+    `scenario_text` (YAML over the file's, as `--scenario-text` gives it). Raises
+    ScenarioError naming the file (or --scenario-text) and the key path."""
     label = file_label(filename)
     if not Path(filename).is_file():
         raise ScenarioError(filename=label, key_path="", expected="an existing scenario file",
                             problem="no such file")
-    return _load(label, filename=str(filename))
+    scenario = read_layers(Path(filename), label, _read_file)
+    if scenario_text:
+        scenario = _read(TEXT_LABEL, defaults=scenario, data=scenario_text)
+    check_scenario(scenario, label if not scenario_text else f"{label} with {TEXT_LABEL}")
+    return scenario
 
 
 def load_scenario_text(text: str, *, label: str = "<string>") -> Scenario:
     """Loads and checks a scenario given as YAML text (for tests and generated scenarios)."""
-    return _load(label, data=text)
+    scenario = _read(label, data=text)
+    check_scenario(scenario, label)
+    return scenario
 
 
-def _load(label: str, **source) -> Scenario:
+def _read_file(label: str, path: Path, defaults: Scenario | None) -> Scenario:
+    scenario = _read(label, defaults=defaults, filename=str(path))
+    _resolve_camera_files(scenario, path.parent)
+    return scenario
+
+
+def _read(label: str, defaults: Scenario | None = None, **source) -> Scenario:
+    """One YAML document over `defaults` (or the Scenario defaults); a `base` is refused
+    here (only a file's base is followed, by read_layers)."""
     try:
-        scenario = yaml_load_typed(schema=Scenario, **source)
+        scenario = yaml_load_typed(schema=Scenario, defaults=defaults, **source)
     except (RuntimeError, ValueError, TypeError, KeyError, AssertionError) as error:
         raise locate_yaml_error(error, label) from error
     except Exception as error:  # yaml syntax errors carry their own line and column
         raise ScenarioError(filename=label, key_path="", expected="valid YAML",
                             problem=str(error)) from error
-    if "filename" in source:
-        _resolve_camera_files(scenario, Path(source["filename"]).parent)
-    check_scenario(scenario, label)
+    if scenario.base and "filename" not in source:
+        raise ScenarioError(filename=label, key_path="base", expected="no base in YAML "
+                            "given as text (a base is a file's, relative to its folder)",
+                            problem=f"got {scenario.base!r}")
     return scenario
 
 

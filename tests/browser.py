@@ -63,6 +63,12 @@ def _probe(page: Path, chromium: str, workdir: Path, expression: str):
     return json.loads(content)
 
 
+def page_value(page: Path, chromium: str, workdir: Path, expression: str):
+    """The value of the JavaScript `expression` in `page` once its scene is built; the
+    expression may call physcapSceneNames(viewer.scene_tree, 0)."""
+    return _probe(page, chromium, workdir, expression)
+
+
 def meshcat_scene_tree(page: Path, chromium: str, workdir: Path) -> dict:
     """The nested names of the Meshcat scene that `page` builds in a browser."""
     return _probe(page, chromium, workdir, "physcapSceneNames(viewer.scene_tree, 0)")

@@ -51,6 +51,18 @@ def test_bad_scenario_exits_2_naming_file_and_key(tmp_path):
     assert "bad.yaml" in result.output and "station.joint_servo.max_velocity" in result.output
 
 
+def test_scenario_text_overlays_the_scenario_file():
+    result = runner.invoke(app, ["sim", "--scenario", TABLE, "--scenario-text",
+                                 "simulation_duration: 0.25"])
+    assert result.exit_code == 0, result.output
+    assert "sim time 0.250 s" in result.output  # the file says 5 s
+    result = runner.invoke(app, ["sim", "--scenario", TABLE, "--scenario-text",
+                                 "station: !SimPiper {joint_servo: {max_velocity: 9}}"])
+    assert result.exit_code == 2
+    assert "--scenario-text" in result.output
+    assert "station.joint_servo.max_velocity" in result.output
+
+
 def test_missing_scenario_file_exits_2(tmp_path):
     result = runner.invoke(app, ["sim", "--scenario", str(tmp_path / "none.yaml")])
     assert result.exit_code == 2

@@ -19,8 +19,8 @@ ROOT = Path(physcap_drake.__file__).parent
 #: From the bottom up. Within a layer, packages may import each other, but not round a cycle.
 LAYERS = (
     # Plain helpers with no robot in them.
-    ("scenario_errors", "config_checks", "resources", "immutable_state", "weak_method",
-     "kinematics", "clock", "allocator", "blas_threads"),
+    ("scenario_errors", "scenario_layers", "config_checks", "resources", "immutable_state",
+     "weak_method", "kinematics", "clock", "allocator", "blas_threads"),
     # The arm's bus: protocol, link, emulated firmware.
     ("can",),
     # The station (simulated or over CAN) and its ports.

@@ -52,11 +52,14 @@ CAMERA_POSE = ("X_WC: {translation: [-0.30, 0.0, 0.95], rotation: !Rpy {deg: [-1
 
 
 def _twin(tmp_path, task: str = "identify_empty_can", small: bool = True) -> str:
-    """stations/<task>_rig_emulated.yaml on a channel of its own (with a small camera)."""
-    text = (stations_dir() / f"{task}_rig_emulated.yaml").read_text()
-    text = text.replace(f"channel: {task}_rig", f"channel: {unique_channel()}")
+    """stations/<task>_rig_emulated.yaml on a channel of its own (with a small camera): an
+    overlay of it."""
+    text = (f"base: {stations_dir() / f'{task}_rig_emulated.yaml'}\n"
+            f"station: !PiperCan {{channel: {unique_channel()}}}\n")
     if small:
-        text = text.replace("width: 1280", f"width: {W}").replace("height: 720", f"height: {H}")
+        text += (f"cameras:\n- !RealSense {{name: camera, width: {W}, height: {H}, fps: 15, "
+                 "emulate: true, emulation: {fov_y: 70.0, z_near: 0.1, z_far: 5.0, "
+                 f"depth_step: 2}}, {CAMERA_POSE}}}\n")
     path = tmp_path / "twin.yaml"
     path.write_text(text)
     return str(path)

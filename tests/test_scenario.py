@@ -30,10 +30,95 @@ def load_error(text: str) -> ScenarioError:
 @pytest.mark.parametrize("path", sorted(stations_dir().glob("*.yaml")), ids=lambda p: p.name)
 def test_every_shipped_scenario_loads(path: Path):
     scenario = load_scenario(path)
-    over_can = path.stem.endswith(("_piper_can", "_rig_emulated")) or path.stem.startswith(
+    over_can = path.stem.endswith(("_piper_can", "rig_emulated")) or path.stem.startswith(
         "real_")
     expected = PiperCan if over_can else SimPiper
     assert isinstance(scenario.station, expected)
+
+
+@pytest.mark.parametrize("task", ["identify_empty_can", "find_blue_cube", "pick_ripe_avocado",
+                                  "empty_cup"])
+def test_each_rig_twin_is_a_short_overlay_of_the_shared_base(task):
+    path = stations_dir() / f"{task}_rig_emulated.yaml"
+    base = load_scenario(stations_dir() / "rig_emulated.yaml")
+    twin = load_scenario(path)
+    assert len(path.read_text().splitlines()) <= 30 and "base: rig_emulated.yaml" in (
+        path.read_text())
+    # What the twin says:
+    assert twin.task.name == task and twin.station.channel == f"{task}_rig"
+    # What it keeps from the base: the rest of the task, station and simulator settings.
+    assert (twin.task.perception, twin.task.judge) == ("rgbd", "perception")
+    assert twin.station.emulate and twin.station.interface == "virtual"
+    assert twin.station.feedback_timeout == base.station.feedback_timeout == 0.15
+    assert twin.simulator_config.target_realtime_rate == 1.0
+    assert [(c.name, c.width, c.height, c.emulate) for c in twin.cameras] == [
+        ("camera", 1280, 720, True)]
+    assert twin.base == ""  # a loaded scenario is whole
+    container = "basket" if task == "empty_cup" else "tray"
+    assert container in [d.add_model.name for d in twin.directives if d.add_model]
+
+
+def test_scenario_text_is_laid_over_the_file(table_path):
+    plain = load_scenario(table_path)
+    over = load_scenario(table_path, "station: !SimPiper {initial_gripper_opening: 0.02}\n"
+                         "random_seed: 7\nskills: {max_joint_velocity: 0.5}")
+    assert over.random_seed == 7 and over.station.initial_gripper_opening == 0.02
+    assert over.skills.max_joint_velocity == 0.5
+    # Untouched keys keep the file's values, also inside the overridden mappings.
+    assert over.station.initial_arm_position == plain.station.initial_arm_position
+    assert over.skills.grasp_force == plain.skills.grasp_force
+    assert len(over.directives) == len(plain.directives) > 1
+    # A list given in the overlay replaces the file's whole.
+    only_arm = load_scenario(table_path, ROBOT)
+    assert len(only_arm.directives) == 1
+
+
+def test_overlay_errors_name_the_overlay_and_the_key(table_path):
+    with pytest.raises(ScenarioError) as caught:
+        load_scenario(table_path, "station: !SimPiper {joint_servo: {max_velocity: 9}}")
+    assert caught.value.key_path == "station.joint_servo.max_velocity"
+    assert "--scenario-text" in caught.value.filename
+    with pytest.raises(ScenarioError) as caught:
+        load_scenario(table_path, "skills: {max_joint_velocityy: 1}")
+    assert caught.value.filename == "--scenario-text" and caught.value.key_path == "skills"
+    assert "max_joint_velocityy" in str(caught.value)
+    with pytest.raises(ScenarioError) as caught:
+        load_scenario(table_path, "base: other.yaml")
+    assert caught.value.key_path == "base"
+
+
+def test_base_errors_name_the_file_that_holds_them(tmp_path):
+    (tmp_path / "sub").mkdir()
+    (tmp_path / "sub" / "base.yaml").write_text(ROBOT + "skills: {grasp_forse: 3}\n")
+    over = tmp_path / "over.yaml"
+    over.write_text("base: sub/base.yaml\nrandom_seed: 2\n")
+    with pytest.raises(ScenarioError) as caught:
+        load_scenario(over)
+    assert caught.value.filename == str(tmp_path / "sub" / "base.yaml")
+    assert caught.value.key_path == "skills"
+    over.write_text("base: nowhere.yaml\n")
+    with pytest.raises(ScenarioError) as caught:
+        load_scenario(over)
+    assert (caught.value.filename, caught.value.key_path) == (str(over), "base")
+    assert "no such file" in str(caught.value)
+    (tmp_path / "a.yaml").write_text("base: b.yaml\n")
+    (tmp_path / "b.yaml").write_text("base: a.yaml\n")
+    with pytest.raises(ScenarioError) as caught:
+        load_scenario(tmp_path / "a.yaml")
+    assert caught.value.key_path == "base" and "lead back" in str(caught.value)
+
+
+def test_a_base_chain_applies_each_file_over_the_one_below(tmp_path):
+    (tmp_path / "arm.yaml").write_text(ROBOT + "random_seed: 1\nsimulation_duration: 2.0\n")
+    (tmp_path / "middle.yaml").write_text("base: arm.yaml\nrandom_seed: 2\n")
+    (tmp_path / "top.yaml").write_text("base: middle.yaml\nsimulation_duration: 3.0\n")
+    top = load_scenario(tmp_path / "top.yaml")
+    assert (top.random_seed, top.simulation_duration, len(top.directives)) == (2, 3.0, 1)
+
+
+@pytest.fixture
+def table_path() -> Path:
+    return stations_dir() / "piper_table.yaml"
 
 
 def test_defaults_fill_what_a_file_leaves_out():

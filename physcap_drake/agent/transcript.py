@@ -136,13 +136,17 @@ def _planner_blocks(plan: dict) -> list[str]:
     return blocks
 
 
-def _priority_table(answer: dict) -> str:
+def _ranking(answer: dict) -> list[tuple[str, str, str, str]]:
+    """The prioritizer's candidates in its order: (rank, name, score, reason)."""
     scores = {s["name"]: s for s in answer["scored_candidates"]}
     order = [c["name"] for c in answer.get("prioritized_candidates", [])] or list(scores)
-    rows = [(str(rank), name, f"{scores[name]['priority_score']:.1f}",
+    return [(str(rank), name, f"{scores[name]['priority_score']:.1f}",
              scores[name].get("reason", "")) for rank, name in enumerate(order, start=1)
             if name in scores]
-    return _table(("order", "candidate", "score", "reason"), rows)
+
+
+def _priority_table(answer: dict) -> str:
+    return _table(("order", "candidate", "score", "reason"), _ranking(answer))
 
 
 def call_signature(candidate: dict) -> str:
@@ -166,7 +170,8 @@ def _table(header: tuple[str, ...], rows: list[tuple[str, ...]]) -> str:
 
 def entry_text(entry: TranscriptEntry) -> str:
     """One entry as compact plain text: the planner's verdict with one line per candidate
-    instead of its JSON, the coder's thought before its code, the rest as written."""
+    instead of its JSON, the prioritizer's candidates in its order, the coder's thought
+    before its code, the rest as written."""
     data = entry.data
     if entry.kind == "planner" and "sufficient" in data:
         lines = [_verdict(data)]
@@ -176,6 +181,9 @@ def entry_text(entry: TranscriptEntry) -> str:
         if data.get("ordering_reason"):
             lines.append(f"  order: {data['ordering_reason']}")
         return "\n".join(lines)
+    if entry.kind == "prioritizer" and "scored_candidates" in data:
+        return "\n".join(f"{rank}. {name} (score {score}): {reason}"
+                         for rank, name, score, reason in _ranking(data))
     if entry.kind == "code" and data.get("thought"):
         return f"thought: {data['thought'].strip()}\n{entry.text.rstrip()}"
     return entry.text.rstrip()

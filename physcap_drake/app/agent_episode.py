@@ -133,7 +133,7 @@ def run_agent_episode(task: str, seed: int, *, agent: str = "physcap",
                       on_entry: Callable[[TranscriptEntry], None] | None = None,
                       robot_time_limit: float = ROBOT_TIME_LIMIT,
                       pointer: str = "offline", sink: McapSink | None = None,
-                      scenario_file: str | Path | None = None,
+                      scenario_file: str | Path | None = None, scenario_text: str = "",
                       perception: str = "label", judge: str = "simulator",
                       on_start: Callable[[Episode], None] | None = None,
                       wall_time_limit: float | None = WALL_TIME_LIMIT,
@@ -146,7 +146,8 @@ def run_agent_episode(task: str, seed: int, *, agent: str = "physcap",
     the model must take images). With a `sink`, the run is recorded to it (robot signals by
     an McapRecorder in the diagram, the agent's messages by an AgentRecording); the caller
     closes the sink. `scenario_file` replaces the task's own scenario (e.g. the same scene
-    with `station: !PiperCan`); a CAN station is released when the episode ends.
+    with `station: !PiperCan`; `scenario_text`: YAML laid over it); a CAN station is
+    released when the episode ends.
     `perception`: "rgbd" (from the colour and depth images alone) or "label" (the
     simulator's perfect segmenter); `judge`: "simulator" (ground truth) or "perception"
     (the final camera view); see tasks.episode.
@@ -164,7 +165,8 @@ def run_agent_episode(task: str, seed: int, *, agent: str = "physcap",
     if pointer == "vlm" and not takes_images(client):
         raise ValueError("the vlm pointer needs a model that takes images (not --no-images)")
     episode = make_episode(task, seed, meshcat=meshcat, with_agent=True, sink=sink,
-                           scenario_file=scenario_file, perception=perception, judge=judge)
+                           scenario_file=scenario_file, perception=perception, judge=judge,
+                           scenario_text=scenario_text)
     if pointer == "vlm":
         episode.api.use_locator(ObjectLocator(episode.api.locator.perception,
                                               VlmPointer(pointer_ask(client))))

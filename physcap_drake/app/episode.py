@@ -120,7 +120,8 @@ def has_world(scenario: Scenario) -> bool:
 def make_episode(task_name: str, seed: int, answer: str = "", meshcat=None, *,
                  with_agent: bool = False, sink: McapSink | None = None,
                  scenario_file: str | Path | None = None,
-                 perception: str | None = None, judge: str | None = None) -> Episode:
+                 perception: str | None = None, judge: str | None = None,
+                 scenario_text: str = "") -> Episode:
     """Loads stations/<task>.yaml (or `scenario_file`), lays out the objects for `seed`,
     builds and initializes the simulation with the objects' hidden masses, and wires camera
     perception (`perception`: "rgbd" or "label", see the design notes) to the API (and,
@@ -131,9 +132,11 @@ def make_episode(task_name: str, seed: int, answer: str = "", meshcat=None, *,
     "perception" or "operator", see Episode.check). `perception` and `judge` left None take
     the scenario's `task.perception` / `task.judge`, else "label" and "simulator". Raises
     ValueError for a choice the station cannot serve (ground truth or the label image on a
-    rig without a simulated world). Call `close()` on the episode when done."""
+    rig without a simulated world). Call `close()` on the episode when done.
+    `scenario_text`: YAML laid over the scenario file (as `--scenario-text`)."""
     task = get_task(task_name)
-    scenario = load_scenario(scenario_file or stations_dir() / task.scenario_file)
+    scenario = load_scenario(scenario_file or stations_dir() / task.scenario_file,
+                             scenario_text)
     perception = perception or scenario.task.perception or "label"
     judge = judge or scenario.task.judge or "simulator"
     if perception not in PERCEPTIONS:

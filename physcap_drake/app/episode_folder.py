@@ -16,7 +16,7 @@ from pydrake.geometry import Meshcat
 from physcap_drake.agent.llm import CallRecord, make_llm, save_jsonl
 from physcap_drake.agent.transcript import TranscriptEntry, entry_markdown, markdown_header
 from physcap_drake.app.agent_episode import AgentRun, run_agent_episode
-from physcap_drake.app.sim_runner import save_meshcat_html
+from physcap_drake.app.replay_page import TimedEntry, save_replay_page
 from physcap_drake.recording.git_state import git_state
 from physcap_drake.recording.mcap_sink import McapSink
 from physcap_drake.station.view import frame_on_table
@@ -98,8 +98,11 @@ def record_episode(folder: str | Path, task: str, seed: int, *, meshcat_html: bo
         json.dumps(record.to_json(), ensure_ascii=False) + "\n"))
     listener = options.pop("on_entry", None)
     then = options.pop("on_start", None)
+    steps: list[TimedEntry] = []
+    diagram_time = [lambda: 0.0]
 
     def on_start(episode) -> None:
+        diagram_time[0] = episode.api.clock.context.get_time  # read only
         if meshcat is not None:
             frame_on_table(meshcat, contact_forces=contact_forces)
         if then is not None:
@@ -107,6 +110,7 @@ def record_episode(folder: str | Path, task: str, seed: int, *, meshcat_html: bo
 
     def on_entry(entry: TranscriptEntry) -> None:
         transcript_file.add(entry_markdown(entry))
+        steps.append(TimedEntry(diagram_time[0](), entry))
         if listener is not None:
             listener(entry)
 
@@ -128,9 +132,18 @@ def record_episode(folder: str | Path, task: str, seed: int, *, meshcat_html: bo
                                                                     run.summary()))
     save_jsonl(run.calls, folder / CALLS_FILE)
     if meshcat_html and meshcat is not None:
-        save_meshcat_html(meshcat, folder / MESHCAT_FILE)
+        save_replay_page(meshcat, folder / MESHCAT_FILE, steps, title, instruction,
+                         outcome_line(run.summary()))
     write_json(folder / SUMMARY_FILE, {**run.summary(), **git_state()})
     return run
+
+
+def outcome_line(summary: dict[str, Any]) -> str:
+    """The episode's outcome in one line: the verdict and why, OI and robot time."""
+    success = summary.get("success")
+    verdict = "n/a" if success is None else ("success" if success else "failure")
+    return (f"{verdict}: {summary['reason']} (OI {summary['oi']}, robot time "
+            f"{summary['robot_time_s']:.1f} s)")
 
 
 def _also_on_record(client, write) -> None:

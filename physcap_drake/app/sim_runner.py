@@ -7,10 +7,15 @@ from pathlib import Path
 from pydrake.geometry import Meshcat
 
 
-def save_meshcat_html(meshcat: Meshcat, path: Path) -> None:
-    """Writes what Meshcat recorded (since `meshcat.StartRecording()`) as one HTML file that
+def recorded_html(meshcat: Meshcat) -> str:
+    """What Meshcat recorded (since `meshcat.StartRecording()`), as one HTML page that
     replays the run in any browser, with no server."""
     meshcat.StopRecording()
     meshcat.PublishRecording()
+    return meshcat.StaticHtml()
+
+
+def save_meshcat_html(meshcat: Meshcat, path: Path) -> None:
+    """Writes `recorded_html(meshcat)` to `path`."""
     path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(meshcat.StaticHtml())
+    path.write_text(recorded_html(meshcat))

@@ -16,6 +16,7 @@ from physcap_drake.commands.common import (
     fail,
     load_scenario_or_exit,
 )
+from physcap_drake.commands.options import ScenarioText
 from physcap_drake.scenario import Scenario
 from physcap_drake.station.can_config import PiperCan
 from physcap_drake.station.can_operator import ArmReport, arm_report, operator_link
@@ -28,16 +29,19 @@ ScenarioOption = Annotated[Path | None, typer.Option(
                        "starts an emulated arm). Default: the arm on socketcan can0.")]
 
 
-def _scenario(path: Path | None) -> Scenario:
+def _scenario(path: Path | None, text: str) -> Scenario:
     if path is None:
+        if text:
+            fail("--scenario-text needs --scenario FILE to lay it over")
         return Scenario(station=PiperCan())
-    return load_scenario_or_exit(path)
+    return load_scenario_or_exit(path, text)
 
 
-def _with_arm(path: Path | None, action):
-    """Runs action(link) on the scenario's arm; a failure is one line on stderr."""
+def _with_arm(path: Path | None, action, text: str = ""):
+    """Runs action(link) on the scenario's arm (the file at `path` with the overlay `text`);
+    a failure is one line on stderr."""
     try:
-        with operator_link(_scenario(path)) as link:
+        with operator_link(_scenario(path, text)) as link:
             return action(link)
     except ValueError as error:  # not a CAN scenario
         fail(f"--scenario {path}: {error}")
@@ -46,40 +50,40 @@ def _with_arm(path: Path | None, action):
 
 
 @app.command("status")
-def status(scenario: ScenarioOption = None) -> None:
+def status(scenario: ScenarioOption = None, scenario_text: ScenarioText = "") -> None:
     """Print the arm's firmware, limits, enable bits and errors.
 
     Also its mode and status, joint accelerations, end-effector limits, collision levels
     and gripper. Enables nothing and moves nothing."""
-    _print(_with_arm(scenario, arm_report))
+    _print(_with_arm(scenario, arm_report, scenario_text))
 
 
 @app.command("estop")
-def estop(scenario: ScenarioOption = None) -> None:
+def estop(scenario: ScenarioOption = None, scenario_text: ScenarioText = "") -> None:
     """Emergency stop (0x150 = 1); returns once the arm reports it."""
-    _with_arm(scenario, lambda link: link.emergency_stop())
+    _with_arm(scenario, lambda link: link.emergency_stop(), scenario_text)
     console.print("the arm reports: emergency stop")
 
 
 @app.command("resume")
 def resume(scenario: ScenarioOption = None, yes: Annotated[bool, typer.Option(
         "--yes", help="Confirm that the arm is supported: resuming cuts the motors' "
-                      "power.")] = False) -> None:
+                      "power.")] = False, scenario_text: ScenarioText = "") -> None:
     """Clear the emergency stop and errors (0x150 = 2). The motors lose power, so the arm
     falls unless it is supported; enable it again (start an episode) to move."""
     if not yes:
         fail("resume cuts the motors' power and the arm falls unless supported: support it, "
              "then run again with --yes")
-    _with_arm(scenario, lambda link: link.resume())
+    _with_arm(scenario, lambda link: link.resume(), scenario_text)
     console.print("the arm resumed: errors cleared, motors off, standby")
 
 
 @app.command("clear-errors")
-def clear_errors(scenario: ScenarioOption = None) -> None:
+def clear_errors(scenario: ScenarioOption = None, scenario_text: ScenarioText = "") -> None:
     """Clear every joint's errors (0x475) and say what is left.
 
     Prints what the arm still reports afterwards."""
-    remaining = _with_arm(scenario, lambda link: link.clear_errors())
+    remaining = _with_arm(scenario, lambda link: link.clear_errors(), scenario_text)
     console.print(f"still reported: {remaining}" if remaining else "no errors reported")
 
 

@@ -16,6 +16,7 @@ from physcap_drake.commands.common import (
     save_json,
     trial_progress,
 )
+from physcap_drake.commands.options import ScenarioText
 from physcap_drake.perception.camera_calibration import (
     PLACEMENTS,
     calibrate_in_simulation,
@@ -57,6 +58,7 @@ def calibrate_camera(
         "--scenario", help="The station and its camera: a rendered or emulated camera is "
                            "calibrated in simulation, a live !RealSense with the printed "
                            "board at the --board-at places.")] = DEFAULT_SCENARIO,
+    scenario_text: ScenarioText = "",
     camera: Annotated[str, typer.Option("--camera", help="Which camera.")] = "camera",
     method: Annotated[str, typer.Option(
         "--method", help="table: the board laid at the --board-at places; gripper: the "
@@ -82,7 +84,7 @@ def calibrate_camera(
     pose) and writes the calibration file."""
     if method not in METHODS:
         fail(f"--method {method!r}: expected one of {', '.join(METHODS)}")
-    loaded = load_scenario_or_exit(scenario)
+    loaded = load_scenario_or_exit(scenario, scenario_text)
     entry = next((c for c in loaded.cameras if c.name == camera), None)
     if entry is None:
         fail(f"{scenario}: no camera named {camera!r}")

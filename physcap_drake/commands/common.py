@@ -67,10 +67,11 @@ def exit_2_on_bad_input(command: Callable) -> Callable:
     return guarded
 
 
-def load_scenario_or_exit(path: Path) -> Scenario:
-    """Loads a scenario; on a bad file prints the error (file, key, expectation) and exits 2."""
+def load_scenario_or_exit(path: Path, text: str = "") -> Scenario:
+    """Loads a scenario (with the `--scenario-text` overlay `text`); on a bad file prints the
+    error (file, key, expectation) and exits 2."""
     try:
-        return load_scenario(path)
+        return load_scenario(path, text)
     except ScenarioError as error:
         fail(str(error))
 

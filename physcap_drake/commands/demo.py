@@ -1,4 +1,4 @@
-"""`physcap demo ...`: scripted demonstrations of the robot skills."""
+"""`physcap demo ...`: the PhysCaP agent (`agent`) and the robot skills (`pick-place`)."""
 
 from __future__ import annotations
 
@@ -10,15 +10,18 @@ import typer
 from physcap_drake.app.pick_place_demo import check_can_in_tray, pick_and_place
 from physcap_drake.app.scene_layout import check_placed, object_position
 from physcap_drake.app.sim_runner import save_meshcat_html
+from physcap_drake.commands.agent_demo import agent_demo
 from physcap_drake.commands.common import console, fail, load_scenario_or_exit, make_meshcat
 from physcap_drake.commands.live_view import hold_open, pace_in_real_time
-from physcap_drake.commands.options import ContactForces, Hold, HtmlOut, LiveMeshcat
+from physcap_drake.commands.options import ContactForces, Hold, HtmlOut, LiveMeshcat, ScenarioText
 from physcap_drake.control.errors import SkillError
 from physcap_drake.robot_api import RobotAPI
 from physcap_drake.robot_stack import build_robot_stack
 from physcap_drake.station.view import frame_on_table
 
-app = typer.Typer(help="Scripted demonstrations of the robot skills.", no_args_is_help=True)
+app = typer.Typer(help="Demonstrations of the agent and of the robot skills.",
+                  no_args_is_help=True)
+app.command("agent")(agent_demo)
 
 #: The models the pick-and-place demo needs in its scenario.
 DEMO_MODELS = ("soda_can", "tray")
@@ -28,6 +31,7 @@ DEMO_MODELS = ("soda_can", "tray")
 def pick_place(
     scenario: Annotated[Path, typer.Option("--scenario", "-s", help="Scenario YAML file; it "
                                            "must add a 'soda_can' and a 'tray'.")],
+    scenario_text: ScenarioText = "",
     meshcat: LiveMeshcat = False,
     hold: Hold = None,
     html: HtmlOut = None,
@@ -40,7 +44,7 @@ def pick_place(
     can ended upright in the tray. The can and the tray are where the scenario puts them
     (this demo shows the skills; `physcap run` finds objects with the camera).
     """
-    loaded = load_scenario_or_exit(scenario)
+    loaded = load_scenario_or_exit(scenario, scenario_text)
     check_placed(loaded, DEMO_MODELS, scenario)
     viewer = make_meshcat(loaded, live=meshcat) if (meshcat or html) else None
     robot = build_robot_stack(loaded, viewer)

@@ -17,6 +17,7 @@ from physcap_drake.can.firmware import START_STATES
 from physcap_drake.can.motion import KinematicMotion
 from physcap_drake.can.unix_bus import UnixBusHub
 from physcap_drake.commands.common import console, fail, load_scenario_or_exit
+from physcap_drake.commands.options import ScenarioText
 from physcap_drake.station.can_cameras import emulated_world
 from physcap_drake.station.simulated_motion import simulated_motion
 
@@ -51,6 +52,7 @@ def emulate_piper(
                              "off its rest pose, 0,15,-15,0,0,0, where an e-stop shows "
                              "the arm sinking; 0,0,0,0,0,0 is the rest pose, on J2's and "
                              "J3's stops.")] = "",
+    scenario_text: ScenarioText = "",
 ) -> None:
     """Answer on the bus like a PiPER arm: feedback at 200 Hz (status, end pose, joints,
     gripper, drivers), every command and query of the vendor's protocol (e-stop and resume,
@@ -67,7 +69,8 @@ def emulate_piper(
             raise typer.BadParameter("--joints-deg is for the kinematic arm; with --scenario "
                                      "the arm starts where the scenario puts it")
         # The world renders no camera here: cameras belong to the station that connects.
-        motion = simulated_motion(emulated_world(load_scenario_or_exit(scenario), cameras=False))
+        motion = simulated_motion(emulated_world(load_scenario_or_exit(scenario, scenario_text),
+                                                  cameras=False))
     else:  # the joints move kinematically and hold the model's weight
         try:
             motion = KinematicMotion(ArmGravity(),

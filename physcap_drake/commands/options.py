@@ -20,5 +20,8 @@ HtmlOut = Annotated[Path | None, typer.Option(
 ContactForces = Annotated[bool, typer.Option(
     "--contact-forces", help="Show contact forces as arrows in the viewer (hidden by "
                              "default; they can also be ticked in Meshcat's scene tree).")]
+ScenarioText = Annotated[str, typer.Option(
+    "--scenario-text", metavar="YAML", help="YAML laid over the scenario file's, e.g. "
+    "'station: !PiperCan {channel: can1}' (keys replace the file's; docs/scenario_overlays.md).")]
 JsonOut = Annotated[Path | None, typer.Option(
     "--json", metavar="FILE", help="Also write the results to this JSON file.")]

@@ -46,7 +46,7 @@ from physcap_drake.commands.model_options import (
     VertexProject,
 )
 from physcap_drake.commands.operator_judge import ask_operator, can_ask
-from physcap_drake.commands.options import ContactForces, Hold, LiveMeshcat
+from physcap_drake.commands.options import ContactForces, Hold, LiveMeshcat, ScenarioText
 from physcap_drake.commands.progress import Heartbeat
 from physcap_drake.config_checks import check_scenario_task
 from physcap_drake.scenario_errors import ScenarioError
@@ -67,14 +67,19 @@ class EntryPrinter:
 
     def __call__(self, entry: TranscriptEntry) -> None:
         self._heartbeat.stop()
-        if entry.kind == "result":
+        text = self.render(entry)
+        if text is None:
             return
         style = STYLES.get(entry.kind, "dim")
         console.print(f"[{style}]{entry.kind}[/] [dim](block {entry.step}, robot time "
                       f"{entry.robot_time_s:.1f} s)[/]")
-        console.print(escape(entry_text(entry)), highlight=False)
+        console.print(escape(text), highlight=False)
         if entry.kind == "code":
             self._heartbeat.start(f"code block {entry.step} running")
+
+    def render(self, entry: TranscriptEntry) -> str | None:
+        """The entry's text on the console, or None to leave it out."""
+        return None if entry.kind == "result" else entry_text(entry)
 
     def stop(self) -> None:
         self._heartbeat.stop()
@@ -89,6 +94,7 @@ def run(task: Annotated[str, typer.Option("--task", help=f"One of: {', '.join(TA
             "--scenario", metavar="FILE", help="Scenario file instead of the task's own (it "
             "must set up the same task), e.g. stations/identify_empty_can_piper_can.yaml "
             "(over CAN).")] = None,
+        scenario_text: ScenarioText = "",
         pointer: Annotated[str, typer.Option(
             "--pointer", help="How get_object_pose finds objects: offline (phrases resolved "
                               "against the perceived objects) or vlm (the model points; "
@@ -156,7 +162,7 @@ def run(task: Annotated[str, typer.Option("--task", help=f"One of: {', '.join(TA
             fail(f"{flag} {value!r} is not one of {', '.join(choices)}")
     scenario_task = None
     if scenario is not None:
-        scenario_task = load_scenario_or_exit(scenario).task
+        scenario_task = load_scenario_or_exit(scenario, scenario_text).task
         try:
             check_scenario_task(task, scenario_task.name, str(scenario))
         except ScenarioError as error:
@@ -184,6 +190,7 @@ def run(task: Annotated[str, typer.Option("--task", help=f"One of: {', '.join(TA
                       f"{escape(TASKS[task].prompt)}")
     options = dict(agent=agent, client=client, meshcat=viewer, pointer=pointer,
                    perception=perception, judge=judge, scenario_file=scenario,
+                   scenario_text=scenario_text,
                    on_entry=printer, on_start=on_start,
                    operator=lambda: ask_operator(console, before=printer and printer.stop))
     if episode_timeout is not None:
@@ -208,7 +215,7 @@ def run(task: Annotated[str, typer.Option("--task", help=f"One of: {', '.join(TA
     finally:
         if printer is not None:
             printer.stop()
-    _report(result.summary(), json_path, out)
+    report_outcome(result.summary(), json_path, out)
     if record is not None:
         save_jsonl(result.calls, record)
         console.print(f"model calls saved to {record}")
@@ -229,7 +236,8 @@ def exit_code(summary: dict) -> int:
     return SOLVED if summary["success"] else NOT_SOLVED
 
 
-def _report(summary: dict, json_path: Path | None, out: Path | None) -> None:
+def report_outcome(summary: dict, json_path: Path | None = None,
+                   out: Path | None = None) -> None:
     """The outcome, once: success or failure with the check's reason, then the figures."""
     verdict = "[bold green]success[/]" if summary["success"] else "[bold red]failure[/]"
     console.print(f"{verdict}: {escape(summary['reason'])}")

@@ -16,13 +16,14 @@ from physcap_drake.commands.common import (
     sim_progress,
 )
 from physcap_drake.commands.live_view import hold_open, pace_in_real_time
-from physcap_drake.commands.options import ContactForces, Hold, HtmlOut, LiveMeshcat
+from physcap_drake.commands.options import ContactForces, Hold, HtmlOut, LiveMeshcat, ScenarioText
 from physcap_drake.station.view import frame_on_table
 from physcap_drake.station_commands import build_commanded_station
 
 
 def sim(
     scenario: Annotated[Path, typer.Option("--scenario", "-s", help="Scenario YAML file.")],
+    scenario_text: ScenarioText = "",
     duration: Annotated[float | None, typer.Option(
         "--duration", "-d", min=0.0,
         help="Simulated seconds to run (default: the scenario's simulation_duration).")] = None,
@@ -45,7 +46,7 @@ def sim(
     Builds the station, holds the arm at its initial pose (or sweeps the joints with
     --wiggle) and prints the simulated time, the wall time and the real-time factor.
     """
-    loaded = load_scenario_or_exit(scenario)
+    loaded = load_scenario_or_exit(scenario, scenario_text)
     seconds = loaded.simulation_duration if duration is None else duration
     viewer = make_meshcat(loaded, live=meshcat) if (meshcat or html) else None
     diagram, _ = build_commanded_station(loaded, meshcat=viewer, sweep=wiggle, duration=seconds)
