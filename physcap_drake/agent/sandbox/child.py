@@ -36,14 +36,15 @@ from typing import Any
 
 import numpy as np
 
-from . import lockdown, policy, protocol, restricted, seccomp
+from . import lockdown, policy, protocol, restricted, rewrite, seccomp
 
 FILENAME = "<generated code>"
 _FLUSH_AT_CHARS = 4096
 _FLUSH_EVERY_S = 0.02
-# Modules numpy functions import on first use (np.median, np.unique, ... use numpy.ma).
-# After the lockdown nothing can be loaded from disk, so they are loaded before it.
-_SUPPORT_MODULES = ("copy", "numpy.ma", "numpy.ma.extras")
+# Modules numpy functions import on first use (np.median imports numpy.ma). After the
+# lockdown nothing can be loaded from disk, so they are loaded before it; no view hands
+# them out (`views` refuses every module not in policy.ALLOWED_MODULES).
+_SUPPORT_MODULES = ("numpy.ma",)
 # Test-only "raw" runs (real builtins, no static check) get these modules imported before
 # the lockdown, so tests can attack the process wall itself with them.
 _RAW_PREIMPORTS = ("ctypes", "os", "resource", "signal", "socket", "subprocess", "time")
@@ -128,7 +129,9 @@ class _Session:
         namespace = self._namespace()
         error = None
         try:
-            exec(compile(self._code, FILENAME, "exec"), namespace)
+            compiled = (compile(self._code, FILENAME, "exec") if self._raw
+                        else rewrite.compile_guarded(self._code, FILENAME))
+            exec(compiled, namespace)
         except BaseException as exc:  # noqa: BLE001 - whatever the code raises is its result
             error = _describe(exc)
         namespace.clear()  # frees what the code built (a MemoryError may have left a lot)
