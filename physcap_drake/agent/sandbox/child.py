@@ -92,6 +92,10 @@ class _Session:
         self._cpu_s = float(limits["cpu_s"])
         self._memory_mb = int(limits["memory_mb"])
         self._raw = bool(start.get("raw", False))
+        required = start.get("require", [])
+        if not isinstance(required, list) or not all(isinstance(n, str) for n in required):
+            raise ValueError("bad list of required isolation layers")
+        self._required = set(required)
         self._output = restricted.OutputBuffer(int(limits["max_output_chars"]))
         self._last_flush = 0.0
         self._isolation: list[str] = []
@@ -124,8 +128,11 @@ class _Session:
         sys.stdout = sys.stderr = self._output
 
     def run(self) -> None:
-        """Run the code, report how it ended, exit."""
+        """Run the code, report how it ended, exit. Without every layer the parent
+        requires, report what was achieved and exit without running anything."""
         self._send({"t": "ready", "isolation": self._isolation})
+        if not self._required <= set(self._isolation):
+            os._exit(protocol.EXIT_SETUP_FAILED)
         namespace = self._namespace()
         error = None
         try:

@@ -12,7 +12,8 @@ at most 12 bytes escaped).
 
 Messages are dicts with a "t" (type) key:
 
-    parent -> child   start   {"code", "api": [names], "limits": {...}, "raw": bool}
+    parent -> child   start   {"code", "api": [names], "limits": {...}, "raw": bool,
+                               "require": [isolation layers without which nothing runs]}
                       return  {"value"}
                       raise   {"type": class name, "message"}
     child -> parent   ready   {"isolation": [what the lockdown achieved]}

@@ -13,7 +13,9 @@ x32 on x86_64) kills the process.
 libseccomp (through `pyseccomp`, which binds the system's libseccomp.so.2) resolves the
 names for the machine's own architecture, so one list serves x86_64, aarch64 and the rest;
 a name an architecture does not have (aarch64 has no `open`) is skipped. Without
-libseccomp, `install` returns False and the child reports no "seccomp" isolation.
+libseccomp, `install` returns False and the child reports no "seccomp" isolation; the
+parent then refuses it (`isolation`). HIDE_ENV set to 1 makes the loader act as if
+libseccomp were missing (for tests of that refusal; the child inherits it).
 
 Standard library and pyseccomp only: the child loads this before it locks itself down.
 """
@@ -21,11 +23,17 @@ Standard library and pyseccomp only: the child loads this before it locks itself
 from __future__ import annotations
 
 import errno
+import os
 
+HIDE_ENV = "PHYSCAP_SANDBOX_HIDE_LIBSECCOMP"
+_load_error = ""
 try:
+    if os.environ.get(HIDE_ENV) == "1":
+        raise ImportError(f"hidden by {HIDE_ENV}=1")
     import pyseccomp
-except (ImportError, OSError, RuntimeError):  # not installed, or no libseccomp.so.2
+except (ImportError, OSError, RuntimeError) as error:  # not installed, or no libseccomp.so.2
     pyseccomp = None
+    _load_error = f"{type(error).__name__}: {error}"
 
 # What the code's process needs once it runs generated code, grouped by purpose. Found by
 # tracing the child through numpy's common paths (linear algebra, FFT, random, printing,
@@ -54,6 +62,11 @@ READ_ONLY_PRLIMIT = "prlimit64"
 def available() -> bool:
     """Whether libseccomp could be loaded."""
     return pyseccomp is not None
+
+
+def problem() -> str:
+    """Why libseccomp could not be loaded ("" if it was)."""
+    return "" if pyseccomp is not None else (_load_error or "pyseccomp is missing")
 
 
 def build_filter() -> pyseccomp.SyscallFilter:

@@ -4,7 +4,9 @@ A `SandboxSession` is driven by its owner in explicit steps, so the same object 
 blocking caller (`runner.run_sandboxed`) and an event-driven one:
 
     session.start()          static check, start the child (or take the spare child
-                             given) and send it the code, wait for "ready"
+                             given) and send it the code, wait for "ready"; raises
+                             isolation.IsolationMissing if the child lacks a layer of
+                             the wall this platform gives (no code runs)
     session.next_call()      the next checked API call the code makes, or how the run ended
     session.answer(value)    reply to that call with its result ...
     session.answer_error(e)  ... or with the error it raised (the code can catch it)
@@ -37,7 +39,7 @@ import time
 from collections.abc import Callable, Mapping
 from typing import Any
 
-from . import messages, policy, protocol
+from . import isolation, messages, policy, protocol
 from .ast_check import CodeRejected, check_code
 from .budget import BlockBudget, Meters, Stop
 from .child_process import ChildGone, ChildProcess, Deadline
@@ -126,7 +128,7 @@ class SandboxSession:
             except CodeRejected as rejected:
                 return self._end("rejected", str(rejected))
         start = {"t": "start", "code": self._code, "api": sorted(self._table),
-                 "raw": self._raw,
+                 "raw": self._raw, "require": sorted(isolation.expected_layers()),
                  "limits": {"cpu_s": self._limits.cpu_s, "memory_mb": self._limits.memory_mb,
                             "max_output_chars": self._limits.max_output_chars}}
         try:
@@ -203,6 +205,11 @@ class SandboxSession:
         if not isinstance(ready, messages.Ready):
             raise protocol.ProtocolError("the first message was not 'ready'")
         self._isolation = list(ready.isolation)
+        try:
+            isolation.check_reported(ready.isolation)
+        except isolation.IsolationMissing:
+            self._child.terminate()
+            raise
         self._running = True
         self._budget.start(time.monotonic(), self._meters.robot_time(),
                            self._meters.knowledge_chars())
