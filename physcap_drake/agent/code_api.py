@@ -8,7 +8,8 @@ does.
 Every call is checked in the parent before it reaches the RobotAPI: bound to the method's
 own signature, each argument checked by the kind in `PARAMETER_KINDS` (positions are three
 finite numbers, names one line of at most `MAX_NAME_CHARS` characters, ...). A call that
-does not fit is refused to the code as a TypeError or ValueError.
+does not fit is refused to the code as a TypeError or ValueError. Object names are
+`Name`s: letters, digits, spaces and basic punctuation, in NFKC form.
 """
 
 from __future__ import annotations
@@ -21,10 +22,10 @@ import numpy as np
 from physcap_drake.agent.sandbox import (
     ApiFunction,
     FunctionSpec,
+    Name,
     Number,
     OrNone,
     ParameterKind,
-    Text,
     Vector,
     then,
 )
@@ -38,7 +39,7 @@ PHYSX_FUNCTIONS = ("get_mass", "get_weight", "get_stiffness")
 #: Longest object name or description a call may carry (characters).
 MAX_NAME_CHARS = 120
 _POSITION = Vector(3)
-_NAME = Text(MAX_NAME_CHARS)
+_NAME = Name(MAX_NAME_CHARS)
 #: What each parameter of each function must be (see the module docstring).
 PARAMETER_KINDS: dict[str, dict[str, ParameterKind]] = {
     "get_object_pose": {"name": _NAME},

@@ -43,6 +43,7 @@ from . import isolation, messages, policy, protocol
 from .ast_check import CodeRejected, check_code
 from .budget import BlockBudget, Meters, Stop
 from .child_process import ChildGone, ChildProcess, Deadline
+from .clean_text import clean, quoted
 from .limits import SandboxLimits
 from .outcome import CodeOutcome, OutcomeKind
 from .signatures import ApiFunction, Call, api_table
@@ -225,7 +226,7 @@ class SandboxSession:
                 raise protocol.ProtocolError("a second 'ready'")
             else:
                 motion = isinstance(message, Call) and message.motion
-                self._calls.append((message.name, message.summary()))
+                self._calls.append((message.name, clean(message.summary())))
                 now = time.monotonic()
                 self._stop_if(self._budget.before_call(
                     message.name, motion, now, self._meters.robot_time()))
@@ -299,13 +300,16 @@ class SandboxSession:
         if error is None:
             return _Ended("ok", "")
         where = f" at line {error.line}" if error.line is not None else ""
-        detail = f"{error.type}{where}" + (f": {error.message}" if error.message else "")
         source = self._source_line(error.line)
+        if error.memory:
+            # the parent's words; the block's own message only quoted (it may imitate others)
+            said = f"; the block's error said {quoted(error.message)}" if error.message else ""
+            shown = f"\n    {source}" if source else ""
+            return _Ended("memory_limit", f"memory limit ({self._limits.memory_mb} MB) "
+                          f"reached: {error.type}{where}{said}{shown}")
+        detail = f"{error.type}{where}" + (f": {error.message}" if error.message else "")
         if source:
             detail += f"\n    {source}"
-        if error.memory:
-            return _Ended("memory_limit", f"memory limit ({self._limits.memory_mb} MB) "
-                          f"reached: {detail}")
         return _Ended("exception", detail)
 
     def _source_line(self, line: int | None) -> str:
@@ -336,15 +340,18 @@ class SandboxSession:
         message = f"the sandboxed process {how} before the code finished"
         tail = self._child.stderr_tail()
         if tail:
-            message += f"; its last words: {tail}"
+            message += f"; its last words: {quoted(tail, 2000)}"
         return "crashed", message
 
     def _end(self, kind: OutcomeKind, error: str) -> CodeOutcome:
         """The run is over: stop the child and keep the outcome."""
         if self._child is not None:
             self._child.terminate()
-        stdout = "".join(self._stdout).encode("utf-8", "replace").decode("utf-8")
-        message = None if kind == "ok" else error.encode("utf-8", "replace").decode("utf-8")
+        # Everything the block wrote leaves here with its control characters escaped, so no
+        # console, transcript, recording or prompt downstream ever sees them.
+        stdout = clean("".join(self._stdout).encode("utf-8", "replace").decode("utf-8"))
+        message = None if kind == "ok" else clean(
+            error.encode("utf-8", "replace").decode("utf-8"))
         self.outcome = CodeOutcome(
             ok=kind == "ok", kind=kind, stdout=stdout, error=message,
             api_calls=list(self._calls), isolation=list(self._isolation),

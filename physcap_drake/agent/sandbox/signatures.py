@@ -26,6 +26,8 @@ from typing import Any, Protocol
 
 import numpy as np
 
+from .clean_text import name_problem, quoted
+
 #: Longest keyword-argument name accepted (characters).
 MAX_KEYWORD_CHARS = 64
 #: Bounds of a PlainValue: nesting depth, items (all levels), characters of each string.
@@ -120,6 +122,24 @@ class Text:
 
     def describe(self) -> str:
         return f"a string of at most {self.max_chars} characters"
+
+
+@dc.dataclass(frozen=True)
+class Name(Text):
+    """An object's name: Text of letters, digits, spaces and basic punctuation, already in
+    NFKC form, with no invisible characters (`clean_text.name_problem`). A name that
+    normalization would change is refused, never mapped onto another."""
+
+    def check(self, value: Any, where: str) -> str:
+        text = super().check(value, where)
+        problem = name_problem(text)
+        if problem:
+            raise Refused("ValueError", f"{where} {quoted(text, 80)} is refused: {problem}")
+        return text
+
+    def describe(self) -> str:
+        return (f"a name of at most {self.max_chars} letters, digits, spaces and basic "
+                "punctuation")
 
 
 @dc.dataclass(frozen=True)
