@@ -1,8 +1,9 @@
 """The budgets of one code block, checked per call from readings the caller passes in.
 
-`BlockBudget` holds what a block may spend (calls, its own wall time, robot time,
-knowledge) and checks it at two moments of every API call: `before_call` (before the call
-is made: the call count, the own wall time, and, for a motion, the robot time) and
+`BlockBudget` holds what a block may spend (calls, gripper cycles, probes, pose look-ups,
+its own wall time, robot time, knowledge) and checks it at two moments of every API call:
+`before_call` (before the call is made: the call counts, the own wall time, and, for a
+motion, the robot time) and
 `after_call` (after it returned: the own wall time and what the block added to the scene
 knowledge). Each check takes the readings (monotonic clock, robot time, knowledge size) as
 arguments and returns a `Stop` or None, so any owner of a block (the blocking runner, the
@@ -23,6 +24,14 @@ from collections.abc import Callable
 
 from .limits import SandboxLimits
 from .outcome import OutcomeKind
+
+#: The per-block call budgets a FunctionSpec may count against: the SandboxLimits field
+#: that bounds it, and what one call does, in words.
+COUNTED: dict[str, tuple[str, str]] = {
+    "gripper_cycle": ("max_gripper_cycles", "closed the gripper"),
+    "probe": ("max_probe_calls", "ran a physical probe"),
+    "pose": ("max_pose_calls", "called get_object_pose"),
+}
 
 
 @dc.dataclass(frozen=True)
@@ -58,6 +67,7 @@ class BlockBudget:
         self._robot_time_at_start = 0.0
         self._knowledge_at_start = 0
         self.calls = 0
+        self.counted: dict[str, int] = dict.fromkeys(COUNTED, 0)
 
     def start(self, now: float, robot_time: float, knowledge_chars: int) -> None:
         """The code starts now: its own wall time starts, and the robot time and knowledge
@@ -91,12 +101,20 @@ class BlockBudget:
         return self.own_wall_s(now) >= self.limits.total_wall_s
 
     def before_call(self, name: str, motion: bool, now: float,
-                    robot_time: float) -> Stop | None:
-        """Whether the call of `name` may be made; counts it."""
+                    robot_time: float, counted_as: str = "") -> Stop | None:
+        """Whether the call of `name` may be made; counts it (also against the budget
+        `counted_as` names, one of COUNTED, if given)."""
         self.calls += 1
         if self.calls > self.limits.max_api_calls:
             return Stop("api_call_limit", f"the code made more than {self.limits.max_api_calls}"
                         f" robot API calls and was stopped (at a call of {name})")
+        if counted_as:
+            field, action = COUNTED[counted_as]
+            self.counted[counted_as] += 1
+            limit = getattr(self.limits, field)
+            if self.counted[counted_as] > limit:
+                return Stop("api_call_limit", f"the code {action} more than {limit} times in "
+                            f"one block (limit {field}) and was stopped before {name}() ran")
         if self.out_of_wall_time(now):
             return self.wall_stop()
         spent = robot_time - self._robot_time_at_start

@@ -226,10 +226,11 @@ class SandboxSession:
                 raise protocol.ProtocolError("a second 'ready'")
             else:
                 motion = isinstance(message, Call) and message.motion
+                counted = message.counted_as if isinstance(message, Call) else ""
                 self._calls.append((message.name, clean(message.summary())))
                 now = time.monotonic()
                 self._stop_if(self._budget.before_call(
-                    message.name, motion, now, self._meters.robot_time()))
+                    message.name, motion, now, self._meters.robot_time(), counted))
                 if isinstance(message, Call):
                     self._budget.call_taken(now)
                     self._pending = message
