@@ -5,8 +5,11 @@
 for an owner that drives it event by event (both runners share it).
 The parent trusts nothing the child sends: `messages` checks every message, `signatures`
 every call's arguments, `budget` the block's budgets per call. `child` is the child's side,
-`spare` a child started ahead of its block, `ast_check` and `policy` the filters, `lockdown`
-and `seccomp` the process wall, `protocol` the frames between the two.
+`spare` a child started ahead of its block, `ast_check` and `policy` the filters, `rewrite`
+and `views` the guard every attribute read passes in the child, `lockdown` and `seccomp` the
+process wall, `isolation` the layers a child must report before any code runs, `clean_text`
+what the parent does to the text a block produces, `protocol` the frames between the two.
+See docs/sandbox.md.
 """
 
 from .ast_check import CodeRejected, check_code

@@ -14,8 +14,10 @@ library, numpy, pyseccomp (for the syscall filter) and the sandbox's own small m
 4. Lock down (see `lockdown` and `seccomp`). If a PID namespace was made, fork: the new
    process (the namespace's first) runs the code, this one only waits for it and exits with
    its status (128 + signal number if it was killed).
-5. Send "ready" with the isolation achieved, run the code in a namespace with restricted
-   builtins and one stub per API function, then send "done" and exit.
+5. Send "ready" with the isolation achieved (and exit without running anything if a layer
+   the start message requires is missing), compile the code with every attribute read
+   guarded (`rewrite`), run it in a namespace with restricted builtins and one stub per API
+   function, then send "done" and exit.
 
 Each stub sends a "call" and waits for the parent's "return" or "raise". Printed text is sent
 as "out" messages: before every call, before "done", and while printing, at least every 20 ms
