@@ -82,7 +82,10 @@ def mediated(value: Any, where: str) -> Any:
         raise _refused(f"module {value.__name__}", f"found at {where}")
     if isinstance(value, dict) and ("__builtins__" in value or "__loader__" in value):
         raise _refused(where, "a module's namespace")
-    home = home_module(value).partition(".")[0]
+    try:
+        home = home_module(value).partition(".")[0]
+    except Exception:  # noqa: BLE001 - an object that hides where it comes from is refused
+        raise _refused(where, "where it comes from cannot be told") from None
     if home in RAW_MODULES:
         raise _refused(where, f"an object of module {home}")
     if home == "builtins" and callable(value) \
