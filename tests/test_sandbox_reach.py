@@ -17,7 +17,7 @@ from types import ModuleType
 
 import numpy as np
 import pytest
-from test_sandbox import FakeRobot, run
+from test_sandbox import FakeRobot, no_leftover_processes, run  # noqa: F401 - fixture
 
 from physcap_drake.agent.sandbox import policy, restricted, views
 
@@ -80,6 +80,12 @@ def test_a_view_raises_its_errors_afresh():
     assert error.obj is view  # Python sets it to the object looked up on: the view
     assert error.__context__ is None and error.__cause__ is None
     assert "no_such_attribute" in str(error)
+    for obj in (np.zeros(2), np.random.default_rng(0), math):  # any object's read, guarded
+        with pytest.raises(AttributeError) as caught:
+            views.guarded_attribute(obj, "no_such_attribute")
+        error = caught.value
+        assert error.obj is None and error.name is None
+        assert error.__context__ is None and error.__cause__ is None
 
 
 def test_the_guard_refuses_modules_and_raw_module_objects():
