@@ -33,6 +33,7 @@ from physcap_drake.commands.common import (
     BAD_INPUT,
     error_console,
     exit_2_on_bad_input,
+    needs_sandbox,
     print_error,
 )
 
@@ -54,8 +55,8 @@ app = typer.Typer(
     context_settings=HELP_SETTINGS,
 )
 app.command("sim")(sim.sim)
-app.command("run")(run.run)
-app.command("eval")(evaluate.evaluate)
+app.command("run")(needs_sandbox(run.run))
+app.command("eval")(needs_sandbox(evaluate.evaluate))
 app.command("compare")(compare.compare)
 app.command("replay")(replay.replay)
 app.command("recover")(recover.recover)

@@ -23,8 +23,12 @@ class KnowledgeEntry:
     robot_time_s: float = 0.0
 
     def describe(self) -> str:
+        """One line. A failed or refused measurement is the parent's sentence, the caller's
+        name only quoted inside it (never where a measured fact would start)."""
         if not self.ok:
-            return f"{self.subject}: {self.prop} measurement failed ({self.note})"
+            subject = " ".join(self.subject.split()).replace('"', "'")
+            note = " ".join(self.note.split())
+            return f'failed {self.prop} measurement of the object called "{subject}" ({note})'
         value = f"{self.value:.3f}" if isinstance(self.value, float) else str(self.value)
         note = f" ({self.note})" if self.note else ""
         return f"{self.subject}: {self.prop} = {value} {self.unit}{note}"

@@ -6,6 +6,7 @@ Design notes: docs/design/physcap_drake.md.
 from __future__ import annotations
 
 import functools
+import hashlib
 import math
 from collections.abc import Callable, Generator
 from contextlib import contextmanager
@@ -27,7 +28,7 @@ from physcap_drake.control.requests import (
 from physcap_drake.control.skill_executor import STATUS_PORT
 from physcap_drake.knowledge import KnowledgeEntry, SceneKnowledge
 from physcap_drake.perception.object_locator import ObjectLocator
-from physcap_drake.physx.mass_probe import MassMeasurement, MeasureMass
+from physcap_drake.physx.mass_probe import NOTHING_GRASPED, MassMeasurement, MeasureMass
 from physcap_drake.physx.stiffness_probe import MeasureStiffness, StiffnessMeasurement
 from physcap_drake.robot_stack import RobotStack
 from physcap_drake.station import ports
@@ -88,6 +89,8 @@ class RobotAPI:
         #: The full outcome of the latest get_mass / get_stiffness (for tools and tests).
         self.last_mass: MassMeasurement | None = None
         self.last_stiffness: StiffnessMeasurement | None = None
+        # The last look: a digest of the camera images, and the answers found in them.
+        self._look: tuple[bytes, dict[str, np.ndarray]] = (b"", {})
 
     def get_object_pose(self, name: str) -> np.ndarray:
         """Find an object in the camera image and return its grasp point [x, y, z] (metres,
@@ -97,6 +100,7 @@ class RobotAPI:
         name: a description that picks out one object, e.g. "red can", "large cup",
             "second from left green avocado", "dark avocado on the right", "can with a straw".
         Raises ValueError listing the visible objects if the name fits none or several.
+        Asked again while nothing in view has changed, it answers from the last look.
         """
         if self._locator is None:
             raise RuntimeError("this robot has no camera perception set up (no locator)")
@@ -104,7 +108,14 @@ class RobotAPI:
         rgb = station.GetOutputPort(ports.CAMERA_RGB).Eval(context).data
         depth = station.GetOutputPort(ports.CAMERA_DEPTH).Eval(context).data
         label = station.GetOutputPort(ports.CAMERA_LABEL).Eval(context).data
-        return self._locator.grasp_point(name, rgb, depth, label)
+        digest = hashlib.blake2b(np.ascontiguousarray(rgb).tobytes(), digest_size=16)
+        digest.update(np.ascontiguousarray(depth).tobytes())
+        if digest.digest() != self._look[0]:
+            self._look = (digest.digest(), {})
+        answers = self._look[1]
+        if name not in answers:
+            answers[name] = np.array(self._locator.grasp_point(name, rgb, depth, label))
+        return answers[name].copy()
 
     @property
     def clock(self) -> Clock:
@@ -184,14 +195,18 @@ class RobotAPI:
         Make sure the gripper holds nothing before calling. Takes about 10 s.
 
         Returns the mass in kilograms, or NaN (check with math.isnan) if the measurement
-        failed (nothing grasped, or the object slipped); the reason is recorded in the scene
-        knowledge. Raises SkillRefused or SkillFailed if a motion could not be made (also
-        recorded).
+        failed (the object slipped); the reason is recorded in the scene knowledge. Raises
+        SkillFailed if the fingers closed on nothing there (no contact; nothing is recorded:
+        look for the object again), SkillRefused or SkillFailed if a motion could not be made
+        (recorded).
         """
         subject = _subject(position, name)
         with self._recording_failures(subject, "mass", "kg"):
             status = yield from self._request(MeasureMass(position))
             result = self.last_mass = status.result
+        if not result.ok and result.reason.startswith(NOTHING_GRASPED):
+            raise SkillFailed(f"get_mass found nothing to weigh {_at(position)}: "
+                              f"{result.reason}; no measurement was recorded")
         self.knowledge.add(KnowledgeEntry(subject, "mass", result.mass_kg, "kg", result.ok,
                                           result.reason, self.robot_time))
         return result.mass_kg
@@ -211,12 +226,17 @@ class RobotAPI:
         Returns the stiffness level: 1 ultra-soft (foam, an overripe fruit), 2 soft (a ripe
         fruit, soft rubber), 3 semi-rigid, 4 stiff (an unripe fruit, hard rubber), 5 rigid
         (metal, wood, a full can); 0 if the measurement failed (recorded in the knowledge).
-        Raises SkillRefused or SkillFailed if a motion could not be made (also recorded).
+        Raises SkillFailed if no squeeze touched anything there (no contact; nothing is
+        recorded: look for the object again), SkillRefused or SkillFailed if a motion could
+        not be made (recorded).
         """
         subject = _subject(position, name)
         with self._recording_failures(subject, "stiffness", "level"):
             status = yield from self._request(MeasureStiffness(position))
             measurement = self.last_stiffness = status.result
+        if not any(math.isfinite(d) for d in measurement.result.deformations_mm):
+            raise SkillFailed(f"get_stiffness found nothing to squeeze {_at(position)}: "
+                              f"{measurement.describe()}; no measurement was recorded")
         self.knowledge.add(KnowledgeEntry(subject, "stiffness", measurement.level, "level",
                                           measurement.level > 0, measurement.describe(),
                                           self.robot_time))
@@ -302,5 +322,9 @@ class RobotAPI:
 
 def _subject(position, name: str | None) -> str:
     """How a measured object is named in the knowledge: its name, or its position."""
+    return name or f"object {_at(position)}"
+
+
+def _at(position) -> str:
     point = as_vector(position, 3, "position (m)")
-    return name or "object at (" + ", ".join(f"{v:.3f}" for v in point) + ") m"
+    return "at (" + ", ".join(f"{v:.3f}" for v in point) + ") m"

@@ -13,10 +13,10 @@ import numpy as np
 from physcap_drake.agent.sandbox import (
     ApiFunction,
     FunctionSpec,
+    Name,
     Number,
     OrNone,
     ParameterKind,
-    Text,
     Vector,
     then,
 )
@@ -30,7 +30,7 @@ PHYSX_FUNCTIONS = ("get_mass", "get_weight", "get_stiffness")
 #: Longest object name or description a call may carry (characters).
 MAX_NAME_CHARS = 120
 _POSITION = Vector(3)
-_NAME = Text(MAX_NAME_CHARS)
+_NAME = Name(MAX_NAME_CHARS)
 #: What each parameter of each function must be (see the design notes).
 PARAMETER_KINDS: dict[str, dict[str, ParameterKind]] = {
     "get_object_pose": {"name": _NAME},
@@ -47,6 +47,9 @@ PARAMETER_KINDS: dict[str, dict[str, ParameterKind]] = {
 #: The functions that move the robot (robot-time budgets are checked before each call).
 MOVING = frozenset({"goto_pose", "open_gripper", "close_gripper", "home_pose", "get_mass",
                     "get_weight", "get_stiffness"})
+#: The per-block budget each function's calls count against (sandbox.budget.COUNTED).
+COUNTED_AS = {"close_gripper": "gripper_cycle", "get_mass": "probe", "get_weight": "probe",
+              "get_stiffness": "probe", "get_object_pose": "pose"}
 
 
 def breakpoint_code_block() -> None:
@@ -103,7 +106,8 @@ def spec_of(name: str, function: Callable) -> FunctionSpec:
     moves the robot."""
     method = getattr(RobotAPI, name, None)
     return FunctionSpec.of(name, method or function, PARAMETER_KINDS[name],
-                           motion=name in MOVING, drop_self=method is not None)
+                           motion=name in MOVING, drop_self=method is not None,
+                           counted_as=COUNTED_AS.get(name, ""))
 
 
 def _plain_results(function: Callable) -> Callable:

@@ -180,7 +180,7 @@ class AgentLoop:
         self.task, self.variant, self.llm, self.api = task, variant, llm, api
         self._check = check
         self._seed = seed
-        self._limits = limits or SandboxLimits()
+        self._limits = variant.block_limits(limits or SandboxLimits())
         self._prompts = prompts or PromptBook(images=takes_images(llm))
         self._robot_time_limit = robot_time_limit
         self.transcript = transcript or Transcript()

@@ -11,6 +11,8 @@ import dataclasses as dc
 from collections.abc import Callable
 from typing import Any
 
+from physcap_drake.agent.sandbox.clean_text import clean, fence
+
 #: Entry kinds, in the order they typically appear in one step.
 KINDS = ("model", "observation", "planner", "prioritizer", "decision", "code", "output", "error",
          "measurement", "result")
@@ -33,7 +35,9 @@ class TranscriptEntry:
 
 
 class Transcript:
-    """Append-only list of entries; `listener(entry)` hears each one as it is added."""
+    """Append-only list of entries; `listener(entry)` hears each one as it is added. Each
+    entry's text and the strings of its data are stored with their control characters
+    escaped, so no console, markdown file or recording downstream receives them."""
 
     def __init__(self, listener: Callable[[TranscriptEntry], None] | None = None):
         self.entries: list[TranscriptEntry] = []
@@ -43,7 +47,8 @@ class Transcript:
             data: dict | None = None) -> None:
         if kind not in KINDS:
             raise ValueError(f"unknown transcript entry kind {kind!r}; one of {KINDS}")
-        entry = TranscriptEntry(kind, step, round(robot_time_s, 3), text, data or {})
+        entry = TranscriptEntry(kind, step, round(robot_time_s, 3), clean(text),
+                                _cleaned(data or {}))
         self.entries.append(entry)
         if self._listener is not None:
             self._listener(entry)
@@ -62,6 +67,19 @@ class Transcript:
         return "".join(parts)
 
 
+def _cleaned(value: Any) -> Any:
+    """`value` with every string in it (keys included) cleaned."""
+    if isinstance(value, str):
+        return clean(value)
+    if isinstance(value, dict):
+        return {_cleaned(key): _cleaned(item) for key, item in value.items()}
+    if isinstance(value, list):
+        return [_cleaned(item) for item in value]
+    if isinstance(value, tuple):
+        return tuple(_cleaned(item) for item in value)
+    return value
+
+
 # --- markdown --------------------------------------------------------------------------------
 
 
@@ -74,12 +92,22 @@ def markdown_header(title: str, instruction: str = "") -> str:
 
 
 def entry_markdown(entry: TranscriptEntry) -> str:
-    """One entry as markdown: paragraphs separated, and ended, by a blank line."""
+    """One entry as markdown: paragraphs separated, and ended, by a blank line. Control
+    characters are escaped; code and output are fenced by more backticks than they hold."""
+    return clean(_entry_markdown(entry))
+
+
+def _fenced(text: str, language: str = "") -> str:
+    marks = fence(text)
+    return f"{marks}{language}\n{text}\n{marks}"
+
+
+def _entry_markdown(entry: TranscriptEntry) -> str:
     at = f"(robot time {entry.robot_time_s:.1f} s)"
     kind, data = entry.kind, entry.data
     if kind == "code":
         thought = data.get("thought", "").strip()
-        code = f"```python\n# Code block {entry.step}\n{entry.text.rstrip()}\n```"
+        code = _fenced(f"# Code block {entry.step}\n{entry.text.rstrip()}", "python")
         blocks = [f"**Thought:** {thought}", code] if thought else [code]
     elif kind == "planner" and "sufficient" in data:
         blocks = [f"**Planner** {at}: {_verdict(data)}", *_planner_blocks(data)]
@@ -89,7 +117,7 @@ def entry_markdown(entry: TranscriptEntry) -> str:
         first, _, rest = entry.text.strip().partition("\n")
         blocks = [f"**Observation** {at}: {first}", *([rest] if rest else [])]
     elif kind == "output":
-        blocks = [f"**Output** {at}:", f"```\n{entry.text.rstrip()}\n```"]
+        blocks = [f"**Output** {at}:", _fenced(entry.text.rstrip())]
     else:
         label = {"measurement": "Measured", "result": "Result"}.get(kind, kind.capitalize())
         blocks = [f"**{label}** {at}: {entry.text.strip()}"]
@@ -111,7 +139,7 @@ def outcome_markdown(summary: dict[str, Any]) -> str:
             ("wall time", f"{summary.get('wall_time_s', 0.0):.1f} s")]
     if summary.get("failure"):
         rows.insert(1, ("stopped", summary["failure"]))
-    return "## Outcome\n\n" + _table(("", ""), rows) + "\n"
+    return clean("## Outcome\n\n" + _table(("", ""), rows) + "\n")
 
 
 def _verdict(plan: dict) -> str:
@@ -171,7 +199,11 @@ def _table(header: tuple[str, ...], rows: list[tuple[str, ...]]) -> str:
 def entry_text(entry: TranscriptEntry) -> str:
     """One entry as compact plain text: the planner's verdict with one line per candidate
     instead of its JSON, the prioritizer's candidates in its order, the coder's thought
-    before its code, the rest as written."""
+    before its code, the rest as written; control characters escaped."""
+    return clean(_entry_text(entry))
+
+
+def _entry_text(entry: TranscriptEntry) -> str:
     data = entry.data
     if entry.kind == "planner" and "sufficient" in data:
         lines = [_verdict(data)]

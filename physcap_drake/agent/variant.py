@@ -7,6 +7,7 @@ from pathlib import Path
 
 from pydrake.common.yaml import yaml_load_typed
 
+from physcap_drake.agent.sandbox import SandboxLimits
 from physcap_drake.config_checks import ConfigChecker
 from physcap_drake.resources import agents_dir
 from physcap_drake.scenario_errors import ScenarioError, file_label, locate_yaml_error
@@ -40,6 +41,17 @@ class AgentVariant:
     max_steps: int = 10
     # How often a malformed answer is sent back for repair before the episode fails.
     repair_attempts: int = 2
+    # Per code block: how often it may close the gripper, run a physical probe, and call
+    # get_object_pose (one more ends the block, naming the limit).
+    max_gripper_cycles: int = SandboxLimits.max_gripper_cycles
+    max_probe_calls: int = SandboxLimits.max_probe_calls
+    max_pose_calls: int = SandboxLimits.max_pose_calls
+
+    def block_limits(self, limits: SandboxLimits) -> SandboxLimits:
+        """`limits` with this variant's per-block call budgets."""
+        return dc.replace(limits, max_gripper_cycles=self.max_gripper_cycles,
+                          max_probe_calls=self.max_probe_calls,
+                          max_pose_calls=self.max_pose_calls)
 
     def check(self, at: ConfigChecker) -> None:
         if not self.name:
@@ -48,6 +60,8 @@ class AgentVariant:
         at.choice("order", self.order, ORDERS)
         at.number("max_steps", self.max_steps, minimum=1, maximum=100)
         at.number("repair_attempts", self.repair_attempts, minimum=0, maximum=10)
+        for key in ("max_gripper_cycles", "max_probe_calls", "max_pose_calls"):
+            at.number(key, getattr(self, key), minimum=1, maximum=1000)
         if self.decider == "coder" and self.order != "as_given":
             at.fail("order", "'as_given' (the coder explores without a candidate list)",
                     f"got {self.order!r}")

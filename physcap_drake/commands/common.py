@@ -15,6 +15,7 @@ from pydrake.geometry import Meshcat
 from rich.console import Console
 from rich.markup import escape
 
+from physcap_drake.agent.sandbox.isolation import platform_problem
 from physcap_drake.commands import progress
 from physcap_drake.recording.reading import RecordingError
 from physcap_drake.scenario import Scenario, load_scenario
@@ -63,6 +64,19 @@ def exit_2_on_bad_input(command: Callable) -> Callable:
             return command(*args, **kwargs)
         except INPUT_ERRORS as error:
             fail(describe_error(error))
+
+    return guarded
+
+
+def needs_sandbox(command: Callable) -> Callable:
+    """Wraps a command that runs generated code: it refuses to start (one line on stderr,
+    exit 2) where the sandbox's wall cannot be built."""
+    @functools.wraps(command)
+    def guarded(*args, **kwargs):
+        problem = platform_problem()
+        if problem is not None:
+            fail(problem)
+        return command(*args, **kwargs)
 
     return guarded
 

@@ -11,7 +11,13 @@ from physcap_drake.app.pick_place_demo import check_can_in_tray, pick_and_place
 from physcap_drake.app.scene_layout import check_placed, object_position
 from physcap_drake.app.sim_runner import save_meshcat_html
 from physcap_drake.commands.agent_demo import agent_demo
-from physcap_drake.commands.common import console, fail, load_scenario_or_exit, make_meshcat
+from physcap_drake.commands.common import (
+    console,
+    fail,
+    load_scenario_or_exit,
+    make_meshcat,
+    needs_sandbox,
+)
 from physcap_drake.commands.live_view import hold_open, pace_in_real_time
 from physcap_drake.commands.options import ContactForces, Hold, HtmlOut, LiveMeshcat, ScenarioText
 from physcap_drake.control.errors import SkillError
@@ -21,7 +27,7 @@ from physcap_drake.station.view import frame_on_table
 
 app = typer.Typer(help="Demonstrations of the agent and of the robot skills.",
                   no_args_is_help=True)
-app.command("agent")(agent_demo)
+app.command("agent")(needs_sandbox(agent_demo))
 
 #: The models the pick-and-place demo needs in its scenario.
 DEMO_MODELS = ("soda_can", "tray")

@@ -9,6 +9,7 @@ import typer
 from rich.markup import escape
 
 from physcap_drake.agent.llm import LLMError, save_jsonl
+from physcap_drake.agent.sandbox.clean_text import clean
 from physcap_drake.agent.transcript import TranscriptEntry, entry_text
 from physcap_drake.agent.variant import variant_names
 from physcap_drake.app.agent_episode import run_agent_episode
@@ -73,7 +74,7 @@ class EntryPrinter:
         style = STYLES.get(entry.kind, "dim")
         console.print(f"[{style}]{entry.kind}[/] [dim](block {entry.step}, robot time "
                       f"{entry.robot_time_s:.1f} s)[/]")
-        console.print(escape(text), highlight=False)
+        console.print(escape(clean(text)), highlight=False)
         if entry.kind == "code":
             self._heartbeat.start(f"code block {entry.step} running")
 

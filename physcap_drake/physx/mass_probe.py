@@ -42,6 +42,10 @@ class MeasureMass(Immutable):
     label: str = "get_mass"
 
 
+#: How a measurement whose fingers closed on nothing (no contact) gives its reason.
+NOTHING_GRASPED = "nothing was grasped"
+
+
 @dc.dataclass(frozen=True)
 class MassMeasurement(Immutable):
     """The outcome of one get_mass.
@@ -182,7 +186,7 @@ class MassProbe(ProbeSequence):
         if stage is Stage.GRASP:
             if self._holding_nothing(context):
                 opening = float(self._opening.Eval(context)[0])
-                return self._give_up(m, "nothing was grasped: the fingers closed to "
+                return self._give_up(m, f"{NOTHING_GRASPED}: the fingers closed to "
                                         f"{1000 * opening:.1f} mm")
             return Step(dc.replace(m, stage=Stage.RETURN),
                         MoveToJoints(np.array(m.lift_pose)))

@@ -13,6 +13,7 @@ from .signatures import (
     ApiFunction,
     Call,
     FunctionSpec,
+    Name,
     Number,
     OrNone,
     ParameterKind,
@@ -24,6 +25,6 @@ from .signatures import (
 from .spare import SpareChild
 
 __all__ = ["ApiFunction", "BlockBudget", "Call", "CallServer", "CodeOutcome", "CodeRejected",
-           "FunctionSpec", "Meters", "Number", "OrNone", "OutcomeKind", "ParameterKind",
+           "FunctionSpec", "Meters", "Name", "Number", "OrNone", "OutcomeKind", "ParameterKind",
            "PlainValue", "Refused", "SandboxLimits", "SandboxSession", "SpareChild", "Stop",
            "Text", "Vector", "Waiting", "check_code", "run_sandboxed", "then"]

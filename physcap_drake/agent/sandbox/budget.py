@@ -12,6 +12,14 @@ from collections.abc import Callable
 from .limits import SandboxLimits
 from .outcome import OutcomeKind
 
+#: The per-block call budgets a FunctionSpec may count against: the SandboxLimits field
+#: that bounds it, and what one call does, in words.
+COUNTED: dict[str, tuple[str, str]] = {
+    "gripper_cycle": ("max_gripper_cycles", "closed the gripper"),
+    "probe": ("max_probe_calls", "ran a physical probe"),
+    "pose": ("max_pose_calls", "called get_object_pose"),
+}
+
 
 @dc.dataclass(frozen=True)
 class Stop:
@@ -46,6 +54,7 @@ class BlockBudget:
         self._robot_time_at_start = 0.0
         self._knowledge_at_start = 0
         self.calls = 0
+        self.counted: dict[str, int] = dict.fromkeys(COUNTED, 0)
 
     def start(self, now: float, robot_time: float, knowledge_chars: int) -> None:
         """The code starts now: its own wall time starts, and the robot time and knowledge
@@ -79,12 +88,20 @@ class BlockBudget:
         return self.own_wall_s(now) >= self.limits.total_wall_s
 
     def before_call(self, name: str, motion: bool, now: float,
-                    robot_time: float) -> Stop | None:
-        """Whether the call of `name` may be made; counts it."""
+                    robot_time: float, counted_as: str = "") -> Stop | None:
+        """Whether the call of `name` may be made; counts it (also against the budget
+        `counted_as` names, one of COUNTED, if given)."""
         self.calls += 1
         if self.calls > self.limits.max_api_calls:
             return Stop("api_call_limit", f"the code made more than {self.limits.max_api_calls}"
                         f" robot API calls and was stopped (at a call of {name})")
+        if counted_as:
+            field, action = COUNTED[counted_as]
+            self.counted[counted_as] += 1
+            limit = getattr(self.limits, field)
+            if self.counted[counted_as] > limit:
+                return Stop("api_call_limit", f"the code {action} more than {limit} times in "
+                            f"one block (limit {field}) and was stopped before {name}() ran")
         if self.out_of_wall_time(now):
             return self.wall_stop()
         spent = robot_time - self._robot_time_at_start

@@ -17,14 +17,15 @@ from typing import Any
 
 import numpy as np
 
-from . import lockdown, policy, protocol, restricted, seccomp
+from . import lockdown, policy, protocol, restricted, rewrite, seccomp
 
 FILENAME = "<generated code>"
 _FLUSH_AT_CHARS = 4096
 _FLUSH_EVERY_S = 0.02
-# Modules numpy functions import on first use (np.median, np.unique, ... use numpy.ma).
-# After the lockdown nothing can be loaded from disk, so they are loaded before it.
-_SUPPORT_MODULES = ("copy", "numpy.ma", "numpy.ma.extras")
+# Modules numpy functions import on first use (np.median imports numpy.ma). After the
+# lockdown nothing can be loaded from disk, so they are loaded before it; no view hands
+# them out (`views` refuses every module not in policy.ALLOWED_MODULES).
+_SUPPORT_MODULES = ("numpy.ma",)
 # Test-only "raw" runs (real builtins, no static check) get these modules imported before
 # the lockdown, so tests can attack the process wall itself with them.
 _RAW_PREIMPORTS = ("ctypes", "os", "resource", "signal", "socket", "subprocess", "time")
@@ -72,6 +73,10 @@ class _Session:
         self._cpu_s = float(limits["cpu_s"])
         self._memory_mb = int(limits["memory_mb"])
         self._raw = bool(start.get("raw", False))
+        required = start.get("require", [])
+        if not isinstance(required, list) or not all(isinstance(n, str) for n in required):
+            raise ValueError("bad list of required isolation layers")
+        self._required = set(required)
         self._output = restricted.OutputBuffer(int(limits["max_output_chars"]))
         self._last_flush = 0.0
         self._isolation: list[str] = []
@@ -104,12 +109,17 @@ class _Session:
         sys.stdout = sys.stderr = self._output
 
     def run(self) -> None:
-        """Run the code, report how it ended, exit."""
+        """Run the code, report how it ended, exit. Without every layer the parent
+        requires, report what was achieved and exit without running anything."""
         self._send({"t": "ready", "isolation": self._isolation})
+        if not self._required <= set(self._isolation):
+            os._exit(protocol.EXIT_SETUP_FAILED)
         namespace = self._namespace()
         error = None
         try:
-            exec(compile(self._code, FILENAME, "exec"), namespace)
+            compiled = (compile(self._code, FILENAME, "exec") if self._raw
+                        else rewrite.compile_guarded(self._code, FILENAME))
+            exec(compiled, namespace)
         except BaseException as exc:  # noqa: BLE001 - whatever the code raises is its result
             error = _describe(exc)
         namespace.clear()  # frees what the code built (a MemoryError may have left a lot)

@@ -16,7 +16,7 @@ import time
 from pathlib import Path
 from typing import Any
 
-from . import protocol
+from . import protocol, seccomp
 
 _PACKAGE_NAME = "_physcap_sandbox"
 # Loads this folder as a standalone package (its __init__ is not run), then the child.
@@ -44,8 +44,9 @@ class ChildGone(Exception):
 
 
 def scrubbed_environment(home: str) -> dict[str, str]:
-    """The child's environment, built from nothing: no credentials can leak into it."""
-    return {
+    """The child's environment, built from nothing: no credentials can leak into it (only
+    the switch that hides libseccomp, which can only make the child refuse to run)."""
+    environment = {
         "PATH": "/usr/bin:/bin",
         "LANG": "C.UTF-8",
         "HOME": home,
@@ -54,6 +55,9 @@ def scrubbed_environment(home: str) -> dict[str, str]:
         "OMP_NUM_THREADS": "1",
         "MKL_NUM_THREADS": "1",
     }
+    if os.environ.get(seccomp.HIDE_ENV) == "1":
+        environment[seccomp.HIDE_ENV] = "1"
+    return environment
 
 
 #: Third-party modules the child imports: numpy, and pyseccomp for the syscall filter.

@@ -29,6 +29,11 @@ class SandboxLimits:
         (e.g. to what is left of the episode's budget).
     knowledge_chars: how much the block may add to the scene knowledge (characters of the
         entries' text), checked after each call.
+    max_gripper_cycles: times the code may close the gripper (each close, and the opening
+        that follows, wears the fingers and whatever they hold).
+    max_probe_calls: physical probes (get_mass, get_weight, get_stiffness) the code may run.
+    max_pose_calls: get_object_pose calls the code may make (with a model as the pointer,
+        each new look is a paid model call).
     startup_s: wall time the child may take to start and lock itself down, counted from the
         moment the session starts it, or takes over a child started ahead (a spare's idle
         wait before that is not counted).
@@ -42,6 +47,9 @@ class SandboxLimits:
     max_api_calls: int = 200
     robot_time_s: float = 300.0
     knowledge_chars: int = 4000
+    max_gripper_cycles: int = 20
+    max_probe_calls: int = 16
+    max_pose_calls: int = 60
     startup_s: float = 30.0
 
     def __post_init__(self) -> None:

@@ -70,9 +70,11 @@ FORBIDDEN_ATTRIBUTES: dict[str, str] = {
     name: reason for reason, names in _FORBIDDEN_ATTRIBUTE_GROUPS.items() for name in names
 }
 
-# Attribute prefixes of frames, code objects, tracebacks and generators: `gen.gi_frame.f_globals`
-# reaches a module's globals without a single underscore.
-FORBIDDEN_ATTRIBUTE_PREFIXES: tuple[str, ...] = ("ag_", "co_", "cr_", "f_", "gi_", "tb_")
+# Attribute prefixes of frames, code objects, tracebacks, generators and Cython functions:
+# `gen.gi_frame.f_globals` and `np.random.default_rng.func_globals` reach a module's globals
+# without a single underscore.
+FORBIDDEN_ATTRIBUTE_PREFIXES: tuple[str, ...] = ("ag_", "co_", "cr_", "f_", "func_", "gi_",
+                                                 "tb_")
 
 # Exception classes generated code can see (to raise or to catch), besides the robot API's.
 EXCEPTION_NAMES: tuple[str, ...] = (
@@ -103,7 +105,8 @@ def attribute_problem(name: str) -> str | None:
     if name in FORBIDDEN_ATTRIBUTES:
         return FORBIDDEN_ATTRIBUTES[name]
     if name.startswith(FORBIDDEN_ATTRIBUTE_PREFIXES):
-        return "attributes of frames, code objects, tracebacks and generators may not be used"
+        return ("attributes of frames, code objects, tracebacks, generators and compiled "
+                "functions may not be used")
     return None
 
 

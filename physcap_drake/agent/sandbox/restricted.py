@@ -9,10 +9,10 @@ import builtins
 import importlib
 import sys
 from collections.abc import Callable
-from types import ModuleType
 from typing import Any
 
-from . import policy
+from . import policy, rewrite, views
+from .views import SandboxedModule, wrap_module
 
 
 class SkillError(RuntimeError):
@@ -105,57 +105,6 @@ def make_print(output: OutputBuffer, after_write: Callable[[], None]) -> Callabl
     return print
 
 
-class SandboxedModule:
-    """A read-only view of an allowed module (numpy, its allowed submodules, math)."""
-
-    __slots__ = ("_module",)
-
-    def __init__(self, module: ModuleType):
-        object.__setattr__(self, "_module", module)
-
-    def __getattr__(self, name: str) -> Any:
-        module = object.__getattribute__(self, "_module")
-        reason = policy.attribute_problem(name)
-        if reason:
-            raise AttributeError(f"{module.__name__}.{name} is not available in the sandbox "
-                                 f"({reason})")
-        try:
-            value = getattr(module, name)
-        except (ImportError, OSError):
-            # numpy imports some submodules on first access; after the lockdown that fails
-            raise AttributeError(f"{module.__name__}.{name} is not available in the sandbox "
-                                 "(it would have to be loaded from disk)") from None
-        if isinstance(value, ModuleType):
-            if value.__name__ in policy.ALLOWED_MODULES:
-                return wrap_module(value)
-            raise AttributeError(f"module {value.__name__} is not available in the sandbox")
-        return value
-
-    def __setattr__(self, name: str, value: Any) -> None:
-        raise AttributeError("modules are read-only in the sandbox")
-
-    def __delattr__(self, name: str) -> None:
-        raise AttributeError("modules are read-only in the sandbox")
-
-    def __dir__(self) -> list[str]:
-        module = object.__getattribute__(self, "_module")
-        return [name for name in dir(module) if policy.attribute_problem(name) is None]
-
-    def __repr__(self) -> str:
-        return f"<module {object.__getattribute__(self, '_module').__name__!r} (sandboxed)>"
-
-
-_WRAPPED: dict[str, SandboxedModule] = {}
-
-
-def wrap_module(module: ModuleType) -> SandboxedModule:
-    """The (cached) sandboxed view of `module`."""
-    view = _WRAPPED.get(module.__name__)
-    if view is None:
-        view = _WRAPPED[module.__name__] = SandboxedModule(module)
-    return view
-
-
 def restricted_import(name: str, globals: Any = None, locals: Any = None,
                       fromlist: Any = (), level: int = 0) -> SandboxedModule:
     """`__import__` for generated code: only the modules of policy.ALLOWED_MODULES, and
@@ -179,6 +128,8 @@ def make_builtins(print_function: Callable[..., None]) -> dict[str, Any]:
     table["__import__"] = restricted_import
     # needed by the `class` statement; not reachable by name (it starts with '_')
     table["__build_class__"] = builtins.__build_class__
+    table[rewrite.ATTRIBUTE_HELPER] = views.guarded_attribute
+    table[rewrite.AUGMENTED_HELPER] = views.augmented_attribute
     return table
 
 

@@ -6,11 +6,17 @@ Design notes: docs/design/agent.md.
 from __future__ import annotations
 
 import errno
+import os
 
+HIDE_ENV = "PHYSCAP_SANDBOX_HIDE_LIBSECCOMP"
+_load_error = ""
 try:
+    if os.environ.get(HIDE_ENV) == "1":
+        raise ImportError(f"hidden by {HIDE_ENV}=1")
     import pyseccomp
-except (ImportError, OSError, RuntimeError):  # not installed, or no libseccomp.so.2
+except (ImportError, OSError, RuntimeError) as error:  # not installed, or no libseccomp.so.2
     pyseccomp = None
+    _load_error = f"{type(error).__name__}: {error}"
 
 # What the code's process needs once it runs generated code, grouped by purpose. Found by
 # tracing the child through numpy's common paths (linear algebra, FFT, random, printing,
@@ -39,6 +45,11 @@ READ_ONLY_PRLIMIT = "prlimit64"
 def available() -> bool:
     """Whether libseccomp could be loaded."""
     return pyseccomp is not None
+
+
+def problem() -> str:
+    """Why libseccomp could not be loaded ("" if it was)."""
+    return "" if pyseccomp is not None else (_load_error or "pyseccomp is missing")
 
 
 def build_filter() -> pyseccomp.SyscallFilter:

@@ -14,10 +14,11 @@ import time
 from collections.abc import Callable, Mapping
 from typing import Any
 
-from . import messages, policy, protocol
+from . import isolation, messages, policy, protocol
 from .ast_check import CodeRejected, check_code
 from .budget import BlockBudget, Meters, Stop
 from .child_process import ChildGone, ChildProcess, Deadline
+from .clean_text import clean, quoted
 from .limits import SandboxLimits
 from .outcome import CodeOutcome, OutcomeKind
 from .signatures import ApiFunction, Call, api_table
@@ -103,7 +104,7 @@ class SandboxSession:
             except CodeRejected as rejected:
                 return self._end("rejected", str(rejected))
         start = {"t": "start", "code": self._code, "api": sorted(self._table),
-                 "raw": self._raw,
+                 "raw": self._raw, "require": sorted(isolation.expected_layers()),
                  "limits": {"cpu_s": self._limits.cpu_s, "memory_mb": self._limits.memory_mb,
                             "max_output_chars": self._limits.max_output_chars}}
         try:
@@ -180,6 +181,11 @@ class SandboxSession:
         if not isinstance(ready, messages.Ready):
             raise protocol.ProtocolError("the first message was not 'ready'")
         self._isolation = list(ready.isolation)
+        try:
+            isolation.check_reported(ready.isolation)
+        except isolation.IsolationMissing:
+            self._child.terminate()
+            raise
         self._running = True
         self._budget.start(time.monotonic(), self._meters.robot_time(),
                            self._meters.knowledge_chars())
@@ -195,10 +201,11 @@ class SandboxSession:
                 raise protocol.ProtocolError("a second 'ready'")
             else:
                 motion = isinstance(message, Call) and message.motion
-                self._calls.append((message.name, message.summary()))
+                counted = message.counted_as if isinstance(message, Call) else ""
+                self._calls.append((message.name, clean(message.summary())))
                 now = time.monotonic()
                 self._stop_if(self._budget.before_call(
-                    message.name, motion, now, self._meters.robot_time()))
+                    message.name, motion, now, self._meters.robot_time(), counted))
                 if isinstance(message, Call):
                     self._budget.call_taken(now)
                     self._pending = message
@@ -269,13 +276,16 @@ class SandboxSession:
         if error is None:
             return _Ended("ok", "")
         where = f" at line {error.line}" if error.line is not None else ""
-        detail = f"{error.type}{where}" + (f": {error.message}" if error.message else "")
         source = self._source_line(error.line)
+        if error.memory:
+            # the parent's words; the block's own message only quoted (it may imitate others)
+            said = f"; the block's error said {quoted(error.message)}" if error.message else ""
+            shown = f"\n    {source}" if source else ""
+            return _Ended("memory_limit", f"memory limit ({self._limits.memory_mb} MB) "
+                          f"reached: {error.type}{where}{said}{shown}")
+        detail = f"{error.type}{where}" + (f": {error.message}" if error.message else "")
         if source:
             detail += f"\n    {source}"
-        if error.memory:
-            return _Ended("memory_limit", f"memory limit ({self._limits.memory_mb} MB) "
-                          f"reached: {detail}")
         return _Ended("exception", detail)
 
     def _source_line(self, line: int | None) -> str:
@@ -306,15 +316,18 @@ class SandboxSession:
         message = f"the sandboxed process {how} before the code finished"
         tail = self._child.stderr_tail()
         if tail:
-            message += f"; its last words: {tail}"
+            message += f"; its last words: {quoted(tail, 2000)}"
         return "crashed", message
 
     def _end(self, kind: OutcomeKind, error: str) -> CodeOutcome:
         """The run is over: stop the child and keep the outcome."""
         if self._child is not None:
             self._child.terminate()
-        stdout = "".join(self._stdout).encode("utf-8", "replace").decode("utf-8")
-        message = None if kind == "ok" else error.encode("utf-8", "replace").decode("utf-8")
+        # Everything the block wrote leaves here with its control characters escaped, so no
+        # console, transcript, recording or prompt downstream ever sees them.
+        stdout = clean("".join(self._stdout).encode("utf-8", "replace").decode("utf-8"))
+        message = None if kind == "ok" else clean(
+            error.encode("utf-8", "replace").decode("utf-8"))
         self.outcome = CodeOutcome(
             ok=kind == "ok", kind=kind, stdout=stdout, error=message,
             api_calls=list(self._calls), isolation=list(self._isolation),

@@ -13,6 +13,8 @@ from typing import Any, Protocol
 
 import numpy as np
 
+from .clean_text import name_problem, quoted
+
 #: Longest keyword-argument name accepted (characters).
 MAX_KEYWORD_CHARS = 64
 #: Bounds of a PlainValue: nesting depth, items (all levels), characters of each string.
@@ -110,6 +112,24 @@ class Text:
 
 
 @dc.dataclass(frozen=True)
+class Name(Text):
+    """An object's name: Text of letters, digits, spaces and basic punctuation, already in
+    NFKC form, with no invisible characters (`clean_text.name_problem`). A name that
+    normalization would change is refused, never mapped onto another."""
+
+    def check(self, value: Any, where: str) -> str:
+        text = super().check(value, where)
+        problem = name_problem(text)
+        if problem:
+            raise Refused("ValueError", f"{where} {quoted(text, 80)} is refused: {problem}")
+        return text
+
+    def describe(self) -> str:
+        return (f"a name of at most {self.max_chars} letters, digits, spaces and basic "
+                "punctuation")
+
+
+@dc.dataclass(frozen=True)
 class Number:
     """A finite number in [low, high], handed on as a float."""
 
@@ -178,12 +198,14 @@ class PlainValue:
 @dc.dataclass(frozen=True)
 class Call:
     """A checked call, ready to be made: `function(*args, **kwargs)`. motion: whether it
-    moves the robot (robot-time budgets are checked before it)."""
+    moves the robot (robot-time budgets are checked before it); counted_as: the per-block
+    budget it counts against ("" for none)."""
 
     name: str
     args: tuple[Any, ...]
     kwargs: dict[str, Any]
     motion: bool
+    counted_as: str = ""
 
     def summary(self, max_chars: int = 200) -> str:
         """The arguments as one short line (arrays shown as lists)."""
@@ -203,12 +225,14 @@ def _short_repr(value: Any) -> str:
 @dc.dataclass(frozen=True)
 class FunctionSpec:
     """One function generated code may call: its name, its real signature (parameter
-    names, order, defaults), the kind of each parameter, and whether it moves the robot."""
+    names, order, defaults), the kind of each parameter, whether it moves the robot, and
+    the per-block budget its calls count against (one of `budget.COUNTED`, or "")."""
 
     name: str
     signature: inspect.Signature
     kinds: Mapping[str, ParameterKind]
     motion: bool = False
+    counted_as: str = ""
 
     def __post_init__(self) -> None:
         missing = [p for p in self.signature.parameters if p not in self.kinds]
@@ -220,7 +244,7 @@ class FunctionSpec:
     @classmethod
     def of(cls, name: str, function: Callable[..., Any],
            kinds: Mapping[str, ParameterKind] | None = None, *, motion: bool = False,
-           drop_self: bool = False) -> FunctionSpec:
+           drop_self: bool = False, counted_as: str = "") -> FunctionSpec:
         """The spec of `function` (its signature; without its first parameter if
         `drop_self`, for a method read off its class). Parameters without a kind in `kinds`
         take PlainValue."""
@@ -231,7 +255,7 @@ class FunctionSpec:
         table = {p.name: given.pop(p.name, PlainValue()) for p in parameters}
         if given:
             raise ValueError(f"{name}() has no parameters {sorted(given)}")
-        return cls(name, signature, table, motion)
+        return cls(name, signature, table, motion, counted_as)
 
     def bind(self, args: list[Any], kwargs: dict[str, Any]) -> Call:
         """The call `name(*args, **kwargs)`, checked; Refused if it does not fit."""
@@ -246,7 +270,8 @@ class FunctionSpec:
                           f"{self.name}{self.signature}") from None
         for parameter, value in list(bound.arguments.items()):
             bound.arguments[parameter] = self._check(parameter, value)
-        return Call(self.name, tuple(bound.args), dict(bound.kwargs), self.motion)
+        return Call(self.name, tuple(bound.args), dict(bound.kwargs), self.motion,
+                    self.counted_as)
 
     def _check(self, parameter: str, value: Any) -> Any:
         kind = self.kinds[parameter]

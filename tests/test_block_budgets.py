@@ -1,0 +1,122 @@
+"""Budgets that match harm: gripper cycles, probes and get_object_pose calls per code block;
+a probe of empty space is an error, not a measurement; a second look at an unchanged scene
+costs no new pointing."""
+
+from __future__ import annotations
+
+import dataclasses as dc
+
+import numpy as np
+import pytest
+from test_agent_untrusted_blocks import LIMITS, StandInArm, make_loop, run_episode
+
+from physcap_drake.agent.sandbox import BlockBudget, SandboxLimits
+from physcap_drake.agent.variant import load_variant
+from physcap_drake.control.errors import SkillFailed
+from physcap_drake.resources import stations_dir
+from physcap_drake.robot_api import RobotAPI
+from physcap_drake.robot_stack import build_robot_stack
+from physcap_drake.scenario import load_scenario
+from physcap_drake.scenario_errors import ScenarioError
+
+
+@pytest.mark.parametrize(("counted_as", "field", "words"), [
+    ("gripper_cycle", "max_gripper_cycles", "closed the gripper"),
+    ("probe", "max_probe_calls", "ran a physical probe"),
+    ("pose", "max_pose_calls", "called get_object_pose"),
+])
+def test_each_counted_call_is_bounded_naming_the_limit(counted_as, field, words):
+    limits = dc.replace(SandboxLimits(), **{field: 4})
+    budget = BlockBudget(limits)
+    budget.start(now=0.0, robot_time=0.0, knowledge_chars=0)
+    assert [budget.before_call("f", False, 1.0, 0.0, counted_as) for _ in range(4)] == [None] * 4
+    assert budget.before_call("other", False, 1.0, 0.0) is None  # other calls do not count
+    stop = budget.before_call("f", False, 1.0, 0.0, counted_as)
+    assert stop.kind == "api_call_limit"
+    assert f"the code {words} more than 4 times in one block (limit {field})" in stop.message
+    assert "before f() ran" in stop.message
+
+
+def test_the_defaults_leave_a_task_room_several_times_over():
+    limits = SandboxLimits()
+    # a block weighs or squeezes the few objects of a task, and picks and places one or two
+    assert limits.max_probe_calls >= 12 and limits.max_gripper_cycles >= 10
+    assert limits.max_pose_calls >= 40 and limits.max_api_calls > limits.max_pose_calls
+
+
+class QuickArm(StandInArm):
+    """Its motions take no robot time: only the call budgets can stop a block."""
+
+    def _move(self, what: str) -> None:
+        self.motions.append(what)
+
+
+def test_a_gripper_toggling_block_is_stopped_at_the_variants_limit():
+    arm = QuickArm()
+    loop, coder = make_loop(["for i in range(100):\n    close_gripper()\n    open_gripper()\n",
+                             "print('done')\n"], arm, block_retries=1)
+    mind = run_episode(loop)
+    assert arm.motions.count("close_gripper") == SandboxLimits().max_gripper_cycles
+    assert "limit max_gripper_cycles" in mind.steps[0].error
+    assert "limit max_gripper_cycles" in coder.requests[1].prompt
+
+
+def test_the_limits_come_from_the_agent_config(tmp_path):
+    config = tmp_path / "tight.yaml"
+    config.write_text("name: tight\ndecider: coder\norder: as_given\nmax_probe_calls: 2\n")
+    variant = load_variant(config)
+    assert variant.block_limits(LIMITS).max_probe_calls == 2
+    assert variant.block_limits(LIMITS).cpu_s == LIMITS.cpu_s
+    arm = QuickArm()
+    loop, _ = make_loop(["for i in range(5):\n    get_mass([0.3, 0.0, 0.05], f'can {i}')\n",
+                         "print('done')\n"], arm, block_retries=1)
+    loop.variant = variant
+    loop._limits = variant.block_limits(LIMITS)  # noqa: SLF001 - as AgentLoop builds it
+    mind = run_episode(loop)
+    assert arm.motions == ["get_mass", "get_mass"]
+    assert "limit max_probe_calls" in mind.steps[0].error
+    config.write_text("name: bad\nmax_probe_calls: 0\n")
+    with pytest.raises(ScenarioError, match="max_probe_calls"):
+        load_variant(config)
+
+
+# -- on the robot stack (simulated) ------------------------------------------------------
+
+
+class CountingLocator:
+    """Stands in for a pointer: every grasp_point is one (paid) look."""
+
+    def __init__(self):
+        self.looks = 0
+
+    def grasp_point(self, phrase, rgb, depth, label=None):
+        self.looks += 1
+        return np.array([0.3, 0.0, 0.05 + 0.001 * self.looks])
+
+
+@pytest.fixture(scope="module")
+def api() -> RobotAPI:
+    stack = build_robot_stack(load_scenario(stations_dir() / "piper_table.yaml"))
+    return RobotAPI(stack, stack.make_clock(), locator=CountingLocator())
+
+
+def test_probes_of_empty_space_fail_and_record_nothing(api):
+    for probe, words in ((api.get_mass, "found nothing to weigh"),
+                         (api.get_stiffness, "found nothing to squeeze")):
+        with pytest.raises(SkillFailed, match=f"{words} at \\(0.300, -0.100, 0.030\\) m"):
+            probe([0.30, -0.10, 0.03], name="red can")
+    assert api.knowledge.entries == []
+
+
+def test_the_same_look_is_answered_once_until_the_scene_changes(api):
+    locator = api.locator
+    first = api.get_object_pose("red can")
+    looks = locator.looks
+    for _ in range(5):
+        np.testing.assert_array_equal(api.get_object_pose("red can"), first)
+    assert locator.looks == looks  # nothing moved: no new look
+    api.get_object_pose("blue can")
+    assert locator.looks == looks + 1  # another object: one look
+    api.goto_pose([0.25, 0.10, 0.20])
+    api.get_object_pose("red can")
+    assert locator.looks == looks + 2  # the arm moved in view: a new look
