@@ -5,6 +5,8 @@ hold. Judged by the simulator's ground truth."""
 import numpy as np
 import pytest
 
+from physcap_drake.agent.code_api import CodeAPI
+from physcap_drake.agent.sandbox import run_sandboxed
 from physcap_drake.app.episode import make_episode
 from physcap_drake.tasks.ground_truth import check_upright_and_resting
 from physcap_drake.tasks.placement import TRAY_FLOOR, check_in_tray
@@ -74,3 +76,18 @@ def test_third_cup_fits_beside_the_two(episode):
         assert check_upright_and_resting(episode.instance, plant, context, name,
                                          plant.GetBodyByName("tray"), TRAY_FLOOR) is None
     assert episode.check().success, episode.check().reason
+
+
+def test_generated_code_calls_the_skills_through_the_sandbox(episode):
+    api = episode.api
+    code = ("opening, holding = close_gripper()\n"
+            "print('closed', round(opening, 3), holding)\n"
+            "open_gripper()\n"
+            "print('spot', len(free_spot('wooden tray', 'blue cube 1')))\n"
+            "found = lift_and_look(get_object_pose('blue cube 1'), 'blue cube 1')\n"
+            "print('found', found)\n")
+    outcome = run_sandboxed(code, CodeAPI(api, physx=False).functions())
+    assert outcome.ok, outcome.error
+    assert outcome.stdout.splitlines() == ["closed 0.0 False", "spot 2", "found []"]
+    assert api.knowledge.as_text().splitlines()[-1] == (
+        "- lifted blue cube 1: nothing under it; set it back")
