@@ -1,7 +1,7 @@
 """SceneKnowledge: what the robot has measured and done so far, in one episode.
 
-Every physical measurement and its outcome is appended here; agents receive it in every call,
-so they never measure the same thing twice without reason.
+Every physical measurement and lift, with its outcome, is appended here; agents receive it
+in every call, so they never measure the same thing twice without reason.
 """
 
 from __future__ import annotations

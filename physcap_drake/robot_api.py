@@ -101,7 +101,7 @@ class RobotAPI:
         self._station_context = robot.station.GetMyContextFromRoot(root)
         self._executor_status = robot.executor.GetOutputPort(STATUS_PORT)
         self._executor_context = robot.executor.GetMyContextFromRoot(root)
-        #: What has been measured in this episode (get_mass and get_stiffness add to it).
+        #: What was measured or found in this episode (get_mass, get_stiffness, lift_and_look).
         self.knowledge = SceneKnowledge()
         #: The full outcome of the latest get_mass / get_stiffness (for tools and tests).
         self.last_mass: MassMeasurement | None = None
