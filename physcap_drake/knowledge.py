@@ -1,7 +1,7 @@
 """SceneKnowledge: what the robot has measured and done so far, in one episode.
 
-Every physical measurement and its outcome is appended here; agents receive it in every call,
-so they never measure the same thing twice without reason.
+Every physical measurement and lift, with its outcome, is appended here; agents receive it
+in every call, so they never measure the same thing twice without reason.
 """
 
 from __future__ import annotations
@@ -11,8 +11,10 @@ import dataclasses as dc
 
 @dc.dataclass(frozen=True)
 class KnowledgeEntry:
-    """One fact: `value` (in `unit`) of `prop` for `subject`, or a failed attempt (ok=False,
-    the reason in `note`). `robot_time_s`: robot execution time when it was recorded."""
+    """One fact: `value` (in `unit`) of `prop` for `subject` and what it means (`note`), or a
+    failed attempt (ok=False, the reason in `note`). `robot_time_s`: robot execution time when
+    it was recorded. `sentence`: the fact in words, when it is no measurement (a lift's
+    finding). `detail`: the probe's diagnostics, for the transcript only (never in prompts)."""
 
     subject: str
     prop: str
@@ -21,6 +23,8 @@ class KnowledgeEntry:
     ok: bool
     note: str = ""
     robot_time_s: float = 0.0
+    sentence: str = ""
+    detail: str = ""
 
     def describe(self) -> str:
         """One line. A failed or refused measurement is the parent's sentence, the caller's
@@ -29,6 +33,8 @@ class KnowledgeEntry:
             subject = " ".join(self.subject.split()).replace('"', "'")
             note = " ".join(self.note.split())
             return f'failed {self.prop} measurement of the object called "{subject}" ({note})'
+        if self.sentence:
+            return self.sentence
         value = f"{self.value:.3f}" if isinstance(self.value, float) else str(self.value)
         note = f" ({self.note})" if self.note else ""
         return f"{self.subject}: {self.prop} = {value} {self.unit}{note}"
@@ -55,8 +61,19 @@ class SceneKnowledge:
         descriptions); the sandbox budgets what one code block may add."""
         return sum(len(entry.describe()) for entry in self.entries)
 
-    def as_text(self) -> str:
-        """One line per entry, for prompts and transcripts."""
-        if not self.entries:
-            return "(nothing measured yet)"
-        return "\n".join(f"- {entry.describe()}" for entry in self.entries)
+    def as_text(self, robot_time_s: float | None = None, budget_s: float | None = None) -> str:
+        """One line per entry, for prompts and transcripts; with `robot_time_s`, a last line
+        with the robot time used (and the task's budget `budget_s`, s)."""
+        lines = [f"- {entry.describe()}" for entry in self.entries] or [
+            "(nothing measured yet)"]
+        if robot_time_s is not None:
+            lines.append(time_line(robot_time_s, budget_s))
+        return "\n".join(lines)
+
+
+def time_line(robot_time_s: float, budget_s: float | None = None) -> str:
+    """The robot time used so far (and the task's budget, s), as the prompts show it."""
+    if budget_s is None:
+        return f"- robot time used: {robot_time_s:.0f} s"
+    return (f"- robot time used: {robot_time_s:.0f} s of the task's {budget_s:.0f} s budget "
+            f"({max(budget_s - robot_time_s, 0.0):.0f} s left)")

@@ -26,9 +26,12 @@ from physcap_drake.control.requests import (
     as_vector,
 )
 from physcap_drake.control.skill_executor import STATUS_PORT
+from physcap_drake.free_spot import Circle, Rectangle, free_spot
 from physcap_drake.knowledge import KnowledgeEntry, SceneKnowledge
 from physcap_drake.perception.object_locator import ObjectLocator
+from physcap_drake.perception.seen_object import SeenObject
 from physcap_drake.physx.mass_probe import NOTHING_GRASPED, MassMeasurement, MeasureMass
+from physcap_drake.physx.stiffness_levels import LEVEL_NAMES
 from physcap_drake.physx.stiffness_probe import MeasureStiffness, StiffnessMeasurement
 from physcap_drake.robot_stack import RobotStack
 from physcap_drake.station import ports
@@ -38,6 +41,20 @@ CLIENT = "robot_api"
 #: Longest a request may take, s of simulated time: every skill and probe ends well before
 #: (the longest, a 120 s wait); running out means a system on the path does not answer.
 REQUEST_TIMEOUT = 600.0
+
+#: A closed gripper whose fingers stopped wider apart than this holds something, m.
+HOLDING_GAP = 0.004
+#: How high lift_and_look and place_in lift an object, and the vertical approach height, m.
+LIFT = 0.15
+APPROACH = 0.12
+#: An object set down in a container is released this much higher than it was grasped
+#: (the container's floor and a clearance), or, set back where it stood, this much, m.
+FLOOR_ALLOWANCE = 0.015
+SET_BACK_CLEARANCE = 0.004
+#: Without a destination, lift_and_look looks with the object carried this far sideways, m.
+ASIDE = 0.15
+#: lift_and_look finds what stands within the lifted object's footprint plus this, m.
+UNDER_MARGIN = 0.02
 
 #: The steps of a robot call: yields actions, is sent their SkillStatus, returns the result.
 RobotSteps = Generator[object, SkillStatus, object]
@@ -84,13 +101,13 @@ class RobotAPI:
         self._station_context = robot.station.GetMyContextFromRoot(root)
         self._executor_status = robot.executor.GetOutputPort(STATUS_PORT)
         self._executor_context = robot.executor.GetMyContextFromRoot(root)
-        #: What has been measured in this episode (get_mass and get_stiffness add to it).
+        #: What was measured or found in this episode (get_mass, get_stiffness, lift_and_look).
         self.knowledge = SceneKnowledge()
         #: The full outcome of the latest get_mass / get_stiffness (for tools and tests).
         self.last_mass: MassMeasurement | None = None
         self.last_stiffness: StiffnessMeasurement | None = None
         # The last look: a digest of the camera images, and the answers found in them.
-        self._look: tuple[bytes, dict[str, np.ndarray]] = (b"", {})
+        self._look: tuple[bytes, dict] = (b"", {})
 
     def get_object_pose(self, name: str) -> np.ndarray:
         """Find an object in the camera image and return its grasp point [x, y, z] (metres,
@@ -102,6 +119,23 @@ class RobotAPI:
         Raises ValueError listing the visible objects if the name fits none or several.
         Asked again while nothing in view has changed, it answers from the last look.
         """
+        rgb, depth, label = self._images()
+        answers = self._look[1]
+        if name not in answers:
+            answers[name] = np.array(self._locator.grasp_point(name, rgb, depth, label))
+        return answers[name].copy()
+
+    def free_spot(self, container: str, name: str) -> np.ndarray:
+        """Where in `container` (a tray or basket in view, e.g. "wooden tray") the object
+        `name` fits, clear of the walls and of what already stands in it: [x, y] (metres,
+        world frame). Raises ValueError if a name fits no object in view, SkillRefused if
+        there is no room.
+        """
+        return self._spot(self._located(container), self._located(name))
+
+    def _images(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The camera images now (RGB, depth, label); a new look (answers forgotten) when
+        they changed."""
         if self._locator is None:
             raise RuntimeError("this robot has no camera perception set up (no locator)")
         station, context = self._robot.station, self._station_context
@@ -112,10 +146,40 @@ class RobotAPI:
         digest.update(np.ascontiguousarray(depth).tobytes())
         if digest.digest() != self._look[0]:
             self._look = (digest.digest(), {})
+        return rgb, depth, label
+
+    def _located(self, name: str) -> SeenObject:
+        """The object `name` picks out in the current images (asked again while nothing in
+        view changed, from the last look)."""
+        images = self._locator.images(*self._images())
         answers = self._look[1]
-        if name not in answers:
-            answers[name] = np.array(self._locator.grasp_point(name, rgb, depth, label))
-        return answers[name].copy()
+        if ("seen", name) not in answers:
+            answers["seen", name] = self._locator.locate(name, images)
+        return answers["seen", name]
+
+    def _in_view(self) -> list[SeenObject]:
+        """Every object in the current images."""
+        images = self._locator.images(*self._images())
+        answers = self._look[1]
+        if ("seen",) not in answers:
+            answers["seen",] = self._locator.perception.look(images)
+        return answers["seen",]
+
+    def _spot(self, box: SeenObject, item: SeenObject) -> np.ndarray:
+        """A free spot for `item` in the container `box` (SkillRefused if none)."""
+        if box.area is None:
+            raise ValueError(f"the {box.name} is no container (no tray or basket): "
+                             "nothing can be placed in it")
+        rect = Rectangle.of(box.area)
+        standing = [s for s in self._in_view() if s.name not in (box.name, item.name)
+                    and rect.contains(Circle.around(s.footprint).centre)]
+        spot = free_spot(box.area, Circle.around(item.footprint).radius,
+                         [Circle.around(s.footprint) for s in standing])
+        if spot is None:
+            held = ", ".join(f"the {s.name}" for s in standing) or "nothing"
+            raise SkillRefused(f"no room for the {item.name} in the {box.name} "
+                               f"(it holds {held})")
+        return spot
 
     @property
     def clock(self) -> Clock:
@@ -162,11 +226,17 @@ class RobotAPI:
                                              "open_gripper"))
 
     @robot_call
-    def close_gripper(self) -> None:
+    def close_gripper(self) -> tuple[float, bool]:
         """Close the gripper until the fingers stop, on an object or fully closed. Each finger
-        squeezes with at most the configured grasp force (15 N by default)."""
+        squeezes with at most the configured grasp force (15 N by default).
+
+        Returns (opening, holding): the gap left between the fingers (m), and whether they
+        stopped on something (a gap over 4 mm).
+        """
         yield from self._request(MoveGripper(0.0, self._robot.scenario.skills.grasp_force,
                                              "close_gripper"))
+        opening = self.gripper_opening
+        return opening, opening > HOLDING_GAP
 
     @robot_call
     def home_pose(self) -> None:
@@ -207,8 +277,9 @@ class RobotAPI:
         if not result.ok and result.reason.startswith(NOTHING_GRASPED):
             raise SkillFailed(f"get_mass found nothing to weigh {_at(position)}: "
                               f"{result.reason}; no measurement was recorded")
-        self.knowledge.add(KnowledgeEntry(subject, "mass", result.mass_kg, "kg", result.ok,
-                                          result.reason, self.robot_time))
+        self.knowledge.add(KnowledgeEntry(
+            subject, "mass", result.mass_kg, "kg", result.ok, "" if result.ok else result.reason,
+            self.robot_time, detail=result.reason))
         return result.mass_kg
 
     get_weight = get_mass
@@ -223,7 +294,7 @@ class RobotAPI:
         name: how the object is called in the scene knowledge (default: its position).
         Make sure the gripper holds nothing before calling. Takes about 15 to 25 s.
 
-        Returns the stiffness level: 1 ultra-soft (foam, an overripe fruit), 2 soft (a ripe
+        Returns the stiffness level: 1 ultra-soft (foam, a very ripe fruit), 2 soft (a ripe
         fruit, soft rubber), 3 semi-rigid, 4 stiff (an unripe fruit, hard rubber), 5 rigid
         (metal, wood, a full can); 0 if the measurement failed (recorded in the knowledge).
         Raises SkillFailed if no squeeze touched anything there (no contact; nothing is
@@ -237,10 +308,90 @@ class RobotAPI:
         if not any(math.isfinite(d) for d in measurement.result.deformations_mm):
             raise SkillFailed(f"get_stiffness found nothing to squeeze {_at(position)}: "
                               f"{measurement.describe()}; no measurement was recorded")
-        self.knowledge.add(KnowledgeEntry(subject, "stiffness", measurement.level, "level",
-                                          measurement.level > 0, measurement.describe(),
-                                          self.robot_time))
+        ok = measurement.level > 0
+        self.knowledge.add(KnowledgeEntry(
+            subject, "stiffness", measurement.level, "level", ok,
+            LEVEL_NAMES[measurement.level] if ok else measurement.describe(), self.robot_time,
+            detail=measurement.describe()))
         return measurement.level
+
+    @robot_call
+    def lift_and_look(self, position, name: str, destination: str | None = None) -> list[str]:
+        """Lift the object `name` straight up 15 cm from `position` = [x, y, z] (its grasp
+        point, from get_object_pose), set it down upright at a free spot of `destination` (a
+        tray or basket in view; see free_spot), go home and look with the camera where it
+        stood; without a destination, look with it held 15 cm aside, then set it back where
+        it was. Takes about 15 s.
+
+        Returns the names of the objects seen where it stood (empty if nothing); what was
+        found is recorded in the scene knowledge. Raises SkillRefused, without moving, if
+        `destination` has no room; SkillFailed if the fingers closed on nothing.
+        """
+        item = self._located(name)
+        grasp = as_vector(position, 3, "position (m)")
+        spot = None if destination is None else self._spot(self._located(destination), item)
+        yield from self._pick(grasp, name)
+        if spot is None:  # carried aside, out of the camera's line to the spot, and back
+            aside = grasp + [0.0, -np.copysign(ASIDE, grasp[1]), LIFT]
+            yield from RobotAPI.goto_pose.steps(self, aside)
+            found = self._found_under(grasp, item)
+            yield from RobotAPI.goto_pose.steps(self, grasp + [0.0, 0.0, LIFT])
+            place, where = grasp + [0.0, 0.0, SET_BACK_CLEARANCE], "set it back"
+        else:
+            place = np.array([spot[0], spot[1], grasp[2] + FLOOR_ALLOWANCE])
+            where = f"set it down in the {destination}"
+        yield from self._set_down(place)
+        if spot is not None:
+            found = self._found_under(grasp, item)
+        under = ("found " + ", ".join(found) if found else "nothing") + " under it"
+        self.knowledge.add(KnowledgeEntry(name, "lift", len(found), "objects", True,
+                                          robot_time_s=self.robot_time,
+                                          sentence=f"lifted {name}: {under}; {where}"))
+        return found
+
+    def _found_under(self, grasp: np.ndarray, item: SeenObject) -> list[str]:
+        """The objects the camera now shows standing where `item` stood (grasped at
+        `grasp`), lower than it was lifted."""
+        reach = Circle.around(item.footprint).radius + UNDER_MARGIN
+        return [s.name for s in self._in_view() if s.top_height < LIFT - UNDER_MARGIN
+                and np.linalg.norm(Circle.around(s.footprint).centre - grasp[:2]) <= reach]
+
+    @robot_call
+    def place_in(self, container: str, name: str) -> np.ndarray:
+        """Pick up the object `name` with a top-down grasp and set it down upright at a free
+        spot of `container` (a tray or basket in view; see free_spot), open, retreat and go
+        home. Takes about 15 s.
+
+        Returns where it was released, [x, y, z] (metres, world frame). Raises SkillRefused,
+        without moving, if there is no room; SkillFailed if the fingers closed on nothing.
+        """
+        item = self._located(name)
+        spot = self._spot(self._located(container), item)
+        grasp = item.grasp_point
+        place = np.array([spot[0], spot[1], grasp[2] + FLOOR_ALLOWANCE])
+        yield from self._pick(grasp, name)
+        yield from self._set_down(place)
+        return place
+
+    def _pick(self, grasp: np.ndarray, name: str) -> RobotSteps:
+        """Steps: grasp `name` from above at `grasp` and lift it LIFT straight up; without
+        hold on it, open, rise and raise SkillFailed."""
+        yield from RobotAPI.open_gripper.steps(self)
+        yield from RobotAPI.goto_pose.steps(self, grasp, z_approach=APPROACH)
+        opening, holding = yield from RobotAPI.close_gripper.steps(self)
+        if not holding:
+            yield from RobotAPI.open_gripper.steps(self)
+            yield from RobotAPI.goto_pose.steps(self, grasp + [0.0, 0.0, APPROACH])
+            raise SkillFailed(f"the fingers closed on nothing {_at(grasp)} (gap "
+                              f"{1000 * opening:.1f} mm): the {name} was not grasped")
+        yield from RobotAPI.goto_pose.steps(self, grasp + [0.0, 0.0, LIFT])
+
+    def _set_down(self, place: np.ndarray) -> RobotSteps:
+        """Steps: lower what the gripper holds to `place`, open, retreat and go home."""
+        yield from RobotAPI.goto_pose.steps(self, place, z_approach=APPROACH)
+        yield from RobotAPI.open_gripper.steps(self)
+        yield from RobotAPI.goto_pose.steps(self, place + [0.0, 0.0, APPROACH])
+        yield from RobotAPI.home_pose.steps(self)
 
     @contextmanager
     def _recording_failures(self, subject: str, prop: str, unit: str):

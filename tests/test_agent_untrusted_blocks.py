@@ -58,11 +58,23 @@ class StandInArm:
     def open_gripper(self) -> None:
         self._move("open_gripper")
 
-    def close_gripper(self) -> None:
+    def close_gripper(self) -> tuple[float, bool]:
         self._move("close_gripper")
+        return 0.0, False
 
     def home_pose(self) -> None:
         self._move("home_pose")
+
+    def free_spot(self, container: str, name: str) -> np.ndarray:
+        return np.array([0.3, -0.27])
+
+    def place_in(self, container: str, name: str) -> np.ndarray:
+        self._move("place_in")
+        return np.array([0.3, -0.27, 0.065])
+
+    def lift_and_look(self, position, name: str, destination: str | None = None) -> list:
+        self._move("lift_and_look")
+        return []
 
     def get_mass(self, position, name: str | None = None) -> float:
         self._move("get_mass")

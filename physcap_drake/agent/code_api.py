@@ -24,7 +24,7 @@ from physcap_drake.robot_api import RobotAPI
 
 #: The functions of every variant, and those only variants with the PhysX modules get.
 MOTION_FUNCTIONS = ("get_object_pose", "goto_pose", "open_gripper", "close_gripper",
-                    "home_pose")
+                    "home_pose", "free_spot", "place_in", "lift_and_look")
 PHYSX_FUNCTIONS = ("get_mass", "get_weight", "get_stiffness")
 
 #: Longest object name or description a call may carry (characters).
@@ -39,6 +39,9 @@ PARAMETER_KINDS: dict[str, dict[str, ParameterKind]] = {
     "open_gripper": {},
     "close_gripper": {},
     "home_pose": {},
+    "free_spot": {"container": _NAME, "name": _NAME},
+    "place_in": {"container": _NAME, "name": _NAME},
+    "lift_and_look": {"position": _POSITION, "name": _NAME, "destination": OrNone(_NAME)},
     "get_mass": {"position": _POSITION, "name": OrNone(_NAME)},
     "get_weight": {"position": _POSITION, "name": OrNone(_NAME)},
     "get_stiffness": {"position": _POSITION, "name": OrNone(_NAME)},
@@ -46,10 +49,11 @@ PARAMETER_KINDS: dict[str, dict[str, ParameterKind]] = {
 }
 #: The functions that move the robot (robot-time budgets are checked before each call).
 MOVING = frozenset({"goto_pose", "open_gripper", "close_gripper", "home_pose", "get_mass",
-                    "get_weight", "get_stiffness"})
+                    "get_weight", "get_stiffness", "place_in", "lift_and_look"})
 #: The per-block budget each function's calls count against (sandbox.budget.COUNTED).
 COUNTED_AS = {"close_gripper": "gripper_cycle", "get_mass": "probe", "get_weight": "probe",
-              "get_stiffness": "probe", "get_object_pose": "pose"}
+              "get_stiffness": "probe", "get_object_pose": "pose", "free_spot": "pose",
+              "place_in": "gripper_cycle", "lift_and_look": "gripper_cycle"}
 
 
 def breakpoint_code_block() -> None:
