@@ -72,6 +72,9 @@ class SyntheticArm(LeafSystem):
                 lambda context, out: out.SetFromVector(self._command.Eval(context)))
         self.DeclareVectorOutputPort(ports.GRIPPER_POSITION_MEASURED, 1, self._output_opening,
                                      {self.xd_ticket()})
+        self.DeclareVectorOutputPort(ports.ARM_VELOCITY_ESTIMATED, n,
+                                     lambda context, out: out.SetFromVector(np.zeros(n)),
+                                     {self.nothing_ticket()})
 
     def _move_gripper(self, context, state):
         opening, *commands = context.get_discrete_state(0).get_value()
@@ -106,7 +109,8 @@ class Rig:
         arm = builder.AddSystem(SyntheticArm(**arm))
         for name in (ports.ARM_POSITION, ports.GRIPPER_POSITION, ports.GRIPPER_FORCE_LIMIT):
             builder.Connect(self.executor.GetOutputPort(name), arm.GetInputPort(name))
-        for name in (ports.ARM_POSITION_MEASURED, ports.GRIPPER_POSITION_MEASURED):
+        for name in (ports.ARM_POSITION_MEASURED, ports.ARM_VELOCITY_ESTIMATED,
+                     ports.GRIPPER_POSITION_MEASURED):
             builder.Connect(arm.GetOutputPort(name), self.executor.GetInputPort(name))
         self.diagram, self.clock, self.request_port = build_with_request_path(
             builder, self.executor)
