@@ -39,12 +39,13 @@ GRIPPER_SPEED = 0.1  # m/s of opening
 class SyntheticArm(LeafSystem):
     """An arm whose joints are wherever they are commanded (or stay where they started, if
     `stuck`; or stay where they were at `stuck_after` s), reported `offset` (rad) off that
-    (a sagging arm) and moving at `speed` rad/s every joint, and a gripper whose opening moves at GRIPPER_SPEED towards the command and
-    stops at `object_width` (m) when closing on an object, or at `widest` (m) when something
-    keeps it from opening further. With a `delay` (s) the gripper follows the command of
-    `delay` earlier, as over a station whose commands show late in its feedback (CAN); with
-    a `burst` (s) its opening is reported only that often (feedback that comes in bursts);
-    with a `creep` (m/s) the object yields at that speed while the fingers press on it."""
+    (a sagging arm) and moving at `speed` rad/s every joint, and a gripper whose opening
+    moves at GRIPPER_SPEED towards the command and stops at `object_width` (m) when closing
+    on an object, or at `widest` (m) when something keeps it from opening further. With a
+    `delay` (s) the gripper follows the command of `delay` earlier, as over a station whose
+    commands show late in its feedback (CAN); with a `burst` (s) its opening is reported
+    only that often (feedback that comes in bursts); with a `creep` (m/s) the object yields
+    at that speed while the fingers press on it."""
 
     def __init__(self, stuck: bool = False, object_width: float = 0.0, widest: float = 1.0,
                  step: float = 0.004, delay: float = 0.0, burst: float = 0.0,
