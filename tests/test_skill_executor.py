@@ -39,18 +39,18 @@ GRIPPER_SPEED = 0.1  # m/s of opening
 class SyntheticArm(LeafSystem):
     """An arm whose joints are wherever they are commanded (or stay where they started, if
     `stuck`; or stay where they were at `stuck_after` s), reported `offset` (rad) off that
-    (a sagging arm) and moving at `speed` rad/s every joint, and a gripper whose opening
-    moves at GRIPPER_SPEED towards the command and stops at `object_width` (m) when closing
-    on an object, or at `widest` (m) when something keeps it from opening further. With a
-    `delay` (s) the gripper follows the command of `delay` earlier, as over a station whose
-    commands show late in its feedback (CAN); with a `burst` (s) its opening is reported
-    only that often (feedback that comes in bursts); with a `creep` (m/s) the object yields
-    at that speed while the fingers press on it."""
+    from `offset_after` s on (a sagging or pushed arm) and moving at `speed` rad/s every
+    joint, and a gripper whose opening moves at GRIPPER_SPEED towards the command and stops
+    at `object_width` (m) when closing on an object, or at `widest` (m) when something keeps
+    it from opening further. With a `delay` (s) the gripper follows the command of `delay`
+    earlier, as over a station whose commands show late in its feedback (CAN); with a
+    `burst` (s) its opening is reported only that often (feedback that comes in bursts);
+    with a `creep` (m/s) the object yields at that speed while the fingers press on it."""
 
     def __init__(self, stuck: bool = False, object_width: float = 0.0, widest: float = 1.0,
                  step: float = 0.004, delay: float = 0.0, burst: float = 0.0,
                  creep: float = 0.0, stuck_after: float = np.inf, offset=0.0,
-                 speed: float = 0.0):
+                 offset_after: float = 0.0, speed: float = 0.0):
         super().__init__()
         self._stuck, self._width, self._widest = stuck, object_width, widest
         self._creep = creep
@@ -69,6 +69,7 @@ class SyntheticArm(LeafSystem):
             self.DeclarePeriodicDiscreteUpdateEvent(burst, 0.0, self._report)
         self._stuck_after = 0.0 if stuck else stuck_after
         self._offset = np.broadcast_to(np.asarray(offset, dtype=float), (n,))
+        self._offset_after = offset_after
         self._q = self.DeclareDiscreteState(n)  # where the joints stopped
         self.DeclarePeriodicDiscreteUpdateEvent(step, 0.0, self._follow)
         self.DeclareVectorOutputPort(ports.ARM_POSITION_MEASURED, n, self._output_q)
@@ -85,7 +86,8 @@ class SyntheticArm(LeafSystem):
     def _output_q(self, context, output: BasicVector):
         moving = context.get_time() < self._stuck_after
         q = self._command.Eval(context) if moving else context.get_discrete_state(self._q).value()
-        output.SetFromVector(q + self._offset)
+        pushed = context.get_time() >= self._offset_after
+        output.SetFromVector(q + self._offset if pushed else q)
 
     def _move_gripper(self, context, state):
         opening, *commands = context.get_discrete_state(0).get_value()
@@ -299,13 +301,18 @@ def test_a_motion_is_done_only_once_the_arm_is_still(speed, done):
         assert status.state is SkillState.FAILED and "moving at 0.060 rad/s" in status.message
 
 
-def test_a_motion_is_planned_from_where_the_arm_is_and_a_hold_keeps_the_command():
-    sag = np.array([0.0, 0.004, 0.0, 0.0, 0.0, 0.0])  # within joint_tolerance
-    rig = Rig(offset=sag)
+@pytest.mark.parametrize("push, from_measured", [(0.004, False), (0.02, True)])
+def test_a_motion_is_planned_from_where_the_arm_is_when_it_is_not_where_it_was_told(
+        push, from_measured):
+    # During a wait after the first motion, the arm is pushed `push` rad on J2: within the
+    # joint tolerance (5 mrad) the next plan starts at the command (no step), beyond it
+    # where the arm is.
+    pushed = np.array([0.0, push, 0.0, 0.0, 0.0, 0.0])
+    rig = Rig(offset=pushed, offset_after=2.0)
     first = RobotRequest("test", 1, MoveToJoints(REACHABLE))
     rig.send(first)
     assert rig.finish(first).state is SkillState.SUCCEEDED
-    wait = RobotRequest("test", 2, Wait(0.1))
+    wait = RobotRequest("test", 2, Wait(2.5 - rig.clock.time))
     rig.send(wait)
     rig.finish(wait)
     np.testing.assert_array_equal(rig.command(), REACHABLE)  # a hold: the same command
@@ -313,7 +320,8 @@ def test_a_motion_is_planned_from_where_the_arm_is_and_a_hold_keeps_the_command(
     rig.send(second)
     rig.clock.run_until(lambda root: rig.status.answers(second), timeout=1.0)
     assert rig.clock.time - rig.status.started_at < 0.005  # a step: the plan barely began
-    np.testing.assert_allclose(rig.command(), REACHABLE + sag, atol=1e-4)  # from measured
+    start = REACHABLE + pushed if from_measured else REACHABLE
+    np.testing.assert_allclose(rig.command(), start, atol=1e-4)
 
 
 def _joints_at(rig, x, y, z):

@@ -187,10 +187,14 @@ def test_a_pose_whose_gripper_would_hit_the_table_is_refused(robot):
 
 
 def test_joint_targets_in_contact_are_refused_naming_the_pair(robot):
-    # A fingertip 7 mm above the table, the gripper rolled so that a finger is 5 mm in it.
+    # A fingertip 7 mm above the table, the gripper rolled so that a finger is 5 mm in it ...
+    assert_refused_without_motion(
+        robot, lambda: robot.api.move_joints([0.3, 1.6, -0.4, 1.5, 0.5, 1.8]),
+        "at the goal", "piper_gripper::right_finger and table::table_top", "in contact")
+    # ... and its mirror image, over the tray (the scenario's furniture): 13 mm in its floor.
     assert_refused_without_motion(
         robot, lambda: robot.api.move_joints([-0.3, 1.6, -0.4, -1.5, 0.5, -1.8]),
-        "at the goal", "piper_gripper::left_finger and table::table_top", "in contact")
+        "at the goal", "piper_gripper::left_finger and tray::tray", "in contact")
 
 
 def test_a_motion_through_the_arm_itself_is_refused_naming_the_pair(robot):

@@ -77,8 +77,9 @@ class SkillExecutor(LeafSystem):
     Every MONITOR_PERIOD s an event (1) checks the running skill against the measured state
     and ends it as succeeded or failed (timed out or blocked: the arm is then stopped where it
     is), then (2), if no skill runs, takes a new request from the `request` port: it is
-    checked and planned against the measured state (a motion from where the arm is, with
-    what the fingers hold) and started, or refused (nothing moves).
+    checked and planned against the measured state (a motion from where the arm is, if
+    that is not where it was told to be; with what the fingers hold) and started, or
+    refused (nothing moves).
 
     An arm motion has succeeded once its plan has ended and every joint is within the skills'
     `joint_tolerance` of its goal and slower than `still_velocity`. It is blocked, and
@@ -192,10 +193,7 @@ class SkillExecutor(LeafSystem):
             if not isinstance(request.action, SKILL_REQUESTS):
                 raise SkillRefused(f"the skill executor cannot do {request.label!r}: "
                                    "no system on the request path took it")
-            motion = isinstance(request.action, MoveToJoints | MoveToPose)
-            # A motion starts where the arm is; a hold keeps the command it holds.
-            q_now = (self._q.Eval(context).copy() if motion
-                     else current.arm_plan.final_position)
+            q_now = self._start(context, current, request.action)
             held = current.held
             if opening <= self._planner.config.gripper_limit_tolerance:
                 held = None  # the fingers closed: whatever they held is gone
@@ -215,6 +213,17 @@ class SkillExecutor(LeafSystem):
         return ExecutorState(planned.arm_plan, planned.gripper_opening, planned.gripper_force,
                              planned, status, served, reference_opening=opening,
                              reference_time=now, held=held, action=request.action)
+
+    def _start(self, context: Context, current: ExecutorState, action) -> np.ndarray:
+        """Where a skill starts (rad): a motion from where the arm is, measured, when that
+        is more than joint_tolerance from the command it holds (else from the command: no
+        step in it); any other skill keeps holding the command."""
+        held = current.arm_plan.final_position
+        q = self._q.Eval(context)
+        if (isinstance(action, MoveToJoints | MoveToPose)
+                and np.abs(q - held).max() > self._planner.config.joint_tolerance):
+            return q.copy()
+        return held
 
     # Monitoring the running skill -------------------------------------------------------------
 
@@ -282,12 +291,24 @@ class SkillExecutor(LeafSystem):
         return None
 
     def _off_plan(self, plan: JointPlan, q: np.ndarray, now: float) -> np.ndarray:
-        """How far each joint at `q` (rad) is from the nearest position its plan passed in
-        the last tracking_delay + command latency s (sampled every TRACKING_STEP s), rad."""
+        """How far each joint at `q` (rad) is from the nearest position of its plan from
+        tracking_delay + command latency s ago to the plan's end (sampled every
+        TRACKING_STEP s), rad: an arm may run that far behind its plan, or ahead of it
+        (overshoot, or a faster arm), as long as it keeps to its path."""
         earliest = max(plan.start_time, now - self._latency - self._planner.config.tracking_delay)
-        times = np.append(np.arange(earliest, now, TRACKING_STEP), now)
-        distances = np.array([np.abs(q - plan.position(t)) for t in times])
-        return distances[int(np.argmin(distances.max(axis=1)))]
+        recent = np.append(np.arange(earliest, now, TRACKING_STEP), now)
+        off = self._nearest(plan, q, recent)
+        if off.max() > self._planner.config.tracking_tolerance and now < plan.end_time:
+            ahead = self._nearest(plan, q, np.append(np.arange(now, plan.end_time,
+                                                               TRACKING_STEP), plan.end_time))
+            off = min(off, ahead, key=np.max)
+        return off
+
+    @staticmethod
+    def _nearest(plan: JointPlan, q: np.ndarray, times: np.ndarray) -> np.ndarray:
+        """|q − plan(t)| (rad, per joint) at the t of `times` (s) where it is smallest."""
+        distances = np.abs(plan.positions(times) - q[:, None])
+        return distances[:, int(np.argmin(distances.max(axis=0)))]
 
     def _gripper_outcome(self, context: Context, current: ExecutorState, now: float):
         skill = current.skill
