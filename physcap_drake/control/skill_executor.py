@@ -69,6 +69,10 @@ class ExecutorState(Immutable):
     # What the fingers hold (from the last grasp), and the request being served.
     held: HeldObject | None = None
     action: object = None
+    # A motion stopped on its way: how it ends (state, message, stopped) once the station
+    # has braked its own reference to the hold, at sim time `settled_at` (s).
+    stopping: tuple | None = None
+    settled_at: float = 0.0
 
 
 class SkillExecutor(LeafSystem):
@@ -84,7 +88,8 @@ class SkillExecutor(LeafSystem):
     An arm motion has succeeded once its plan has ended and every joint is within the skills'
     `joint_tolerance` of its goal and slower than `still_velocity`. It is blocked, and
     stopped at once, as soon as a joint is farther than `tracking_tolerance` from every
-    position its plan passed in the last `tracking_delay` s plus `command_latency`; it fails
+    position its plan passed in the last `tracking_delay` s plus `command_latency` (or will
+    pass), and answered once the station has had time to brake (`_braking`); it fails
     when it has not arrived `motion_timeout` s after the plan's end. A vertical descent
     (z_approach) holding something that is stopped that way has set it down: it succeeds,
     the arm held where it is. A gripper that closed
@@ -231,8 +236,17 @@ class SkillExecutor(LeafSystem):
         now = context.get_time()
         skill = current.skill
         outcome = None
-        if skill.kind is SkillKind.ARM:
+        if skill.kind is SkillKind.ARM and current.stopping is not None:
+            if now < current.settled_at - 1e-9:
+                return current
+            outcome = current.stopping
+            current = dc.replace(current, stopping=None)
+        elif skill.kind is SkillKind.ARM:
             outcome = self._arm_outcome(context, current, now)
+            if outcome is not None and len(outcome) == 3:  # stopped on its way: brake first
+                return dc.replace(current, arm_plan=JointPlan.hold(self._q.Eval(context).copy(),
+                                                                  now),
+                                  stopping=outcome, settled_at=now + self._braking(current, now))
         elif skill.kind is SkillKind.GRIPPER:
             outcome, current = self._gripper_outcome(context, current, now)
             if outcome is not None and outcome[0] is SkillState.SUCCEEDED:
@@ -273,7 +287,7 @@ class SkillExecutor(LeafSystem):
             return (SkillState.FAILED,
                     f"{skill.label} blocked: joint J{joint + 1} is {off_plan[joint]:.3f} rad "
                     f"off its plan {now - skill.start_time:.2f} s into the motion; the arm "
-                    "was stopped where it is")
+                    "was stopped where it is", True)
         if now < skill.arm_plan.end_time:
             return None
         error = np.abs(q - skill.arm_plan.final_position)
@@ -289,6 +303,16 @@ class SkillExecutor(LeafSystem):
                     f"{speed.max():.3f} rad/s {now - skill.arm_plan.end_time:.1f} s after "
                     "the planned end; the arm was stopped")
         return None
+
+    def _braking(self, current: ExecutorState, now: float) -> float:
+        """How long the station takes to brake a reference that followed the plan at `now`
+        and bring it back to a hold there, s: the command latency, twice the plan's joint
+        speed over the skills' acceleration limit, and an event."""
+        plan = current.skill.arm_plan
+        speed = np.abs(plan.position(now) - plan.position(now - TRACKING_STEP)).max() / \
+            TRACKING_STEP
+        return (self._latency + 2.0 * speed / self._planner.config.max_joint_acceleration
+                + MONITOR_PERIOD)
 
     def _off_plan(self, plan: JointPlan, q: np.ndarray, now: float) -> np.ndarray:
         """How far each joint at `q` (rad) is from the nearest position of its plan from

@@ -62,7 +62,7 @@ class SkillsConfig:
     # A moving arm is blocked (stopped at once, held where it is) when a joint is farther
     # than this from every position its plan passed in the last `tracking_delay` s plus the
     # station's command latency, rad ...
-    tracking_tolerance: float = 0.03
+    tracking_tolerance: float = 0.02
     # ... s (how far behind its plan the arm may run beyond the latency).
     tracking_delay: float = 0.03
     # Time allowed beyond a motion's planned duration before it counts as failed, s.
