@@ -85,16 +85,14 @@ class SkillExecutor(LeafSystem):
     that is not where it was told to be; with what the fingers hold) and started, or
     refused (nothing moves).
 
-    An arm motion has succeeded once its plan has ended and every joint is within the skills'
-    `joint_tolerance` of its goal and slower than `still_velocity`. It is blocked, and
-    stopped at once, as soon as a joint is farther than `tracking_tolerance` from every
-    position its plan passed in the last `tracking_delay` s plus `command_latency` (or will
-    pass), and answered once the station has had time to brake (`_braking`); it fails
-    when it has not arrived `motion_timeout` s after the plan's end. A vertical descent
-    (z_approach) holding something that is stopped that way has set it down: it succeeds,
-    the arm held where it is. A gripper that closed
+    An arm motion succeeds once its plan has ended and every joint is within the skills'
+    `joint_tolerance` of its goal and slower than `still_velocity`; it is blocked, stopped
+    at once and held where it is, when a joint strays more than `tracking_tolerance` from
+    its plan (allowing `tracking_delay` plus `command_latency` behind it, or ahead along
+    its path), answered once the station has braked (`_braking`). A vertical descent
+    holding something, stopped that way, has set it down (succeeded). A gripper that closed
     and stopped on something holds an object (`SkillPlanner.held_from_grasp`) until the
-    fingers open or close on nothing.
+    fingers open or close on nothing. See docs/motion_safety.md.
     A request that arrives while a skill runs waits for it to end, except that a new request
     ends a running `Wait` at once (a wait is a hold that lasts until the next request, or its
     duration). Between skills the arm and gripper hold.

@@ -84,8 +84,8 @@ class SkillPlanner:
     def plan(self, request: SkillRequest, *, now: float, q_now: np.ndarray,
              opening_measured: float, gripper_command: tuple[float, float],
              held: HeldObject | None = None) -> PlannedSkill:
-        """Plans `request` starting at sim time `now` from arm joints `q_now` (rad: where the
-        arm is, measured, for a motion; the command it holds, for the other skills), with the
+        """Plans `request` starting at sim time `now` from arm joints `q_now` (rad: the command
+        the arm holds, or where it is measured when that is not there), with the
         fingers `opening_measured` (m) apart, holding `held` (None: nothing), and the gripper
         commanded to (opening m, force N) = `gripper_command` (kept during arm motions).
         Raises SkillRefused if the request cannot run."""
