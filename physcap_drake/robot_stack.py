@@ -135,7 +135,7 @@ def build_robot_stack(scenario: Scenario, meshcat: Meshcat | None = None, *,
     is connected to the station output of the same name."""
     station_config = scenario.station
     model = model or robot_model(scenario.directives, station_config.arm_model,
-                                 station_config.gripper_model)
+                                 station_config.gripper_model, tuple(scenario.skills.furniture))
     builder = DiagramBuilder()
     station = builder.AddNamedSystem("station", MakeStation(scenario, meshcat))
     skills = scenario.skills
@@ -144,7 +144,8 @@ def build_robot_stack(scenario: Scenario, meshcat: Meshcat | None = None, *,
     executor = builder.AddNamedSystem(
         "skill_executor", SkillExecutor(planner, initial_force=skills.grasp_force,
                                         command_latency=station_config.command_latency))
-    for name in (ports.ARM_POSITION_MEASURED, ports.GRIPPER_POSITION_MEASURED):
+    for name in (ports.ARM_POSITION_MEASURED, ports.ARM_VELOCITY_ESTIMATED,
+                 ports.GRIPPER_POSITION_MEASURED):
         builder.Connect(station.GetOutputPort(name), executor.GetInputPort(name))
     builder.Connect(executor.GetOutputPort(ports.ARM_POSITION),
                     station.GetInputPort(ports.ARM_POSITION))

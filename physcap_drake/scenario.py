@@ -252,15 +252,19 @@ def _check_directives(scenario: Scenario, at: ConfigChecker) -> None:
             if not path.is_file():
                 here.fail("file", "an existing model file",
                           f"{item.file!r} resolves to {path}, which is not a file")
+    flat = FlattenModelDirectives(ModelDirectives(directives=scenario.directives), package_map)
+    names = [d.add_model.name for d in flat.directives if d.add_model is not None]
     if isinstance(scenario.station, SimPiper | PiperCan):
-        flat = FlattenModelDirectives(ModelDirectives(directives=scenario.directives),
-                                      package_map)
-        names = [d.add_model.name for d in flat.directives if d.add_model is not None]
         for key in ("arm_model", "gripper_model"):
             wanted = getattr(scenario.station, key)
             if wanted not in names:
                 at.child("station").fail(key, f"the name of a model the directives add "
                                          f"(they add {names})", f"got {wanted!r}")
+    for index, name in enumerate(scenario.skills.furniture):
+        if name not in names:
+            at.child("skills").child("furniture").fail(
+                index, f"the name of a model the directives add (they add {names})",
+                f"got {name!r}")
 
 
 def _check_body_masses(scenario: Scenario, at: ConfigChecker) -> None:

@@ -10,8 +10,10 @@ from pydrake.systems.framework import BasicVector, DiagramBuilder, LeafSystem
 
 from physcap_drake.control.planning_model import PlanningModel
 from physcap_drake.control.requests import (
+    HeldObject,
     MoveGripper,
     MoveToJoints,
+    MoveToPose,
     RobotRequest,
     SkillState,
     Wait,
@@ -36,16 +38,19 @@ GRIPPER_SPEED = 0.1  # m/s of opening
 
 class SyntheticArm(LeafSystem):
     """An arm whose joints are wherever they are commanded (or stay where they started, if
-    `stuck`), and a gripper whose opening moves at GRIPPER_SPEED towards the command and
-    stops at `object_width` (m) when closing on an object, or at `widest` (m) when something
-    keeps it from opening further. With a `delay` (s) the gripper follows the command of
-    `delay` earlier, as over a station whose commands show late in its feedback (CAN); with
-    a `burst` (s) its opening is reported only that often (feedback that comes in bursts);
+    `stuck`; or stay where they were at `stuck_after` s), reported `offset` (rad) off that
+    from `offset_after` s on (a sagging or pushed arm) and moving at `speed` rad/s every
+    joint, and a gripper whose opening moves at GRIPPER_SPEED towards the command and stops
+    at `object_width` (m) when closing on an object, or at `widest` (m) when something keeps
+    it from opening further. With a `delay` (s) the gripper follows the command of `delay`
+    earlier, as over a station whose commands show late in its feedback (CAN); with a
+    `burst` (s) its opening is reported only that often (feedback that comes in bursts);
     with a `creep` (m/s) the object yields at that speed while the fingers press on it."""
 
     def __init__(self, stuck: bool = False, object_width: float = 0.0, widest: float = 1.0,
                  step: float = 0.004, delay: float = 0.0, burst: float = 0.0,
-                 creep: float = 0.0):
+                 creep: float = 0.0, stuck_after: float = np.inf, offset=0.0,
+                 offset_after: float = 0.0, speed: float = 0.0):
         super().__init__()
         self._stuck, self._width, self._widest = stuck, object_width, widest
         self._creep = creep
@@ -62,16 +67,27 @@ class SyntheticArm(LeafSystem):
         if burst:  # group 1: the opening last reported
             self.DeclareDiscreteState([0.05])
             self.DeclarePeriodicDiscreteUpdateEvent(burst, 0.0, self._report)
-        if stuck:
-            self.DeclareVectorOutputPort(ports.ARM_POSITION_MEASURED, n,
-                                         lambda context, out: out.SetFromVector(np.zeros(n)),
-                                         {self.nothing_ticket()})
-        else:
-            self.DeclareVectorOutputPort(
-                ports.ARM_POSITION_MEASURED, n,
-                lambda context, out: out.SetFromVector(self._command.Eval(context)))
+        self._stuck_after = 0.0 if stuck else stuck_after
+        self._offset = np.broadcast_to(np.asarray(offset, dtype=float), (n,))
+        self._offset_after = offset_after
+        self._q = self.DeclareDiscreteState(n)  # where the joints stopped
+        self.DeclarePeriodicDiscreteUpdateEvent(step, 0.0, self._follow)
+        self.DeclareVectorOutputPort(ports.ARM_POSITION_MEASURED, n, self._output_q)
         self.DeclareVectorOutputPort(ports.GRIPPER_POSITION_MEASURED, 1, self._output_opening,
                                      {self.xd_ticket()})
+        self.DeclareVectorOutputPort(ports.ARM_VELOCITY_ESTIMATED, n,
+                                     lambda context, out: out.SetFromVector(np.full(n, speed)),
+                                     {self.nothing_ticket()})
+
+    def _follow(self, context, state):
+        if context.get_time() < self._stuck_after:
+            state.get_mutable_vector(self._q).SetFromVector(self._command.Eval(context))
+
+    def _output_q(self, context, output: BasicVector):
+        moving = context.get_time() < self._stuck_after
+        q = self._command.Eval(context) if moving else context.get_discrete_state(self._q).value()
+        pushed = context.get_time() >= self._offset_after
+        output.SetFromVector(q + self._offset if pushed else q)
 
     def _move_gripper(self, context, state):
         opening, *commands = context.get_discrete_state(0).get_value()
@@ -106,7 +122,8 @@ class Rig:
         arm = builder.AddSystem(SyntheticArm(**arm))
         for name in (ports.ARM_POSITION, ports.GRIPPER_POSITION, ports.GRIPPER_FORCE_LIMIT):
             builder.Connect(self.executor.GetOutputPort(name), arm.GetInputPort(name))
-        for name in (ports.ARM_POSITION_MEASURED, ports.GRIPPER_POSITION_MEASURED):
+        for name in (ports.ARM_POSITION_MEASURED, ports.ARM_VELOCITY_ESTIMATED,
+                     ports.GRIPPER_POSITION_MEASURED):
             builder.Connect(arm.GetOutputPort(name), self.executor.GetInputPort(name))
         self.diagram, self.clock, self.request_port = build_with_request_path(
             builder, self.executor)
@@ -236,14 +253,136 @@ def test_fingers_that_creep_into_a_soft_object_hold_it_whatever_the_event_period
     assert float(status.message.split("stopped at ")[1].split(" mm")[0]) > 29.0
 
 
-def test_a_motion_that_does_not_arrive_fails_and_the_arm_holds_where_it_is():
+def test_a_blocked_motion_is_stopped_at_once_and_the_arm_held_where_it_is():
     rig = Rig(stuck=True)
     request = RobotRequest("test", 1, MoveToJoints(REACHABLE))
     rig.send(request)
     status = rig.finish(request)
-    assert status.state is SkillState.FAILED and "did not arrive" in status.message
+    assert status.state is SkillState.FAILED and "blocked: joint J2" in status.message
+    planned = rig.executor.planner.plan(MoveToJoints(REACHABLE), now=0.0, q_now=np.zeros(6),
+                                        opening_measured=0.05, gripper_command=(0.05, 15.0))
+    assert status.finished_at - status.started_at < 0.5 * planned.arm_plan.duration
     np.testing.assert_array_equal(rig.command(), np.zeros(6))  # stopped where measured
     np.testing.assert_array_equal(status.joint_target, np.zeros(6))
+
+    # Stopped on the way: held there, not sent on to the plan's end.
+    midway = Rig(stuck_after=0.3)
+    midway.send(request)
+    status = midway.finish(request)
+    assert status.state is SkillState.FAILED and "blocked" in status.message
+    stopped = midway.executor.GetInputPort(ports.ARM_POSITION_MEASURED).Eval(
+        midway.executor.GetMyContextFromRoot(midway.clock.context))
+    np.testing.assert_allclose(midway.command(), stopped, atol=1e-12)
+    assert 0.1 < np.abs(stopped - REACHABLE).max()
+
+
+@pytest.mark.parametrize("offset, outcome", [
+    (0.004, "succeeded"),  # within joint_tolerance (5 mrad): arrived
+    (0.012, "did not arrive"),  # on track (tracking_tolerance 20 mrad), never arrives
+    (0.03, "blocked")])  # off track: stopped at once
+def test_an_arm_off_its_plan_is_judged_by_how_far(offset, outcome):
+    rig = Rig(offset=[0.0, offset, 0.0, 0.0, 0.0, 0.0])
+    request = RobotRequest("test", 1, MoveToJoints(REACHABLE))
+    rig.send(request)
+    status = rig.finish(request)
+    assert outcome in (status.state.value, status.message)[outcome != "succeeded"]
+
+
+@pytest.mark.parametrize("speed, done", [(0.04, True), (0.06, False)])
+def test_a_motion_is_done_only_once_the_arm_is_still(speed, done):
+    # The skills' still_velocity is 0.05 rad/s.
+    rig = Rig(speed=speed)
+    request = RobotRequest("test", 1, MoveToJoints(REACHABLE))
+    rig.send(request)
+    status = rig.finish(request)
+    if done:
+        assert status.state is SkillState.SUCCEEDED
+    else:
+        assert status.state is SkillState.FAILED and "moving at 0.060 rad/s" in status.message
+
+
+@pytest.mark.parametrize("push, from_measured", [(0.004, False), (0.02, True)])
+def test_a_motion_is_planned_from_where_the_arm_is_when_it_is_not_where_it_was_told(
+        push, from_measured):
+    # During a wait after the first motion, the arm is pushed `push` rad on J2: within the
+    # joint tolerance (5 mrad) the next plan starts at the command (no step), beyond it
+    # where the arm is.
+    pushed = np.array([0.0, push, 0.0, 0.0, 0.0, 0.0])
+    rig = Rig(offset=pushed, offset_after=2.0)
+    first = RobotRequest("test", 1, MoveToJoints(REACHABLE))
+    rig.send(first)
+    assert rig.finish(first).state is SkillState.SUCCEEDED
+    wait = RobotRequest("test", 2, Wait(2.5 - rig.clock.time))
+    rig.send(wait)
+    rig.finish(wait)
+    np.testing.assert_array_equal(rig.command(), REACHABLE)  # a hold: the same command
+    second = RobotRequest("test", 3, MoveToJoints(np.zeros(6), check_workspace=False))
+    rig.send(second)
+    rig.clock.run_until(lambda root: rig.status.answers(second), timeout=1.0)
+    assert rig.clock.time - rig.status.started_at < 0.005  # a step: the plan barely began
+    start = REACHABLE + pushed if from_measured else REACHABLE
+    np.testing.assert_allclose(rig.command(), start, atol=1e-4)
+
+
+def _joints_at(rig, x, y, z):
+    from physcap_drake.control.ik import FingertipGoal, solve_fingertip_ik
+    planner = rig.executor.planner
+    return solve_fingertip_ik(planner.model, FingertipGoal(np.array([x, y, z])), REACHABLE,
+                              opening=0.03, collision_margin=0.005, limit_margin=0.035)
+
+
+def test_what_the_fingers_closed_on_is_kept_out_of_the_table():
+    rig = Rig(object_width=0.03)
+    grasp, lower = _joints_at(rig, 0.3, 0.0, 0.04), _joints_at(rig, 0.3, 0.0, 0.02)
+    sequence = iter(range(1, 100))
+
+    def run(action):
+        request = RobotRequest("test", next(sequence), action)
+        rig.send(request)
+        return rig.finish(request)
+
+    assert run(MoveToJoints(grasp)).state is SkillState.SUCCEEDED
+    assert "holding something" in run(MoveGripper(0.0, 10.0, "close_gripper")).message
+    assert run(MoveToJoints(REACHABLE)).state is SkillState.SUCCEEDED
+    refused = run(MoveToJoints(lower))  # 20 mm lower than it stood: into the table
+    assert refused.state is SkillState.REFUSED
+    assert "table::table_top and the held object (30 mm across, reaching 35 mm below the " \
+        "fingertips)" in refused.message
+    assert run(MoveToJoints(grasp)).state is SkillState.SUCCEEDED  # as low as it stood
+    run(MoveGripper(0.1, 10.0, "open_gripper"))  # let go: nothing held
+    assert run(MoveToJoints(lower)).state is SkillState.SUCCEEDED
+    # An object whose size the caller gives: 10 mm below the fingertips fits.
+    assert "holding something" in run(MoveGripper(0.0, 10.0, "close_gripper",
+                                                  holds=HeldObject(0.03, 0.01))).message
+    assert run(MoveToJoints(REACHABLE)).state is SkillState.SUCCEEDED
+    assert run(MoveToJoints(lower)).state is SkillState.SUCCEEDED
+
+
+@pytest.mark.parametrize("holding", [True, False])
+def test_a_descent_stopped_while_holding_something_has_set_it_down(holding):
+    target = np.array([0.3, 0.0, 0.06])
+    descend = MoveToPose(target, None, 0.1)
+
+    def run(rig):
+        requests = [MoveToPose(target + [0.0, 0.0, 0.1]),
+                    MoveGripper(0.0 if holding else 0.1, 10.0, "gripper",
+                                holds=HeldObject(0.03, 0.02)), descend]
+        for sequence, action in enumerate(requests, 1):
+            request = RobotRequest("test", sequence, action)
+            rig.send(request)
+            status = rig.finish(request)
+        return status
+
+    started = run(Rig(object_width=0.03)).started_at  # where the descent starts
+    rig = Rig(object_width=0.03, stuck_after=started + 0.15)
+    status = run(rig)
+    if holding:
+        assert status.state is SkillState.SUCCEEDED and "touched down" in status.message
+    else:
+        assert status.state is SkillState.FAILED and "blocked" in status.message
+    stopped = rig.executor.GetInputPort(ports.ARM_POSITION_MEASURED).Eval(
+        rig.executor.GetMyContextFromRoot(rig.clock.context))
+    np.testing.assert_allclose(rig.command(), stopped, atol=1e-12)  # held there
 
 
 def test_a_gripper_opened_fully_may_stop_a_little_short_of_its_stroke():

@@ -187,10 +187,14 @@ def test_a_pose_whose_gripper_would_hit_the_table_is_refused(robot):
 
 
 def test_joint_targets_in_contact_are_refused_naming_the_pair(robot):
-    # A fingertip 7 mm above the table, the gripper rolled so that a finger is 5 mm in it.
+    # A fingertip 7 mm above the table, the gripper rolled so that a finger is 5 mm in it ...
+    assert_refused_without_motion(
+        robot, lambda: robot.api.move_joints([0.3, 1.6, -0.4, 1.5, 0.5, 1.8]),
+        "at the goal", "piper_gripper::right_finger and table::table_top", "in contact")
+    # ... and its mirror image, over the tray (the scenario's furniture): 13 mm in its floor.
     assert_refused_without_motion(
         robot, lambda: robot.api.move_joints([-0.3, 1.6, -0.4, -1.5, 0.5, -1.8]),
-        "at the goal", "piper_gripper::left_finger and table::table_top", "in contact")
+        "at the goal", "piper_gripper::left_finger and tray::tray", "in contact")
 
 
 def test_a_motion_through_the_arm_itself_is_refused_naming_the_pair(robot):
@@ -213,9 +217,12 @@ def test_a_blocked_motion_fails_and_the_arm_stops_where_it_is(table_scenario):
     robot = Robot(table_scenario)
     cube_top = [0.22, 0.25, 0.05]  # the planner does not know the cube: only the table
     robot.api.goto_pose(np.add(cube_top, [0.0, 0.0, 0.05]))
-    with pytest.raises(SkillFailed, match="did not arrive"):
+    with pytest.raises(SkillFailed, match="blocked: joint J2"):
         robot.api.goto_pose(np.add(cube_top, [0.0, 0.0, -0.03]))
+    assert robot.api.status.finished_at - robot.api.status.started_at < 1.0  # at once
     measured = robot.diagram.station.GetOutputPort(ports.ARM_POSITION_MEASURED).Eval(
         robot.diagram.station.GetMyContextFromRoot(robot.clock.context))
     np.testing.assert_allclose(robot.command(), measured, atol=0.01)  # holds, stops pushing
-    robot.api.goto_pose(np.add(cube_top, [0.0, 0.0, 0.08]))  # and still takes requests
+    # ... and still takes requests (not a straight lift: the fingers would drag over the
+    # cube on the way up and be stopped again).
+    robot.api.home_pose()

@@ -57,3 +57,22 @@ class JointPlan:
             return self.initial_position
         segment, local = self._locate(t)
         return segment.value(local).ravel()
+
+    def positions(self, times: np.ndarray) -> np.ndarray:
+        """Joint positions at the sim times `times` (s), one column each, rad."""
+        times = np.asarray(times, dtype=float)
+        if not self.segments:
+            return np.repeat(self.initial_position[:, None], len(times), axis=1)
+        result = np.empty((len(self.initial_position), len(times)))
+        local = np.clip(times - self.start_time, 0.0, self.duration)
+        offset = 0.0
+        for index, segment in enumerate(self.segments):
+            length = segment.end_time() - segment.start_time()
+            last = index == len(self.segments) - 1
+            inside = (local >= offset) & ((local <= offset + length) | last)
+            if np.any(inside):
+                at = segment.start_time() + np.minimum(local[inside] - offset, length)
+                result[:, inside] = segment.vector_values(at)
+            local = np.where(inside, -1.0, local)  # each time once: its first segment
+            offset += length
+        return result

@@ -1,22 +1,34 @@
 """PlanningModel: what the skills know of the world, for IK, collision checks and timing.
 
 It holds the arm, its gripper and the fixed environment (models the scenario welds to the
-world, such as the table), never the movable objects: like a controller on the real robot,
-it knows its own body and its workcell, not where the cans are or what they weigh.
+world, such as the table, and its furniture, such as a tray), never the movable objects:
+like a controller on the real robot, it knows its own body and its workcell, not where the
+cans are or what they weigh. What the gripper holds is added to its collision checks as
+the grasp describes it (`hold`).
 """
 
 from __future__ import annotations
 
 import numpy as np
-from pydrake.geometry import SceneGraph
+from pydrake.geometry import (
+    CollisionFilterDeclaration,
+    Cylinder,
+    GeometryInstance,
+    GeometrySet,
+    ProximityProperties,
+    SceneGraph,
+)
 from pydrake.math import RigidTransform
 from pydrake.multibody.plant import MultibodyPlant
 from pydrake.multibody.tree import BodyIndex
 
+from physcap_drake.control.requests import HeldObject
 from physcap_drake.station.robot_model import RobotModel, moving_joints, robot_model
 
 #: Name of the fingertip frame in the gripper model (0.1358 m beyond the flange).
 TCP_FRAME = "tcp"
+#: Step of the search for the furniture below the fingertips, m.
+SUPPORT_STEP = 0.001
 
 
 class PlanningModel:
@@ -57,6 +69,15 @@ class PlanningModel:
         # A second one for solvers that hold the context they evaluate in (e.g.
         # InverseKinematics): shared by them one after the other, never at once.
         self._solver_context = self.diagram.CreateDefaultContext()
+        robot = {arm, gripper}
+        self._robot_frames = {plant.GetBodyFrameIdOrThrow(body.index())
+                              for body in (plant.get_body(BodyIndex(i))
+                                           for i in range(plant.num_bodies()))
+                              if body.model_instance() in robot}
+        hand = [plant.GetBodyFrameIdOrThrow(i) for i in plant.GetBodyIndices(gripper)]
+        hand.append(plant.GetBodyFrameIdOrThrow(self.tcp_frame.body().index()))
+        self._hand_frames = hand
+        self._held: tuple[HeldObject, object] | None = None  # and its GeometryId
 
     def solver_plant_context(self):
         """The plant context of this model's scratch context for a solver that holds one
@@ -101,9 +122,52 @@ class PlanningModel:
             return None
         deepest = min(pairs, key=lambda p: p.distance)
         inspector = query.inspector()
-        names = " and ".join(inspector.GetName(inspector.GetFrameId(g))
+        held = self._held[1] if self._held is not None else None
+        names = " and ".join(self._held[0].describe() if g == held
+                             else inspector.GetName(inspector.GetFrameId(g))
                              for g in (deepest.id_A, deepest.id_B))
         return deepest.distance, names
+
+    def hold(self, held: HeldObject | None) -> None:
+        """Makes `held` (None: nothing) what the gripper holds in `deepest_contact`'s checks:
+        a cylinder on the fingertip frame's z axis (along the fingers), from the fingertips
+        `held.depth` m on, touching nothing of the hand itself."""
+        if (self._held[0] if self._held is not None else None) == held:
+            return
+        scene_graph = self.scene_graph
+        context = scene_graph.GetMyMutableContextFromRoot(self._context)
+        source = self.plant.get_source_id()
+        if self._held is not None:
+            scene_graph.RemoveGeometry(context, source, self._held[1])
+            self._held = None
+        if held is None:
+            return
+        X_BG = self.tcp_frame.GetFixedPoseInBodyFrame().multiply(
+            RigidTransform([0.0, 0.0, 0.5 * held.depth]))
+        body = self.plant.GetBodyFrameIdOrThrow(self.tcp_frame.body().index())
+        geometry = scene_graph.RegisterGeometry(context, source, body, GeometryInstance(
+            X_BG, Cylinder(0.5 * held.diameter, held.depth), "held object"))
+        scene_graph.AssignRole(context, source, geometry, ProximityProperties())
+        scene_graph.collision_filter_manager(context).Apply(
+            CollisionFilterDeclaration().ExcludeBetween(GeometrySet(geometry),
+                                                        GeometrySet(self._hand_frames)))
+        self._held = (held, geometry)
+
+    def height_above_furniture(self, q_arm: np.ndarray) -> float:
+        """How far the fingertip at arm joints `q_arm` (rad) is above the fixed environment
+        straight below it, m (to SUPPORT_STEP; its height above z = 0 if nothing is found
+        there)."""
+        tip = self.tcp_pose(q_arm).translation()
+        query = self.scene_graph.get_query_output_port().Eval(
+            self.scene_graph.GetMyContextFromRoot(self._context))
+        inspector = query.inspector()
+        for drop in np.arange(0.0, max(tip[2], 0.0) + SUPPORT_STEP, SUPPORT_STEP):
+            point = tip - [0.0, 0.0, drop]
+            if any(inspector.GetFrameId(d.id_G) not in self._robot_frames
+                   and (self._held is None or d.id_G != self._held[1])
+                   for d in query.ComputeSignedDistanceToPoint(point, threshold=0.0)):
+                return float(drop)
+        return float(max(tip[2], 0.0))
 
 
 class ModelAtPositions:

@@ -61,12 +61,29 @@ class MoveToPose:
 
 
 @dc.dataclass(frozen=True)
+class HeldObject:
+    """What the fingers hold, as the planner sees it: a cylinder on the gripper's axis,
+    `diameter` m across, reaching `depth` m beyond the fingertips (along the fingers)."""
+
+    diameter: float
+    depth: float
+
+    def describe(self) -> str:
+        return (f"the held object ({1000 * self.diameter:.0f} mm across, reaching "
+                f"{1000 * self.depth:.0f} mm below the fingertips)")
+
+
+@dc.dataclass(frozen=True)
 class MoveGripper:
-    """Move the fingers to a total `opening` (m), squeezing with at most `force` N each."""
+    """Move the fingers to a total `opening` (m), squeezing with at most `force` N each.
+    holds: when closing on an object, its size as the caller knows it (perception); None
+    judges it from the grasp (the gap at which the fingers stop, the fingertips' height
+    above the furniture under them)."""
 
     opening: float
     force: float
     label: str = "move gripper"
+    holds: HeldObject | None = None
 
 
 @dc.dataclass(frozen=True)

@@ -12,6 +12,7 @@ from pydrake.systems.framework import BasicVector, Context, EventStatus, LeafSys
 from physcap_drake.control.errors import SkillRefused
 from physcap_drake.control.joint_plan import JointPlan
 from physcap_drake.control.requests import (
+    HeldObject,
     MoveGripper,
     MoveToJoints,
     MoveToPose,
@@ -43,6 +44,8 @@ STALL_WINDOW = 0.1
 GRIPPER_MIN_TIME = 0.3
 #: A gripper has reached its target opening within this distance, m.
 GRIPPER_TOLERANCE = 5e-4
+#: Spacing of the plan positions an arm's measured position is compared with, s.
+TRACKING_STEP = 0.004
 #: Port names of the request path (the same on every system along it).
 REQUEST_PORT = "request"
 STATUS_PORT = "status"
@@ -63,6 +66,13 @@ class ExecutorState(Immutable):
     # Gripper stall detection: the opening at `reference_time`.
     reference_opening: float = 0.0
     reference_time: float = 0.0
+    # What the fingers hold (from the last grasp), and the request being served.
+    held: HeldObject | None = None
+    action: object = None
+    # A motion stopped on its way: how it ends (state, message, stopped) once the station
+    # has braked its own reference to the hold, at sim time `settled_at` (s).
+    stopping: tuple | None = None
+    settled_at: float = 0.0
 
 
 class SkillExecutor(LeafSystem):
@@ -71,7 +81,18 @@ class SkillExecutor(LeafSystem):
     Every MONITOR_PERIOD s an event (1) checks the running skill against the measured state
     and ends it as succeeded or failed (timed out or blocked: the arm is then stopped where it
     is), then (2), if no skill runs, takes a new request from the `request` port: it is
-    checked and planned against the measured state and started, or refused (nothing moves).
+    checked and planned against the measured state (a motion from where the arm is, if
+    that is not where it was told to be; with what the fingers hold) and started, or
+    refused (nothing moves).
+
+    An arm motion succeeds once its plan has ended and every joint is within the skills'
+    `joint_tolerance` of its goal and slower than `still_velocity`; it is blocked, stopped
+    at once and held where it is, when a joint strays more than `tracking_tolerance` from
+    its plan (allowing `tracking_delay` plus `command_latency` behind it, or ahead along
+    its path), answered once the station has braked (`_braking`). A vertical descent
+    holding something, stopped that way, has set it down (succeeded). A gripper that closed
+    and stopped on something holds an object (`SkillPlanner.held_from_grasp`) until the
+    fingers open or close on nothing. See docs/motion_safety.md.
     A request that arrives while a skill runs waits for it to end, except that a new request
     ends a running `Wait` at once (a wait is a hold that lasts until the next request, or its
     duration). Between skills the arm and gripper hold.
@@ -88,7 +109,8 @@ class SkillExecutor(LeafSystem):
     `gripper_limit_tolerance` of it has opened fully; one stopped short of that is blocked.
 
     Input ports: request (RobotRequest with a MoveToJoints, MoveToPose, MoveGripper or Wait),
-        piper.position_measured (6, rad), gripper.position_measured (1, m).
+        piper.position_measured (6, rad), piper.velocity_estimated (6, rad/s),
+        gripper.position_measured (1, m).
     Output ports: piper.position (6, rad), gripper.position (1, m), gripper.force_limit
         (1, N) for the station; status (SkillStatus).
     State (abstract): ExecutorState, the arm's plan, the gripper's command, the running
@@ -107,6 +129,7 @@ class SkillExecutor(LeafSystem):
         self._request = self.DeclareAbstractInputPort(REQUEST_PORT,
                                                       AbstractValue.Make(RobotRequest()))
         self._q = self.DeclareVectorInputPort(ports.ARM_POSITION_MEASURED, n)
+        self._v = self.DeclareVectorInputPort(ports.ARM_VELOCITY_ESTIMATED, n)
         self._opening = self.DeclareVectorInputPort(ports.GRIPPER_POSITION_MEASURED, 1)
         initial = ExecutorState(JointPlan.hold(np.zeros(n)), 0.0, self._initial_force)
         self._state_index = self.DeclareAbstractState(AbstractValue.Make(initial))
@@ -175,10 +198,13 @@ class SkillExecutor(LeafSystem):
             if not isinstance(request.action, SKILL_REQUESTS):
                 raise SkillRefused(f"the skill executor cannot do {request.label!r}: "
                                    "no system on the request path took it")
+            q_now = self._start(context, current, request.action)
+            held = current.held
+            if opening <= self._planner.config.gripper_limit_tolerance:
+                held = None  # the fingers closed: whatever they held is gone
             planned = self._planner.plan(
-                request.action, now=now, q_now=current.arm_plan.final_position,
-                opening_measured=opening,
-                gripper_command=(current.gripper_opening, current.gripper_force))
+                request.action, now=now, q_now=q_now, opening_measured=opening,
+                gripper_command=(current.gripper_opening, current.gripper_force), held=held)
         except SkillRefused as refusal:
             status = dc.replace(current.status, client=request.client,
                                 sequence=request.sequence, state=SkillState.REFUSED,
@@ -191,7 +217,18 @@ class SkillExecutor(LeafSystem):
                             joint_target=tuple(map(float, planned.arm_plan.final_position)))
         return ExecutorState(planned.arm_plan, planned.gripper_opening, planned.gripper_force,
                              planned, status, served, reference_opening=opening,
-                             reference_time=now)
+                             reference_time=now, held=held, action=request.action)
+
+    def _start(self, context: Context, current: ExecutorState, action) -> np.ndarray:
+        """Where a skill starts (rad): a motion from where the arm is, measured, when that
+        is more than joint_tolerance from the command it holds (else from the command: no
+        step in it); any other skill keeps holding the command."""
+        held = current.arm_plan.final_position
+        q = self._q.Eval(context)
+        if (isinstance(action, MoveToJoints | MoveToPose)
+                and np.abs(q - held).max() > self._planner.config.joint_tolerance):
+            return q.copy()
+        return held
 
     # Monitoring the running skill -------------------------------------------------------------
 
@@ -199,10 +236,21 @@ class SkillExecutor(LeafSystem):
         now = context.get_time()
         skill = current.skill
         outcome = None
-        if skill.kind is SkillKind.ARM:
+        if skill.kind is SkillKind.ARM and current.stopping is not None:
+            if now < current.settled_at - 1e-9:
+                return current
+            outcome = current.stopping
+            current = dc.replace(current, stopping=None)
+        elif skill.kind is SkillKind.ARM:
             outcome = self._arm_outcome(context, current, now)
+            if outcome is not None and len(outcome) == 3:  # stopped on its way: brake first
+                return dc.replace(current, arm_plan=JointPlan.hold(self._q.Eval(context).copy(),
+                                                                  now),
+                                  stopping=outcome, settled_at=now + self._braking(current, now))
         elif skill.kind is SkillKind.GRIPPER:
             outcome, current = self._gripper_outcome(context, current, now)
+            if outcome is not None and outcome[0] is SkillState.SUCCEEDED:
+                current = dc.replace(current, held=self._held_after_gripper(context, current))
         elif now >= skill.deadline - 1e-9:
             outcome = (SkillState.SUCCEEDED, skill.label)
         if outcome is None:
@@ -210,10 +258,11 @@ class SkillExecutor(LeafSystem):
         return self._finish(context, current, *outcome)
 
     def _finish(self, context: Context, current: ExecutorState, result: SkillState,
-                message: str) -> ExecutorState:
+                message: str, stopped: bool = False) -> ExecutorState:
+        """Ends the running skill; a failed or `stopped` one holds the arm where it is."""
         now = context.get_time()
         arm_plan = current.arm_plan
-        if result is SkillState.FAILED:  # stop: hold where the arm is now
+        if result is SkillState.FAILED or stopped:  # stop: hold where the arm is now
             arm_plan = JointPlan.hold(self._q.Eval(context).copy(), now)
         status = dc.replace(current.status, state=result, message=message, finished_at=now,
                             robot_time=current.status.robot_time + now
@@ -222,21 +271,68 @@ class SkillExecutor(LeafSystem):
         return dc.replace(current, arm_plan=arm_plan, status=status)
 
     def _arm_outcome(self, context: Context, current: ExecutorState, now: float):
-        skill = current.skill
+        skill, config = current.skill, self._planner.config
+        q = self._q.Eval(context)
+        off_plan = self._off_plan(skill.arm_plan, q, now)
+        if off_plan.max() > config.tracking_tolerance:
+            joint = int(np.argmax(off_plan))
+            if (current.held is not None and skill.descent_from is not None
+                    and now >= skill.descent_from):
+                below = (self._planner.model.tcp_pose(q).translation()[2]
+                         - self._planner.model.tcp_pose(skill.arm_plan.final_position)
+                         .translation()[2])
+                return (SkillState.SUCCEEDED,
+                        f"{skill.label}: what the fingers hold touched down "
+                        f"{1000 * below:.0f} mm above the target; the arm holds there", True)
+            return (SkillState.FAILED,
+                    f"{skill.label} blocked: joint J{joint + 1} is {off_plan[joint]:.3f} rad "
+                    f"off its plan {now - skill.start_time:.2f} s into the motion; the arm "
+                    "was stopped where it is", True)
         if now < skill.arm_plan.end_time:
             return None
-        error = np.abs(self._q.Eval(context) - skill.arm_plan.final_position)
-        if error.max() <= self._planner.config.joint_tolerance:
+        error = np.abs(q - skill.arm_plan.final_position)
+        speed = np.abs(self._v.Eval(context))
+        if error.max() <= config.joint_tolerance and speed.max() <= config.still_velocity:
             return (SkillState.SUCCEEDED,
                     skill.label + (f" ({skill.note})" if skill.note else ""))
         if now >= skill.deadline:
             joint = int(np.argmax(error))
             return (SkillState.FAILED,
                     f"{skill.label} did not arrive: joint J{joint + 1} is still "
-                    f"{error[joint]:.4f} rad from its goal "
-                    f"{now - skill.arm_plan.end_time:.1f} s after the planned end "
-                    "(blocked?); the arm was stopped")
+                    f"{error[joint]:.4f} rad from its goal and moving at "
+                    f"{speed.max():.3f} rad/s {now - skill.arm_plan.end_time:.1f} s after "
+                    "the planned end; the arm was stopped")
         return None
+
+    def _braking(self, current: ExecutorState, now: float) -> float:
+        """How long the station takes to brake a reference that followed the plan at `now`
+        and bring it back to a hold there, s: the command latency, twice the plan's joint
+        speed over the skills' acceleration limit, and an event."""
+        plan = current.skill.arm_plan
+        speed = np.abs(plan.position(now) - plan.position(now - TRACKING_STEP)).max() / \
+            TRACKING_STEP
+        return (self._latency + 2.0 * speed / self._planner.config.max_joint_acceleration
+                + MONITOR_PERIOD)
+
+    def _off_plan(self, plan: JointPlan, q: np.ndarray, now: float) -> np.ndarray:
+        """How far each joint at `q` (rad) is from the nearest position of its plan from
+        tracking_delay + command latency s ago to the plan's end (sampled every
+        TRACKING_STEP s), rad: an arm may run that far behind its plan, or ahead of it
+        (overshoot, or a faster arm), as long as it keeps to its path."""
+        earliest = max(plan.start_time, now - self._latency - self._planner.config.tracking_delay)
+        recent = np.append(np.arange(earliest, now, TRACKING_STEP), now)
+        off = self._nearest(plan, q, recent)
+        if off.max() > self._planner.config.tracking_tolerance and now < plan.end_time:
+            ahead = self._nearest(plan, q, np.append(np.arange(now, plan.end_time,
+                                                               TRACKING_STEP), plan.end_time))
+            off = min(off, ahead, key=np.max)
+        return off
+
+    @staticmethod
+    def _nearest(plan: JointPlan, q: np.ndarray, times: np.ndarray) -> np.ndarray:
+        """|q − plan(t)| (rad, per joint) at the t of `times` (s) where it is smallest."""
+        distances = np.abs(plan.positions(times) - q[:, None])
+        return distances[:, int(np.argmin(distances.max(axis=0)))]
 
     def _gripper_outcome(self, context: Context, current: ExecutorState, now: float):
         skill = current.skill
@@ -266,6 +362,14 @@ class SkillExecutor(LeafSystem):
             return (SkillState.FAILED,
                     f"{skill.label} timed out at {1000 * opening:.1f} mm"), current
         return None, current
+
+    def _held_after_gripper(self, context: Context, current: ExecutorState) -> HeldObject | None:
+        """What the fingers hold once a gripper skill succeeded: what they stopped on while
+        closing, else nothing."""
+        opening = float(self._opening.Eval(context)[0])
+        if current.skill.gripper_opening < opening - GRIPPER_TOLERANCE:
+            return self._planner.held_from_grasp(current.action, self._q.Eval(context), opening)
+        return None
 
     def _fully_open(self, target: float, opening: float) -> bool:
         """Whether fingers sent to `target` (m) that stopped at `opening` (m) opened as far

@@ -1,8 +1,9 @@
 """SkillPlanner: turns a checked request into a motion the station can follow, or refuses it.
 
 Everything here happens before any motion: a request that is malformed, leaves the
-workspace box, passes a joint limit, has no IK solution, or would bring the robot into
-contact with the table or itself is refused with a SkillRefused that says why.
+workspace box, passes a joint limit, has no IK solution, or would bring the robot or what it
+holds into contact with the table, the furniture or itself is refused with a SkillRefused
+that names the pair.
 """
 
 from __future__ import annotations
@@ -19,6 +20,7 @@ from physcap_drake.control.ik import FingertipGoal, solve_fingertip_ik, tilt_fro
 from physcap_drake.control.joint_plan import JointPlan
 from physcap_drake.control.planning_model import PlanningModel
 from physcap_drake.control.requests import (
+    HeldObject,
     MoveGripper,
     MoveToJoints,
     MoveToPose,
@@ -56,7 +58,8 @@ class SkillKind(enum.Enum):
 class PlannedSkill:
     """A skill ready to run: what the arm and gripper are commanded from `start_time` on.
 
-    arm_plan: the joint plan (arm skills) or the hold.
+    arm_plan: the joint plan (arm skills) or the hold. descent_from: when the plan's
+    vertical descent (z_approach) begins, sim time s; None without one.
     """
 
     label: str
@@ -67,6 +70,7 @@ class PlannedSkill:
     gripper_force: float
     deadline: float
     note: str = ""
+    descent_from: float | None = None
 
 
 class SkillPlanner:
@@ -78,11 +82,14 @@ class SkillPlanner:
         self.gripper_stroke = gripper_stroke
 
     def plan(self, request: SkillRequest, *, now: float, q_now: np.ndarray,
-             opening_measured: float, gripper_command: tuple[float, float]) -> PlannedSkill:
-        """Plans `request` starting at sim time `now` from arm joints `q_now` (rad: where the
-        previous motion ended, the arm at rest there), with the fingers `opening_measured`
-        (m) apart and the gripper commanded to (opening m, force N) = `gripper_command`
-        (kept during arm motions). Raises SkillRefused if the request cannot run."""
+             opening_measured: float, gripper_command: tuple[float, float],
+             held: HeldObject | None = None) -> PlannedSkill:
+        """Plans `request` starting at sim time `now` from arm joints `q_now` (rad: the command
+        the arm holds, or where it is measured when that is not there), with the
+        fingers `opening_measured` (m) apart, holding `held` (None: nothing), and the gripper
+        commanded to (opening m, force N) = `gripper_command` (kept during arm motions).
+        Raises SkillRefused if the request cannot run."""
+        self.model.hold(held)
         if isinstance(request, MoveToJoints):
             return self._plan_joints(request, now, q_now, opening_measured, gripper_command)
         if isinstance(request, MoveToPose):
@@ -97,6 +104,23 @@ class SkillPlanner:
             return PlannedSkill(f"wait {duration:g} s", SkillKind.WAIT, now,
                                 JointPlan.hold(q_now, now), *gripper_command, now + duration)
         raise SkillRefused(f"unknown skill request {request!r}")
+
+    def held_from_grasp(self, request: MoveGripper, q: np.ndarray,
+                        opening: float) -> HeldObject | None:
+        """What fingers closed by `request` hold once they stopped on something `opening` m
+        apart with the arm at joints `q` (rad): the request's `holds` if it gives one, else
+        an object as wide as the gap reaching down (along the fingers, however tilted) to
+        `held_clearance` above the furniture below the fingertips (None if that leaves
+        nothing beyond them)."""
+        if request.holds is not None:
+            return request.holds
+        down = -self.model.tcp_pose(q).rotation().matrix()[2, 2]  # cos(tilt from vertical)
+        if down <= 0.0:  # the fingers point sideways or up: nothing stands below them
+            return None
+        reach = (self.model.height_above_furniture(q) - self.config.held_clearance
+                 - 0.5 * opening * np.sqrt(1.0 - down ** 2))  # lowest rim point, world z
+        depth = reach / down
+        return HeldObject(float(opening), float(depth)) if depth > 0.0 else None
 
     # Arm motions (`opening` is the measured finger gap, m, for the collision checks) -------
 
@@ -126,10 +150,11 @@ class SkillPlanner:
                                        "first")
 
     def _arm_skill(self, label: str, segments: tuple, now: float, q_now: np.ndarray,
-                   gripper_command: tuple[float, float], note="") -> PlannedSkill:
+                   gripper_command: tuple[float, float], note="",
+                   descent_from: float | None = None) -> PlannedSkill:
         plan = JointPlan(now, q_now.copy(), segments)
         return PlannedSkill(label, SkillKind.ARM, now, plan, *gripper_command,
-                            plan.end_time + self.config.motion_timeout, note)
+                            plan.end_time + self.config.motion_timeout, note, descent_from)
 
     def _plan_joints(self, request: MoveToJoints, now, q_now, opening,
                      gripper_command) -> PlannedSkill:
@@ -177,6 +202,7 @@ class SkillPlanner:
         where = "(" + ", ".join(f"{v:.3f}" for v in target) + ") m"
         label = f"goto_pose {where}" + (f" from {z_approach:.3f} m above" if z_approach else "")
         self._check_workspace(target, label)
+        descent_from = None
         if z_approach > 0:
             above = target + [0.0, 0.0, z_approach]
             self._check_workspace(above, label + " (approach point)")
@@ -185,13 +211,15 @@ class SkillPlanner:
             segments = (self._timed(np.column_stack([q_now, descent[:, 0]])),
                         self._timed(descent))
             self._check_straight(segments[1], target, label)
+            descent_from = now + segments[0].end_time() - segments[0].start_time()
         else:
             q_target = self._solve(target, rotation, q_now, opening)
             segments = (self._timed(np.column_stack([q_now, q_target])),)
         self._check_clear(segments, opening, f"{label} refused")
         tilt = np.degrees(tilt_from_vertical(self.model.tcp_pose(q_target).rotation()))
         note = "" if rotation is not None else f"gripper {tilt:.1f}° from straight down"
-        return self._arm_skill(label, segments, now, q_now, gripper_command, note)
+        return self._arm_skill(label, segments, now, q_now, gripper_command, note,
+                               descent_from)
 
     def _vertical_waypoints(self, target, above, q_now, rotation, opening) -> np.ndarray:
         """Joint waypoints (6 × N, top first) whose fingertips lie on the vertical segment from

@@ -44,12 +44,27 @@ class SkillsConfig:
     workspace: WorkspaceBox = dc.field(default_factory=WorkspaceBox)
     # Smallest distance kept between the robot and the table (and between its own links), m.
     collision_margin: float = 0.005
+    # Free-body models of the directives that stand still where the directives put them
+    # (e.g. [tray], [basket]): the planner keeps the arm and what it holds out of them as
+    # out of the table (models welded to the world are always kept out of).
+    furniture: list[str] = dc.field(default_factory=list)
+    # What the gripper holds is taken to end this far above the furniture it was picked up
+    # from, m: it may be set down as low as it stood, not pressed further down.
+    held_clearance: float = 0.005
     # IK solutions keep every joint this far inside its limits, rad: a joint resting on its
     # limit carries load that its motor torque no longer shows (and cannot move further).
     joint_limit_margin: float = 0.035
     # A motion is done when every joint is this close to its goal, rad (a payload makes the
-    # arm sag by about 1 mrad per kg).
+    # arm sag by about 1 mrad per kg) ...
     joint_tolerance: float = 0.005
+    # ... and slower than this, rad/s.
+    still_velocity: float = 0.05
+    # A moving arm is blocked (stopped at once, held where it is) when a joint is farther
+    # than this from every position its plan passed in the last `tracking_delay` s plus the
+    # station's command latency, rad ...
+    tracking_tolerance: float = 0.02
+    # ... s (how far behind its plan the arm may run beyond the latency).
+    tracking_delay: float = 0.03
     # Time allowed beyond a motion's planned duration before it counts as failed, s.
     motion_timeout: float = 2.0
     # Squeeze force of each finger for close_gripper(), N.
@@ -70,9 +85,15 @@ class SkillsConfig:
         at.vector("home_position", self.home_position, NUM_ARM_JOINTS)
         self.workspace.check(at.child("workspace"))
         at.number("collision_margin", self.collision_margin, minimum=0.0, maximum=0.05)
+        at.number("held_clearance", self.held_clearance, minimum=0.0, maximum=0.02)
         at.number("joint_limit_margin", self.joint_limit_margin, minimum=0.0, maximum=0.3)
         at.number("joint_tolerance", self.joint_tolerance, minimum=0.0, maximum=0.1,
                   open_minimum=True)
+        at.number("still_velocity", self.still_velocity, minimum=0.0, maximum=0.5,
+                  open_minimum=True)
+        at.number("tracking_tolerance", self.tracking_tolerance, minimum=0.0, maximum=0.5,
+                  open_minimum=True)
+        at.number("tracking_delay", self.tracking_delay, minimum=0.0, maximum=1.0)
         at.number("motion_timeout", self.motion_timeout, minimum=0.0, open_minimum=True)
         at.number("grasp_force", self.grasp_force, minimum=0.0, open_minimum=True)
         at.number("gripper_timeout", self.gripper_timeout, minimum=0.0, open_minimum=True)

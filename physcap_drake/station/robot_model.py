@@ -72,22 +72,26 @@ class RobotModel:
         controller_plant: continuous-time plant of the arm and gripper alone.
         arm_joints: the controller plant's arm joints J1..J6.
         gripper_stroke: the widest opening between the fingers, m (twice a finger's travel).
-        workcell: (diagram, plant, scene graph) of the arm, gripper and the models welded to
-            the world (the table: never the movable objects), for collision queries; built
-            on first use.
+        workcell: (diagram, plant, scene graph) of the arm, gripper, the models welded to
+            the world (the table) and the `furniture` (free bodies such as a tray, welded
+            where the directives put them): never the movable objects; for collision
+            queries, built on first use.
     """
 
-    def __init__(self, directives: list, arm_model: str, gripper_model: str):
+    def __init__(self, directives: list, arm_model: str, gripper_model: str,
+                 furniture: tuple[str, ...] = (),
+                 controller_plant: MultibodyPlant | None = None):
         self.arm_model, self.gripper_model = arm_model, gripper_model
-        self.controller_plant = make_model_plant(directives, (arm_model, gripper_model))
+        self.controller_plant = controller_plant or make_model_plant(
+            directives, (arm_model, gripper_model))
         plant = self.controller_plant
         self.arm_joints = moving_joints(plant, plant.GetModelInstanceByName(arm_model))
         fingers = moving_joints(plant, plant.GetModelInstanceByName(gripper_model))
         self.gripper_stroke = 2.0 * float(fingers[0].position_upper_limits()[0])
-        environment = [m for m in world_welded_models(directives)
-                       if m not in (arm_model, gripper_model)]
+        self.furniture = tuple(furniture)
         self._workcell_directives = robot_directives(
-            directives, (arm_model, gripper_model, *environment))
+            directives, (arm_model, gripper_model, *_environment(directives, arm_model,
+                                                                 gripper_model, furniture)))
         self._workcell: tuple[Diagram, MultibodyPlant, SceneGraph] | None = None
         self._lock = threading.Lock()
 
@@ -98,6 +102,8 @@ class RobotModel:
                 builder = DiagramBuilder()
                 plant, scene_graph = AddMultibodyPlantSceneGraph(builder, time_step=0.0)
                 add_directives(plant, self._workcell_directives)
+                for name in self.furniture:
+                    _weld_where_it_stands(plant, name)
                 plant.Finalize()
                 self._workcell = (builder.Build(), plant, scene_graph)
             return self._workcell
@@ -107,17 +113,41 @@ _models: dict[str, RobotModel] = {}
 _models_lock = threading.Lock()
 
 
-def robot_model(directives: list, arm_model: str, gripper_model: str) -> RobotModel:
+def robot_model(directives: list, arm_model: str, gripper_model: str,
+                furniture: tuple[str, ...] = ()) -> RobotModel:
     """The RobotModel of the arm `arm_model` with `gripper_model` in the workcell the
-    directives set up: built on the first call for that set-up, then shared."""
-    environment = [m for m in world_welded_models(directives)
-                   if m not in (arm_model, gripper_model)]
-    kept = robot_directives(directives, (arm_model, gripper_model, *environment))
-    key = f"{arm_model}|{gripper_model}|" + yaml_dump_typed(ModelDirectives(directives=kept))
+    directives set up (with the free-body models named in `furniture` fixed where the
+    directives put them): built on the first call for that set-up, then shared."""
+    furniture = tuple(furniture)
+    kept = robot_directives(directives, (arm_model, gripper_model, *_environment(
+        directives, arm_model, gripper_model, furniture)))
+    key = (f"{arm_model}|{gripper_model}|{','.join(furniture)}|"
+           + yaml_dump_typed(ModelDirectives(directives=kept)))
+    base = robot_model(directives, arm_model, gripper_model) if furniture else None
     with _models_lock:
-        if key not in _models:
-            _models[key] = RobotModel(directives, arm_model, gripper_model)
+        if key not in _models:  # with furniture: the arm's own model is the base one's
+            _models[key] = RobotModel(directives, arm_model, gripper_model, furniture,
+                                      base.controller_plant if base else None)
         return _models[key]
+
+
+def _environment(directives: list, arm_model: str, gripper_model: str,
+                 furniture: tuple[str, ...]) -> list[str]:
+    """The fixed environment's models: welded to the world, or named as furniture."""
+    welded = [m for m in world_welded_models(directives) if m not in (arm_model, gripper_model)]
+    return welded + [m for m in furniture if m not in welded]
+
+
+def _weld_where_it_stands(plant: MultibodyPlant, name: str) -> None:
+    """Welds the free body of the model `name` to the world at its default pose (the
+    directives' default_free_body_pose). Raises ValueError if it has no single free body."""
+    bodies = [plant.get_body(i) for i in plant.GetBodyIndices(plant.GetModelInstanceByName(name))]
+    if len(bodies) != 1:
+        raise ValueError(f"furniture {name!r} must be a model of one free body; it has "
+                         f"{len(bodies)} bodies")
+    body = bodies[0]
+    plant.WeldFrames(plant.world_frame(), body.body_frame(),
+                     plant.GetDefaultFloatingBaseBodyPose(body))
 
 
 def world_welded_models(directives: list) -> list[str]:
