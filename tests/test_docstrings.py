@@ -174,7 +174,7 @@ def test_the_port_finder_reads_literals_constants_and_loops(trees):
     are all found; the skill executor's and the CAN interface's are known port names."""
     systems = {cls.name: (path, cls) for path, cls in leaf_systems(trees)}
     names, unknown = port_names(*_with_tree(trees, systems["SkillExecutor"]))
-    assert names == {"request", "status", "piper.position_measured",
+    assert names == {"request", "status", "piper.position_measured", "piper.velocity_estimated",
                      "gripper.position_measured", "piper.position", "gripper.position",
                      "gripper.force_limit"} and unknown == 0
     names, _ = port_names(*_with_tree(trees, systems["PiperCanInterface"]))

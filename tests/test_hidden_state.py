@@ -96,7 +96,8 @@ def test_perception_sees_only_images_and_visible_attributes():
         for forbidden in ("body_poses", "EvalBodyPose", "GetPositions", ".hidden", "mass_kg"):
             assert forbidden not in source, (module.__name__, forbidden)
     # The robot API hands perception the depth and label images and nothing else.
-    source = inspect.getsource(RobotAPI.get_object_pose)
+    source = inspect.getsource(RobotAPI.get_object_pose) + inspect.getsource(RobotAPI._images)
+    assert "self._images()" in source
     assert "CAMERA_RGB" in source and "CAMERA_DEPTH" in source and "CAMERA_LABEL" in source
     assert "BODY_POSES" not in source and "plant" not in source
 

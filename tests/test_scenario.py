@@ -68,9 +68,13 @@ def test_scenario_text_is_laid_over_the_file(table_path):
     assert over.station.initial_arm_position == plain.station.initial_arm_position
     assert over.skills.grasp_force == plain.skills.grasp_force
     assert len(over.directives) == len(plain.directives) > 1
-    # A list given in the overlay replaces the file's whole.
-    only_arm = load_scenario(table_path, ROBOT)
+    # A list given in the overlay replaces the file's whole (the furniture the planner avoids
+    # must then be among the models still added).
+    only_arm = load_scenario(table_path, ROBOT + "skills: {furniture: []}\n")
     assert len(only_arm.directives) == 1
+    with pytest.raises(ScenarioError) as caught:
+        load_scenario(table_path, ROBOT)
+    assert caught.value.key_path == "skills.furniture[0]"
 
 
 def test_overlay_errors_name_the_overlay_and_the_key(table_path):
