@@ -5,7 +5,8 @@ handed over), but the child imports only the module of its function, not the par
 main module again (a `physcap` command line would otherwise be imported twice), and file
 descriptors (a socket end, shared memory) are handed over as such. The child runs
 `function(conn, *args)`, `args` being sent pickled over the pipe `conn`; when the parent
-goes away, the pipe closes and the child's function sees EOFError.
+goes away, the pipe closes and the child's function sees EOFError. The child ignores
+SIGINT: the parent ends it.
 
     python -m physcap_drake.can.child_process <module:function> <pipe fd>
 """
@@ -14,6 +15,7 @@ from __future__ import annotations
 
 import importlib
 import multiprocessing
+import signal
 import subprocess
 import sys
 from multiprocessing.connection import Connection
@@ -93,6 +95,9 @@ def named_function(name: str):
 
 
 def main(target: str, fd: str) -> None:
+    # Ctrl-C reaches the whole process group: the parent stops its children, they do not
+    # stop themselves half-way (and print no traceback).
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
     conn = Connection(int(fd))
     args = conn.recv()
     named_function(target)(conn, *args)

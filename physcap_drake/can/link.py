@@ -7,20 +7,24 @@ gripper parameters (0x477). Operator actions wait until the arm shows they took 
 `emergency_stop()` (0x150 = 1), `resume()` (0x150 = 2, which cuts motor power: the real arm
 falls unless supported) and `clear_errors()` (0x475).
 
-Start-up (`start`): open, read the firmware version (it picks the torque scaling) and the
-joint limits, switch to CAN control in joint mode (0x151), enable the motors (0x471) until
-every driver reports its enabled bit, set the gripper stroke (0x47D). Then a streaming
-thread sends, every 1/control_rate s, the latest joint targets (0x155-0x157) and gripper
-command (0x159) that `command()` left.
+Start-up (`start` = `connect`, `enable`, `start_streaming`): open, refuse an arm that is
+silent, in drag-teach, a leader or without joint feedback, read the firmware version (it
+picks the torque scaling) and the joint limits, take CAN control in joint mode (0x151,
+confirmed by 0x2A1), set the collision level and the gripper stroke where they differ
+(`link_control`); enable the motors (0x471) until every driver reports its enabled bit.
+Then a streaming thread sends, every 1/control_rate s, the latest joint targets
+(0x155-0x157) and gripper command (0x159) that `command()` left, and the mode frame again
+every MODE_REPEAT cycles (as the vendor's demos do).
 
 The streaming thread is independent of whoever calls `command()`: a Drake simulator that
 stops while a language model thinks leaves the last target in place, and the arm keeps
 receiving it. Before sending, every cycle asks the watchdog: while the feedback is stale
 (see FeedbackListener.health) or the arm reports a fault, no motion command is sent and
 the arm holds its last target. Targets are clamped to the joint limits, and a target that
-jumps is approached within the firmware's joint speed and acceleration limits, before they
-are encoded. `close()` stops streaming and leaves the arm enabled and holding; the link
-never sends the resume (0x150 = 2) by itself.
+jumps is approached within the station's joint speed and acceleration (never above the
+arm's reported maxima), before they are encoded; an arm found beyond a limit is brought
+back at that pace from where it is. `close()` stops streaming and leaves the arm enabled
+and holding; the link never sends the resume (0x150 = 2) by itself.
 """
 
 from __future__ import annotations
@@ -38,19 +42,17 @@ import numpy as np
 from physcap_drake.can import codec
 from physcap_drake.can.feedback import ArmParameters, FeedbackListener, Health
 from physcap_drake.can.joint_profile import STALE_TARGET, step_towards
+from physcap_drake.can.link_control import ControlSteps, StartupError
 from physcap_drake.kinematics.piper_dh import JOINT_LOWER, JOINT_UPPER
 
 log = logging.getLogger("physcap_drake.can")
 
 MAX_JOINT_SPEED = 3.0  # rad/s, the firmware's largest joint speed (0x474)
 MAX_JOINT_ACCELERATION = 5.0  # rad/s², the firmware's largest joint acceleration (0x475)
-ENABLE_RETRY = 0.05  # s between enable commands during start-up
 #: Interval at which an unanswered query or action is asked again, s.
 QUERY_RETRY = 0.1
-
-
-class StartupError(RuntimeError):
-    """The arm did not answer, or did not do what it was asked, in time."""
+#: The mode frame (0x151) goes out again every this many streaming cycles (0.1 s at 200 Hz).
+MODE_REPEAT = 20
 
 
 @dc.dataclass(frozen=True)
@@ -61,6 +63,11 @@ class LinkSettings:
     interface: str = "socketcan"
     channel: str = "can0"
     control_rate: float = 200.0
+    bitrate: int = 1_000_000
+    speed_percent: int = 30
+    joint_speed: float = 1.0  # rad/s
+    joint_acceleration: float = 2.0  # rad/s²
+    collision_level: int | None = None  # None: leave the arm's
     firmware: str = ""
     gripper_stroke_mm: int = 100
     startup_timeout: float = 2.0
@@ -70,8 +77,17 @@ class LinkSettings:
 
     @classmethod
     def of(cls, config) -> LinkSettings:
-        """The settings of a `PiperCan` (or any object with these attributes)."""
-        return cls(**{f.name: getattr(config, f.name) for f in dc.fields(cls)})
+        """The settings of a `PiperCan` (its effective speed and collision level; an
+        emulated twin streams at the firmware's largest joint speed and acceleration)."""
+        if isinstance(config, LinkSettings):
+            return config
+        values = {f.name: getattr(config, f.name) for f in dc.fields(cls)}
+        values["speed_percent"] = config.arm_speed_percent
+        values["collision_level"] = config.arm_collision_level
+        if not config.real_arm:
+            values["joint_speed"] = MAX_JOINT_SPEED
+            values["joint_acceleration"] = MAX_JOINT_ACCELERATION
+        return cls(**values)
 
 
 @dc.dataclass(frozen=True)
@@ -86,14 +102,15 @@ class LinkStatus:
     stale_count: int = 0
 
 
-class PiperLink:
-    """See module docstring. `config` is a `PiperCan` station config; `bus` an open
+class PiperLink(ControlSteps):
+    """See module docstring. `config` is a `PiperCan` station config (or its
+    LinkSettings); `bus` an open
     python-can bus (the link owns it once opened and shuts it down in `close`).
     `on_cycle()`, if given, runs at the start of every streaming cycle (before the targets
     are sent), in the streaming thread."""
 
     def __init__(self, bus: can.BusABC, config, on_cycle: Callable[[], None] | None = None):
-        self.config = config
+        self.config = config = LinkSettings.of(config)
         self._bus = bus
         self._period = 1.0 / config.control_rate
         self._stroke = config.gripper_stroke_mm / 1000.0
@@ -112,6 +129,11 @@ class PiperLink:
         self._target_at: float | None = None  # when it was last commanded (monotonic s)
         self._gripper = codec.GripperCommand(0.0, 0.0)
         self._lower, self._upper = JOINT_LOWER.copy(), JOINT_UPPER.copy()
+        self.speed_percent = config.speed_percent
+        #: Per-joint speed (rad/s) and acceleration (rad/s²) of the streamed targets.
+        self.max_speed = np.full(6, config.joint_speed)
+        self.max_acceleration = np.full(6, config.joint_acceleration)
+        self._cycles = 0
         self._stale_since: float | None = None
         self._commands_sent = 0
         self._stale_count = 0
@@ -168,16 +190,7 @@ class PiperLink:
         """Asks for every parameter the arm reports (see ArmParameters) and waits for all."""
         self.open()
         parameters = self.listener.parameters
-
-        def ask_missing(acceleration: bool):
-            known = parameters.accelerations if acceleration else parameters.limits
-            return lambda: [self._send(*codec.encode_limit_query(m, acceleration))
-                            for m in range(1, 7) if m not in known]
-
-        self._wait_for(lambda: len(parameters.limits) == 6 or None,
-                       "the joint limits (0x472 -> 0x473)", ask=ask_missing(False))
-        self._wait_for(lambda: len(parameters.accelerations) == 6 or None,
-                       "the joint accelerations (0x472 -> 0x47C)", ask=ask_missing(True))
+        self._read_limits()
         for query, field, what in (
                 (codec.QUERY_END_LIMITS, "end_limits", "the end-effector limits (0x478)"),
                 (codec.QUERY_CRASH, "crash_levels", "the collision levels (0x47B)"),
@@ -238,35 +251,61 @@ class PiperLink:
     def start(self) -> PiperLink:
         """Runs the start-up sequence (module docstring) and starts streaming.
         Raises StartupError naming what did not answer."""
+        return self.connect().enable_motors().start_streaming()
+
+    def connect(self) -> PiperLink:
+        """Start-up up to, not including, enabling the motors (module docstring)."""
         self.open()
+        self.check_ready()
         reported = self.read_firmware()
         self.firmware = self.config.firmware or reported
         if self.config.firmware and self.config.firmware != reported:
             log.warning("firmware override %s (the arm reports %s)", self.config.firmware,
                         reported)
         self.torque_scale = codec.torque_scale(self.firmware)
-        limits = self.listener.parameters.limits
+        self._read_limits()
+        self.take_control()
+        if self.config.collision_level is not None:
+            self.set_collision_level(self.config.collision_level)
+        self.set_gripper_stroke(self.config.gripper_stroke_mm)
+        return self
 
-        def ask_missing_limits() -> None:
-            for motor in range(1, 7):
-                if motor not in limits:
-                    self._send(*codec.encode_limit_query(motor))
+    def _read_limits(self) -> None:
+        """The joint limits and accelerations the arm reports: its limits are kept where
+        tighter, its maximum speeds and accelerations cap the station's."""
+        parameters = self.listener.parameters
 
-        self._wait_for(lambda: len(limits) == 6 or None, "the joint limits (0x472 -> 0x473)",
-                       ask=ask_missing_limits)
-        for motor, limit in limits.items():  # keep the tighter of the two
-            self._lower[motor - 1] = max(self._lower[motor - 1], limit.min_angle)
-            self._upper[motor - 1] = min(self._upper[motor - 1], limit.max_angle)
-        self._wait_for(lambda: self.listener.complete() or None,
-                       "joint and gripper feedback (0x2A5-0x2A8)")
-        self._send(*codec.encode_mode_control(ctrl_mode=1, move_mode=1, speed_percent=100))
-        self._enable()
-        self._send(*codec.encode_gripper_parameters(self.config.gripper_stroke_mm))
-        feedback = self.listener.snapshot()
+        def ask_missing(acceleration: bool):
+            known = parameters.accelerations if acceleration else parameters.limits
+            return lambda: [self._send(*codec.encode_limit_query(m, acceleration))
+                            for m in range(1, 7) if m not in known]
+
+        self._wait_for(lambda: len(parameters.limits) == 6 or None,
+                       "the joint limits (0x472 -> 0x473)", ask=ask_missing(False))
+        self._wait_for(lambda: len(parameters.accelerations) == 6 or None,
+                       "the joint accelerations (0x472 -> 0x47C)", ask=ask_missing(True))
+        for motor, limit in parameters.limits.items():  # keep the tighter of the two
+            j = motor - 1
+            self._lower[j] = max(self._lower[j], limit.min_angle)
+            self._upper[j] = min(self._upper[j], limit.max_angle)
+            if limit.max_speed > 0:
+                self.max_speed[j] = min(self.max_speed[j], limit.max_speed)
+            if parameters.accelerations[motor] > 0:
+                self.max_acceleration[j] = min(self.max_acceleration[j],
+                                               parameters.accelerations[motor])
+
+    def enable_motors(self) -> PiperLink:
+        """Enables the motors (after `connect`); a fault the arm reports stops it here."""
+        self.enable()
         fault = self.listener.health(time.monotonic()).fault
         if fault:
             self.close()
             raise StartupError(f"{self.where}: {fault}; clear it on the arm before starting")
+        return self
+
+    def start_streaming(self) -> PiperLink:
+        """Streams from where the arm is (after `enable_motors`)."""
+        feedback = self.listener.snapshot()
         self.command(feedback.q, feedback.gripper_opening, 0.0)
         self._sent_q = None  # stream from where the arm is
         self._stop.clear()
@@ -276,6 +315,13 @@ class PiperLink:
         log.info("PiPER on %s: firmware %s, streaming at %.0f Hz", self.where, self.firmware,
                  self.config.control_rate)
         return self
+
+    def limit_speed(self, percent: int) -> None:
+        """Slows the arm to `percent` % of its speed (the mode frame's, and the streamed
+        targets' joint speed as a share of 3 rad/s), never faster than it was."""
+        self.speed_percent = min(self.speed_percent, percent)
+        self.max_speed = np.minimum(self.max_speed, MAX_JOINT_SPEED * percent / 100.0)
+        self._send(*self.mode_frame())
 
     def _wait_for(self, probe, what: str, ask=None):
         """Waits until probe() is not None; `ask()` sends the request, again every
@@ -295,20 +341,6 @@ class PiperLink:
                                    "the bus up at 1 Mbit/s?)")
             time.sleep(0.002)
         return value
-
-    def _enable(self) -> None:
-        """Enables the motors until every driver says so in a frame sent after the request."""
-        since = time.monotonic()
-        deadline = since + self.config.startup_timeout
-        while not (enabled := self.listener.enabled_since(since)).all():
-            if time.monotonic() > deadline:
-                missing = [f"J{j + 1}" for j, on in enumerate(enabled) if not on]
-                self.close()
-                raise StartupError(f"{self.where}: the motors of {', '.join(missing)} did "
-                                   f"not report enabled (0x261-0x266 bit 6) within "
-                                   f"station.startup_timeout = {self.config.startup_timeout} s")
-            self._send(*codec.encode_motor_enable(True))
-            time.sleep(ENABLE_RETRY)
 
     # Commands and feedback ---------------------------------------------------------------
 
@@ -380,13 +412,16 @@ class PiperLink:
                 target_v = np.zeros(6)  # the caller stopped updating: it stands still
         if target is None:
             return
-        if previous is None:  # (re)start from where the arm is, at rest
-            previous = np.clip(self.listener.snapshot().q, self._lower, self._upper)
+        if previous is None:  # (re)start from where the arm is, at rest, even beyond a limit
+            previous = self.listener.snapshot().q
             self._sent_v = np.zeros(6)
         q, self._sent_v = step_towards(previous, self._sent_v, target, target_v,
-                                       np.full(6, MAX_JOINT_SPEED),
-                                       np.full(6, MAX_JOINT_ACCELERATION), self._period)
-        q = np.clip(q, self._lower, self._upper)  # the arm refuses targets beyond its limits
+                                       self.max_speed, self.max_acceleration, self._period)
+        # Targets stay within the limits, or between a limit and where the arm was found.
+        q = np.clip(q, np.minimum(self._lower, previous), np.maximum(self._upper, previous))
+        self._cycles += 1
+        if self._cycles % MODE_REPEAT == 0:
+            self._send(*self.mode_frame())
         for frame in codec.encode_joints(codec.JOINT_COMMAND, q):
             self._send(*frame)
         self._send(*codec.encode_gripper_command(gripper, stroke=self._stroke))

@@ -28,7 +28,7 @@ import time
 
 import numpy as np
 
-from physcap_drake.can import codec
+from physcap_drake.can import bring_up, codec
 from physcap_drake.can.child_process import ChildError, ChildProcess
 from physcap_drake.can.feedback import Health
 from physcap_drake.can.link import LinkSettings, LinkStatus, StartupError
@@ -74,17 +74,9 @@ class LinkFeedback:
 
 
 def open_bus(settings: LinkSettings):
-    """The python-can bus `settings` names; ConnectionError naming the fields if it fails."""
-    import can
-
-    try:
-        if settings.interface in ("slcan", "gs_usb"):
-            return can.Bus(interface=settings.interface, channel=settings.channel,
-                           bitrate=1_000_000)
-        return can.Bus(interface=settings.interface, channel=settings.channel)
-    except (OSError, can.CanError, ValueError) as error:
-        raise ConnectionError(f"station.interface {settings.interface!r}, station.channel "
-                              f"{settings.channel!r}: cannot open the CAN bus: {error}") from None
+    """The python-can bus `settings` names, a socketcan one checked first (`bring_up`);
+    ConnectionError naming the fields and the fix if it fails."""
+    return bring_up.open_bus(settings.interface, settings.channel, settings.bitrate)
 
 
 class LinkProcess:
@@ -125,13 +117,21 @@ class LinkProcess:
         self._request(("ready",), timeout=REQUEST_TIMEOUT * 6, close_on_error=True)
         return self
 
-    def start(self) -> LinkProcess:
+    def start(self, confirm=None) -> LinkProcess:
         """Runs the arm's start-up sequence in the streaming process and waits for its
-        first publication. Raises StartupError or ConnectionError with the child's words
+        first publication; `confirm()`, if given, runs before the motors are enabled (it
+        raises to refuse). Raises StartupError or ConnectionError with the child's words
         (the process is closed then)."""
-        reply = self._request(("start",), timeout=self.settings.startup_timeout * 6 + 30.0,
-                              close_on_error=True)
+        timeout = self.settings.startup_timeout * 8 + 30.0
+        reply = self._request(("connect",), timeout=timeout, close_on_error=True)
         self.firmware, self.torque_scale, self.realtime = reply
+        if confirm is not None:
+            try:
+                confirm()
+            except BaseException:
+                self.close()
+                raise
+        self._request(("enable",), timeout=timeout, close_on_error=True)
         deadline = time.monotonic() + REQUEST_TIMEOUT
         while self.feedback() is None:  # the first cycle publishes right after start-up
             if time.monotonic() > deadline:
@@ -277,7 +277,7 @@ def serve(conn, settings: LinkSettings, faults, seed: int, targets_fd: int,
             if kind == "close":
                 conn.send(("ok", None))
                 break
-            if kind == "start":
+            if kind == "connect":
                 try:
                     link = link or open_link()
                 except ConnectionError as error:
@@ -297,10 +297,13 @@ def _answer(link, faulty, kind: str, args, realtime: bool) -> tuple[str, object]
     if link is None:
         return "StartupError", f"{kind!r} before the link started"
     try:
-        if kind == "start":
-            link.start()
-            gc.freeze()  # what start-up allocated is never collected again: shorter pauses
+        if kind == "connect":
+            link.connect()
             return "ok", (link.firmware, link.torque_scale, realtime)
+        if kind == "enable":
+            link.enable_motors().start_streaming()
+            gc.freeze()  # what start-up allocated is never collected again: shorter pauses
+            return "ok", None
         if kind == "faults":
             if faulty is None:
                 return "StartupError", "fault drills need the emulated bus (emulate: true)"
