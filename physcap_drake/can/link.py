@@ -42,7 +42,7 @@ import numpy as np
 from physcap_drake.can import codec
 from physcap_drake.can.feedback import ArmParameters, FeedbackListener, Health
 from physcap_drake.can.joint_profile import STALE_TARGET, step_towards
-from physcap_drake.can.link_control import ControlSteps, StartupError
+from physcap_drake.can.link_control import CAN_CONTROL, MOVE_J, ControlSteps, StartupError
 from physcap_drake.kinematics.piper_dh import JOINT_LOWER, JOINT_UPPER
 
 log = logging.getLogger("physcap_drake.can")
@@ -53,6 +53,10 @@ MAX_JOINT_ACCELERATION = 5.0  # rad/s², the firmware's largest joint accelerati
 QUERY_RETRY = 0.1
 #: The mode frame (0x151) goes out again every this many streaming cycles (0.1 s at 200 Hz).
 MODE_REPEAT = 20
+#: Speed (%) at which an arm found beyond a joint limit is brought back to it.
+RECOVERY_SPEED_PERCENT = 10
+#: A joint this far beyond its limit still counts as within it, rad (about 0.06°).
+LIMIT_TOLERANCE = 1e-3
 
 
 @dc.dataclass(frozen=True)
@@ -134,6 +138,7 @@ class PiperLink(ControlSteps):
         self.max_speed = np.full(6, config.joint_speed)
         self.max_acceleration = np.full(6, config.joint_acceleration)
         self._cycles = 0
+        self._recovering = False  # bringing an arm found beyond a limit back, slowly
         self._stale_since: float | None = None
         self._commands_sent = 0
         self._stale_count = 0
@@ -288,8 +293,9 @@ class PiperLink(ControlSteps):
             j = motor - 1
             self._lower[j] = max(self._lower[j], limit.min_angle)
             self._upper[j] = min(self._upper[j], limit.max_angle)
-            if limit.max_speed > 0:
-                self.max_speed[j] = min(self.max_speed[j], limit.max_speed)
+            if limit.max_speed > 0:  # the arm moves at speed_percent of its maximum
+                self.max_speed[j] = min(self.max_speed[j],
+                                        limit.max_speed * self.speed_percent / 100.0)
             if parameters.accelerations[motor] > 0:
                 self.max_acceleration[j] = min(self.max_acceleration[j],
                                                parameters.accelerations[motor])
@@ -304,8 +310,14 @@ class PiperLink(ControlSteps):
         return self
 
     def start_streaming(self) -> PiperLink:
-        """Streams from where the arm is (after `enable_motors`)."""
+        """Streams from where the arm is (after `enable_motors`); an arm found beyond a
+        limit goes back to it at RECOVERY_SPEED_PERCENT first."""
         feedback = self.listener.snapshot()
+        self._recovering = not self._within_limits()
+        if self._recovering:
+            log.warning("PiPER on %s: %s beyond its limits: brought back at %d %% speed",
+                        self.where, self._beyond_limits(), RECOVERY_SPEED_PERCENT)
+            self._send(*self.mode_frame())
         self.command(feedback.q, feedback.gripper_opening, 0.0)
         self._sent_q = None  # stream from where the arm is
         self._stop.clear()
@@ -315,6 +327,24 @@ class PiperLink(ControlSteps):
         log.info("PiPER on %s: firmware %s, streaming at %.0f Hz", self.where, self.firmware,
                  self.config.control_rate)
         return self
+
+    def _beyond_limits(self) -> str:
+        q = self.listener.snapshot().q
+        return ", ".join(f"J{j + 1} at {np.degrees(q[j]):.1f}°" for j in range(6)
+                         if not self._lower[j] - LIMIT_TOLERANCE <= q[j]
+                         <= self._upper[j] + LIMIT_TOLERANCE)
+
+    def _within_limits(self) -> bool:
+        return not self._beyond_limits()
+
+    def mode_frame(self) -> tuple[int, bytes]:
+        """The mode frame at the station's speed (RECOVERY_SPEED_PERCENT at most while an
+        arm found beyond a limit goes back to it)."""
+        speed = self.speed_percent
+        if self._recovering:
+            speed = min(speed, RECOVERY_SPEED_PERCENT)
+        return codec.encode_mode_control(ctrl_mode=CAN_CONTROL, move_mode=MOVE_J,
+                                         speed_percent=speed)
 
     def limit_speed(self, percent: int) -> None:
         """Slows the arm to `percent` % of its speed (the mode frame's, and the streamed
@@ -412,14 +442,16 @@ class PiperLink(ControlSteps):
                 target_v = np.zeros(6)  # the caller stopped updating: it stands still
         if target is None:
             return
-        if previous is None:  # (re)start from where the arm is, at rest, even beyond a limit
-            previous = self.listener.snapshot().q
+        if previous is None:  # (re)start from where the arm is, at rest
+            previous = np.clip(self.listener.snapshot().q, self._lower, self._upper)
             self._sent_v = np.zeros(6)
         q, self._sent_v = step_towards(previous, self._sent_v, target, target_v,
                                        self.max_speed, self.max_acceleration, self._period)
-        # Targets stay within the limits, or between a limit and where the arm was found.
-        q = np.clip(q, np.minimum(self._lower, previous), np.maximum(self._upper, previous))
+        q = np.clip(q, self._lower, self._upper)  # the arm refuses targets beyond its limits
         self._cycles += 1
+        if self._recovering and self._within_limits():
+            self._recovering = False  # back inside: the station's speed again
+            self._cycles = 0
         if self._cycles % MODE_REPEAT == 0:
             self._send(*self.mode_frame())
         for frame in codec.encode_joints(codec.JOINT_COMMAND, q):

@@ -74,10 +74,6 @@ class ControlSteps:
                                "sends targets for a follower and takes no commands: "
                                + MAKE_FOLLOWER)
 
-    def mode_frame(self) -> tuple[int, bytes]:
-        return codec.encode_mode_control(ctrl_mode=CAN_CONTROL, move_mode=MOVE_J,
-                                         speed_percent=self.speed_percent)
-
     def take_control(self) -> None:
         """Sends the mode frame until the arm reports CAN control and MOVE J."""
         def confirmed():

@@ -42,6 +42,8 @@ class CanFaults:
 #: A real arm's defaults (see PiperCan): speed %, joint speed rad/s, acceleration rad/s²,
 #: collision protection level.
 RIG_SPEED_PERCENT, RIG_JOINT_SPEED, RIG_JOINT_ACCELERATION, RIG_COLLISION_LEVEL = 30, 1.0, 2.0, 4
+#: The PiPER's largest joint speed, rad/s (0x474; its speed percentage scales it).
+MAX_JOINT_SPEED = 3.0
 #: What an emulated twin (emulate: true) keeps: full speed, collision protection as it is.
 EMULATED_SPEED_PERCENT = 100
 
@@ -196,10 +198,12 @@ class PiperCan:
 
 def rig_skills(skills, station):
     """The skills' limits for `station`: on a real arm (PiperCan, not emulated) the joint
-    speed and acceleration are at most the station's; elsewhere `skills` unchanged."""
+    speed and acceleration are at most the station's, and the speed at most the arm's at
+    its speed percentage; elsewhere `skills` unchanged."""
     if not isinstance(station, PiperCan) or not station.real_arm:
         return skills
+    arm_speed = MAX_JOINT_SPEED * station.arm_speed_percent / 100.0
     return dc.replace(skills, max_joint_velocity=min(skills.max_joint_velocity,
-                                                     station.joint_speed),
+                                                     station.joint_speed, arm_speed),
                       max_joint_acceleration=min(skills.max_joint_acceleration,
                                                  station.joint_acceleration))
