@@ -175,3 +175,10 @@ class ControlSteps:
                                    f"{self.config.startup_timeout} s")
             self._send(*codec.encode_motor_enable(on))
             time.sleep(ENABLE_RETRY)
+
+    def send_gripper(self, opening: float, effort: float, code: int = codec.GRIPPER_ENABLE,
+                     set_zero: bool = False) -> None:
+        """One gripper command (0x159): opening (m), effort limit (N·m), enable code,
+        set-zero (the current opening becomes the zero)."""
+        self._send(*codec.encode_gripper_command(codec.GripperCommand(
+            opening, effort, code, set_zero), stroke=self.config.gripper_stroke_mm / 1000.0))
