@@ -24,6 +24,15 @@ DEFAULT_END_SPEEDS = codec.EndSpeeds(0.5, 1.5, 1.0, 3.0)
 COMMAND_REJECTIONS = (2, 3, 4)
 #: Gripper opening speed, m/s.
 GRIPPER_SPEED = 0.1
+#: The joints' mechanical stops (rad, physical angles): J1 ±154°, J2 0..195°, J3 −175..0°,
+#: J4 ±106°, J5 ±75°, J6 ±170° (the arm's manual, as piper_control's limits since its PRs
+#: 40, 76, 78; J6's measured at the hard stop). The firmware's limits (0x474) lie within.
+MECHANICAL_LOWER = np.radians([-154.0, 0.0, -175.0, -106.0, -75.0, -170.0])
+MECHANICAL_UPPER = np.radians([154.0, 195.0, 0.0, 106.0, 75.0, 170.0])
+#: After an e-stop each joint's motor only damps: it gives way to the torque it holds at
+#: torque / damping (N·m·s/rad per joint; the emulator's scale, the vendor publishes none):
+#: J2 and J3 holding 3-5 N·m sink at 3-6 °/s.
+ESTOP_DAMPING = np.array([50.0, 50.0, 50.0, 10.0, 10.0, 10.0])
 
 
 def _joint_array(value) -> np.ndarray:

@@ -54,15 +54,17 @@ class PiperEmulator:
 
     def __init__(self, bus: can.BusABC, *, firmware: str = "S-V1.8-2", rate: float = DEFAULT_RATE,
                  gravity_torque: Callable[[np.ndarray], np.ndarray] | None = None,
-                 motion=None, on_cycle: Callable[[], None] | None = None):
-        """`motion`: the motion backend (default: KinematicMotion(gravity_torque))."""
+                 motion=None, on_cycle: Callable[[], None] | None = None,
+                 start: str = "normal"):
+        """`motion`: the motion backend (default: KinematicMotion(gravity_torque)); `start`:
+        the state the arm powers up in (`firmware.START_STATES`)."""
         if motion is not None and gravity_torque is not None:
             raise ValueError("gravity_torque applies to the kinematic motion only; the "
                              "given motion backend computes its own torques")
         self._bus = bus
         self._period = 1.0 / rate
         self.motion = motion or KinematicMotion(gravity_torque)
-        self.firmware = Firmware(self.motion, firmware)
+        self.firmware = Firmware(self.motion, firmware, start)
         self._on_cycle = on_cycle
         #: Held while the arm (and the motion backend's world) changes; hold it to read both.
         self.lock = threading.Lock()

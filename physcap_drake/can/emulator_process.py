@@ -60,13 +60,22 @@ class EmulatorProcess:
     `state_size`: the plant's positions + velocities (the world block's size, 0 without a
     scenario); `firmware`: the version it reports; `realtime_priority`: its scheduling (see
     `can.realtime`, 0: normal); `pace_world`: step the world in a thread of its own
-    (`paced_world`, see `serve`). The process starts at once and builds its world in the
+    (`paced_world`, see `serve`); `start`: the state the arm powers up in
+    (`firmware.START_STATES`); `joints`: without a scenario, where the kinematic arm (which
+    weighs like the PiPER model, `arm_gravity`) powers up, rad (default all 0, the rest
+    pose; within the mechanical stops). The process starts at once and builds its world in the
     background; `wait_ready()` waits for it."""
 
     def __init__(self, bus_socket: socket.socket, scenario_yaml: str | None = None, *,
                  world_builder: str | None = None, gripper_max_effort: float = 2.0,
                  state_size: int = 0, firmware: str = "S-V1.8-2", realtime_priority: int = 0,
-                 pace_world: bool = False):
+                 pace_world: bool = False, start: str = "normal", joints=None):
+        from physcap_drake.can.firmware import START_STATES
+
+        if start not in START_STATES:
+            bus_socket.close()
+            raise ValueError(f"emulated start state {start!r}: one of "
+                             f"{', '.join(START_STATES)}")
         if scenario_yaml is not None and world_builder is None:
             bus_socket.close()
             raise ValueError("an emulated world from a scenario needs its world_builder "
@@ -78,7 +87,8 @@ class EmulatorProcess:
         self._child = ChildProcess(
             "physcap_drake.can.emulator_process:serve",
             (bus_socket.fileno(), scenario_yaml, world_builder, gripper_max_effort, firmware,
-             world_fd, state_size, realtime_priority, pace_world), fds,
+             world_fd, state_size, realtime_priority, pace_world, start,
+             None if joints is None else [float(a) for a in joints]), fds,
             name="piper-emulator")
         bus_socket.close()  # the child has its own copy
         self._ready = False
@@ -145,8 +155,10 @@ class EmulatorProcess:
 
 def serve(conn, bus_fd: int, scenario_yaml: str | None, world_builder: str | None,
           gripper_max_effort: float, firmware: str, world_fd: int | None, state_size: int,
-          realtime_priority: int, pace_world: bool = False) -> None:
+          realtime_priority: int, pace_world: bool = False, start: str = "normal",
+          joints: list[float] | None = None) -> None:
     """The emulated arm's process: runs until the parent says close or goes away."""
+    from physcap_drake.can.arm_gravity import ArmGravity
     from physcap_drake.can.emulator import PiperEmulator
     from physcap_drake.can.motion import KinematicMotion
     from physcap_drake.can.paced_world import PacedWorld
@@ -159,7 +171,7 @@ def serve(conn, bus_fd: int, scenario_yaml: str | None, world_builder: str | Non
     world = None if world_fd is None else SharedBlock(world_layout(state_size), fd=world_fd)
     try:
         if scenario_yaml is None:
-            motion = KinematicMotion()
+            motion = KinematicMotion(ArmGravity(), q0=joints)
         else:
             # The builder's world has the scenario's hidden masses as model data.
             motion = named_function(world_builder)(scenario_yaml, gripper_max_effort)
@@ -196,7 +208,7 @@ def serve(conn, bus_fd: int, scenario_yaml: str | None, world_builder: str | Non
     # A world stepped in the firmware's cycle is published after every cycle.
     on_cycle = publish if world is not None and not pace_world else None
     emulator = PiperEmulator(bus, firmware=firmware, motion=motion, rate=FIRMWARE_RATE,
-                             on_cycle=on_cycle).start()
+                             on_cycle=on_cycle, start=start).start()
     try:
         while True:
             try:

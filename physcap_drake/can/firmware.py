@@ -22,7 +22,12 @@ import numpy as np
 
 from physcap_drake.can import codec
 from physcap_drake.can import firmware_settings as settings
-from physcap_drake.can.arm_state import EmulatedArm
+from physcap_drake.can.arm_state import (
+    ESTOP_DAMPING,
+    MECHANICAL_LOWER,
+    MECHANICAL_UPPER,
+    EmulatedArm,
+)
 from physcap_drake.can.end_pose import (
     end_pose,
     flange_transform,
@@ -45,6 +50,8 @@ TEACH_RECORD, TEACH_EXECUTE, TEACH_PAUSE = 11, 12, 13
 COLLISION_TORQUE_LEVEL1 = np.array([16.0, 16.0, 16.0, 6.0, 6.0, 4.0])
 #: Joint targets this far beyond a limit (rad, half a 0.001° count) are still within it.
 LIMIT_SLACK = 1e-5
+#: How far (rad) a sinking joint's reference may lead its measured angle.
+SINK_LEAD = 0.02
 #: Drivers' bus voltage (V) and temperatures (°C) the emulator reports.
 BUS_VOLTAGE, DRIVER_TEMPERATURE, MOTOR_TEMPERATURE = 24.0, 35.0, 30.0
 #: Low-speed driver feedback every this many cycles (about 40 Hz at 200 Hz).
@@ -56,6 +63,10 @@ LOW_SPEED_DIVIDER = 5
 #: fixed once the plant is finalized), and the kinematic arm has no dynamics at all.
 MIT_REFUSAL = ("MIT mode (MOVE M with 0xAD) is not emulated: the emulated arm's joint loop "
                "gains cannot follow per-joint kp/kd")
+#: The states an emulated arm can be powered up in, for rehearsals: as it left the factory;
+#: in drag-teach (its teach button pressed); configured as a linkage's leader (0x470 0xFA);
+#: in standby with the first mode frame (0x151) it is sent lost on the way.
+START_STATES = ("normal", "teach", "leader", "standby")
 
 
 def _joint_bits(joints) -> int:
@@ -64,9 +75,12 @@ def _joint_bits(joints) -> int:
 
 class Firmware:
     """See module docstring. `motion`: the backend (`motion.KinematicMotion` or
-    `station.simulated_motion.SimulatedMotion`); `firmware`: the version it reports."""
+    `station.simulated_motion.SimulatedMotion`); `firmware`: the version it reports;
+    `start`: the state it powers up in (one of START_STATES)."""
 
-    def __init__(self, motion, firmware: str = "S-V1.8-2"):
+    def __init__(self, motion, firmware: str = "S-V1.8-2", start: str = "normal"):
+        if start not in START_STATES:
+            raise ValueError(f"emulated start state {start!r}: one of {', '.join(START_STATES)}")
         self.version = firmware
         self._dh = 1 if codec.parse_firmware(firmware) >= (1, 6, 3) else 0
         #: Motor current per N·m of joint torque, with this firmware's scaling.
@@ -89,6 +103,7 @@ class Firmware:
         self._target_age = np.zeros(3)  # s since each joint pair last came
         self._teach: list[np.ndarray] = []
         self._cycle = 0
+        self._sinking = False  # damped after an e-stop command (see _sink)
         self._reading = MotionReading(q.copy(), np.zeros(6), np.zeros(6), np.zeros(6),
                                       opening, 0.0)
         self._previous_end_motion = np.zeros((6, 2))
@@ -112,6 +127,13 @@ class Firmware:
             self._handlers[identifier] = (lambda i: lambda d: self._end_pose(i, d))(index)
         for joint, identifier in enumerate(codec.MIT_COMMAND):
             self._handlers[identifier] = (lambda j: lambda d: self._mit_command(j, d))(joint)
+        #: Mode frames (0x151) still to be lost before one arrives (the standby start).
+        self._mode_frames_to_lose = 1 if start == "standby" else 0
+        if start == "teach":
+            self._drag_teach(1)
+        elif start == "leader":
+            settings.set_linkage(arm, codec.encode_linkage_config(codec.LinkageConfig(
+                codec.LEADER))[1])
 
     # Frames in -------------------------------------------------------------------------
 
@@ -152,7 +174,7 @@ class Firmware:
         arm = self.arm
         if command.emergency == codec.EMERGENCY_STOP:
             self.planner.hold()
-            arm.arm_status = E_STOP
+            arm.arm_status, self._sinking = E_STOP, True
         elif command.emergency == codec.EMERGENCY_RESUME:
             self.resume()
         if command.trajectory:
@@ -166,8 +188,11 @@ class Firmware:
         arm = self.arm
         self.planner.hold()
         self.planner.paused = False
+        self._sinking = False
         arm.arm_status, arm.err_code, arm.refusal = NORMAL, 0, ""
-        arm.teach_status, arm.ctrl_mode = 0, 0
+        # A leader stays one (its role is kept in flash; it changes with 0x470 only).
+        arm.teach_status = 0
+        arm.ctrl_mode = 6 if arm.linkage.linkage == codec.LEADER else 0
         arm.enabled[:] = False
 
     def _trajectory_control(self, code: int) -> None:
@@ -204,6 +229,9 @@ class Firmware:
 
     def _mode_control(self, data: bytes) -> None:
         mode = codec.decode_mode_control(data)
+        if self._mode_frames_to_lose:
+            self._mode_frames_to_lose -= 1
+            return
         arm = self.arm
         if arm.ctrl_mode == 6 or arm.arm_status in (TEACH_RECORD, TEACH_EXECUTE, TEACH_PAUSE):
             return  # a leader arm, or drag teaching: control commands are not taken
@@ -345,6 +373,7 @@ class Firmware:
         """Reports an error state from now on (arm_status as in 0x2A1, err_code bits);
         the arm holds where it is."""
         self.arm.arm_status, self.arm.err_code = int(arm_status), int(err_code)
+        self._sinking = False
         self.planner.hold()
 
     # The cycle ---------------------------------------------------------------------------
@@ -358,6 +387,8 @@ class Firmware:
             self.planner.stream_velocity[2 * pair:2 * pair + 2] = 0.0
         if arm.stopped or arm.arm_status == TEACH_RECORD:
             arm.reference_speed = np.zeros(6)
+            if self._sinking and arm.arm_status == E_STOP:
+                self._sink(dt)
         else:
             status = self.planner.step(dt, fast)
             if status:
@@ -380,6 +411,18 @@ class Firmware:
         frames = self._feedback(dt)
         self._cycle += 1
         return frames
+
+    def _sink(self, dt: float) -> None:
+        """After an e-stop (0x150 = 1) the motors only damp: each powered joint gives way to
+        the torque it holds, at torque / ESTOP_DAMPING rad/s, so the arm sinks slowly under
+        gravity (piper_sdk issue 66), never past its mechanical stops nor further than
+        SINK_LEAD ahead of where it is (a joint held up by something stops)."""
+        arm = self.arm
+        start = np.clip(arm.reference, arm.q - SINK_LEAD, arm.q + SINK_LEAD)
+        sunk = start - arm.torque / ESTOP_DAMPING * dt
+        physical = np.clip(sunk + arm.zero_offset, MECHANICAL_LOWER, MECHANICAL_UPPER)
+        arm.reference = np.where(arm.enabled, physical - arm.zero_offset, arm.reference)
+        arm.target = arm.reference.copy()
 
     def _command(self) -> MotionCommand:
         arm = self.arm
@@ -413,9 +456,11 @@ class Firmware:
         frames = [codec.encode_arm_status(codec.ArmStatus(
             arm.ctrl_mode, arm.arm_status, arm.move_mode, arm.teach_status, arm.motion_status,
             0, arm.err_code))]
-        frames += codec.encode_end_pose(codec.END_POSE_FEEDBACK, end_pose(
-            arm.q + arm.zero_offset, self._dh))
-        frames += codec.encode_joints(codec.JOINT_FEEDBACK, arm.q)
+        leader = arm.linkage.linkage == codec.LEADER
+        if not leader:  # a leader sends no end pose or joint feedback (piper_sdk issue 41)
+            frames += codec.encode_end_pose(codec.END_POSE_FEEDBACK, end_pose(
+                arm.q + arm.zero_offset, self._dh))
+            frames += codec.encode_joints(codec.JOINT_FEEDBACK, arm.q)
         status = (codec.ENABLED if arm.gripper_enabled else 0) | codec.GRIPPER_HOMED
         frames.append(codec.encode_gripper_feedback(codec.GripperFeedback(
             arm.gripper_opening, arm.gripper_effort, status)))
@@ -433,9 +478,10 @@ class Firmware:
         if arm.periodic_end_motion:
             frames += self._end_motion(dt)
         frames = self._shifted(frames)
-        if arm.linkage.linkage == codec.LEADER:  # a leader arm drives its followers
+        if leader:  # a leader drives its followers: their mode, joints and gripper
             offset = arm.linkage.linkage_offset
-            commands = codec.encode_joints(codec.JOINT_COMMAND, arm.q)
+            commands = [codec.encode_mode_control(1, codec.MOVE_J, 100)]
+            commands += codec.encode_joints(codec.JOINT_COMMAND, arm.q)
             commands.append(codec.encode_gripper_command(codec.GripperCommand(
                 arm.gripper_opening, arm.gripper_effort_limit), stroke=1.0))
             frames += [(i + offset, d) for i, d in commands]

@@ -17,6 +17,8 @@ from physcap_drake.can.arm_state import (
     DEFAULT_END_SPEEDS,
     DEFAULT_MAX_ACCELERATION,
     DEFAULT_MAX_SPEED,
+    MECHANICAL_LOWER,
+    MECHANICAL_UPPER,
     EmulatedArm,
 )
 from physcap_drake.kinematics.piper_dh import JOINT_LOWER, JOINT_UPPER
@@ -35,6 +37,10 @@ def _joints(motor: int, *, every: tuple[int, ...] = (codec.ALL_MOTORS,)) -> list
     return [motor - 1] if 1 <= motor <= 6 else []
 
 
+#: Half a count of 0x474's 0.1° angles, rad: a limit this close to a stop is at it.
+STOP_SLACK = np.radians(0.05)
+
+
 def limit_reply(arm: EmulatedArm, joint: int) -> tuple[int, bytes]:
     return codec.encode_joint_limits(codec.JointLimits(
         joint + 1, arm.upper[joint], arm.lower[joint], arm.max_speed[joint]))
@@ -51,7 +57,8 @@ def query_limits(arm: EmulatedArm, data: bytes) -> Frames:
 
 
 def set_limits(arm: EmulatedArm, data: bytes) -> Frames:
-    """0x474: angle limits and maximum speed of one joint (0x7FFF: unchanged)."""
+    """0x474: angle limits and maximum speed of one joint (0x7FFF: unchanged); angle limits
+    reach at most the joint's mechanical stops."""
     setting = codec.decode_limit_setting(data)
     joints = _joints(setting.motor, every=())
     if not joints:
@@ -60,7 +67,9 @@ def set_limits(arm: EmulatedArm, data: bytes) -> Frames:
     lower = arm.lower[j] if setting.min_angle is None else setting.min_angle
     upper = arm.upper[j] if setting.max_angle is None else setting.max_angle
     speed = arm.max_speed[j] if setting.max_speed is None else setting.max_speed
-    if lower >= upper or not 0.0 <= speed <= DEFAULT_MAX_SPEED + 1e-9:
+    if (lower >= upper or not 0.0 <= speed <= DEFAULT_MAX_SPEED + 1e-9
+            or lower < MECHANICAL_LOWER[j] - STOP_SLACK
+            or upper > MECHANICAL_UPPER[j] + STOP_SLACK):
         return []
     arm.lower[j], arm.upper[j], arm.max_speed[j] = lower, upper, speed
     return [ack(codec.LIMIT_SETTING)]

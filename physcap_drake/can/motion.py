@@ -14,7 +14,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from physcap_drake.can.arm_state import GRIPPER_SPEED
+from physcap_drake.can.arm_state import GRIPPER_SPEED, MECHANICAL_LOWER, MECHANICAL_UPPER
 
 
 @dc.dataclass(frozen=True)
@@ -46,12 +46,21 @@ class MotionReading:
 
 
 class KinematicMotion:
-    """Joints sit exactly on their reference; holding torques from `gravity_torque(q)` (N·m)."""
+    """Joints sit exactly on their reference, within their mechanical stops; holding torques
+    from `gravity_torque(q)` (N·m, e.g. `arm_gravity.ArmGravity()`; default none)."""
 
     def __init__(self, gravity_torque: Callable[[np.ndarray], np.ndarray] | None = None,
                  q0=None, opening0: float = 0.0):
         self._gravity = gravity_torque or (lambda q: np.zeros(6))
         self._q = np.zeros(6) if q0 is None else np.asarray(q0, dtype=float).copy()
+        if self._q.shape != (6,):
+            raise ValueError(f"power-up joints: six angles J1..J6, got {self._q.size}")
+        for joint in np.flatnonzero((self._q < MECHANICAL_LOWER - 1e-9)
+                                    | (self._q > MECHANICAL_UPPER + 1e-9)):
+            raise ValueError(f"power-up joints: J{joint + 1} at {np.degrees(self._q[joint]):g}° "
+                             f"is past its mechanical stops "
+                             f"({np.degrees(MECHANICAL_LOWER[joint]):.0f}° .. "
+                             f"{np.degrees(MECHANICAL_UPPER[joint]):.0f}°)")
         self._opening = float(opening0)
 
     def initial_state(self) -> tuple[np.ndarray, float]:
@@ -59,7 +68,8 @@ class KinematicMotion:
         return self._q.copy(), self._opening
 
     def step(self, command: MotionCommand, dt: float) -> MotionReading:
-        q = np.where(command.powered, command.reference, self._q)
+        q = np.clip(np.where(command.powered, command.reference, self._q), MECHANICAL_LOWER,
+                    MECHANICAL_UPPER)  # nothing moves a joint past its stop
         velocity = (q - self._q) / dt
         self._q = q
         if command.gripper_enabled:

@@ -21,6 +21,8 @@ import can
 BUFFER_BYTES = 4 << 20
 #: arbitration id, flags (1 extended, 2 remote), length, 8 data bytes, timestamp.
 _FRAME = struct.Struct(">IBB8sd")
+#: Bytes of one frame's packet on the socket.
+PACKET_BYTES = _FRAME.size
 
 
 def socket_pair() -> tuple[socket.socket, socket.socket]:

@@ -2,53 +2,104 @@
 
 from __future__ import annotations
 
+import signal
 import time
 from pathlib import Path
 from typing import Annotated
 
 import can
+import numpy as np
 import typer
 
+from physcap_drake.can.arm_gravity import ArmGravity
 from physcap_drake.can.emulator import PiperEmulator
+from physcap_drake.can.firmware import START_STATES
+from physcap_drake.can.motion import KinematicMotion
+from physcap_drake.can.unix_bus import UnixBusHub
 from physcap_drake.commands.common import console, fail, load_scenario_or_exit
 from physcap_drake.station.can_cameras import emulated_world
 from physcap_drake.station.simulated_motion import simulated_motion
 
+#: The buses it serves on.
+INTERFACES = ("socketcan", "unix", "virtual")
+
 
 def emulate_piper(
-    channel: Annotated[str, typer.Option("--channel", help="CAN channel, e.g. vcan0.")],
+    channel: Annotated[str, typer.Option(
+        "--channel", help="CAN channel, e.g. vcan0; with --interface unix a socket path.")],
     interface: Annotated[str, typer.Option(
-        "--interface", help="python-can interface: socketcan (a separate process can talk "
-        "to it) or virtual (in-process only).")] = "socketcan",
+        "--interface", help="socketcan (a separate process reaches it, e.g. on vcan0), unix "
+        "(serves a rehearsal bus on the Unix-domain socket --channel names, which any "
+        "number of physcap processes reach) or virtual (in-process only).")] = "socketcan",
     firmware: Annotated[str, typer.Option("--firmware", help="Version it reports.")] = "S-V1.8-2",
     seconds: Annotated[float, typer.Option(
         "--seconds", min=0.0, help="Stop after this long (0: run until Ctrl-C).")] = 0.0,
     scenario: Annotated[Path | None, typer.Option(
         "--scenario", help="Back the arm by this scenario's simulated station (its scene and "
                            "objects); without it the joints move kinematically.")] = None,
+    start: Annotated[str, typer.Option(
+        "--start", help="The state the arm powers up in: normal, teach (drag-teach: CAN "
+                        "motion ignored until reset), leader (a linkage's leader arm: no joint "
+                        "feedback) or standby (the first mode frame is lost).")] = "normal",
+    joints_deg: Annotated[str, typer.Option(
+        "--joints-deg", help="Where the kinematic arm is at power-up: J1..J6 in degrees, comma "
+                             "separated, within the mechanical stops (e.g. J6 at 160, past its "
+                             "120° limit, as a hand may leave it). Default: a little "
+                             "off its rest pose (J2 15°, J3 -15°), where an e-stop shows "
+                             "the arm sinking; 0,0,0,0,0,0 is the rest pose, on J2's and "
+                             "J3's stops.")] = "0,15,-15,0,0,0",
 ) -> None:
     """Answer on the bus like a PiPER arm: feedback at 200 Hz (status, end pose, joints,
     gripper, drivers), every command and query of the vendor's protocol (e-stop and resume,
     modes and speed, joint and end-pose moves, gripper, settings acknowledged on 0x476,
     limits and parameters); what it cannot emulate (MIT mode) it refuses in arm_status."""
-    if interface not in ("socketcan", "virtual"):
-        raise typer.BadParameter(f"--interface must be socketcan or virtual, not {interface!r}")
-    motion = None
-    if scenario is not None:
+    if interface not in INTERFACES:
+        raise typer.BadParameter(f"--interface must be one of {', '.join(INTERFACES)}, not "
+                                 f"{interface!r}")
+    if start not in START_STATES:
+        raise typer.BadParameter(f"--start must be one of {', '.join(START_STATES)}, not "
+                                 f"{start!r}")
+    # Without a scenario the joints move kinematically and hold the model's weight.
+    try:
+        motion = KinematicMotion(ArmGravity(), q0=_power_up_joints(joints_deg))
+    except ValueError as error:
+        raise typer.BadParameter(f"--joints-deg: {error}") from None
+    if scenario is not None:  # its world starts where the scenario puts the arm
         # The world renders no camera here: cameras belong to the station that connects.
         motion = simulated_motion(emulated_world(load_scenario_or_exit(scenario), cameras=False))
+    hub = None
     try:
-        bus = can.Bus(interface=interface, channel=channel)
+        if interface == "unix":
+            hub = UnixBusHub(channel)
+            bus = hub.member("emulator")
+        else:
+            bus = can.Bus(interface=interface, channel=channel)
     except (OSError, can.CanError) as error:
         fail(f"cannot open {interface} channel {channel!r}: {error}")
-    console.print(f"emulating a PiPER (firmware {firmware}) on {interface}:{channel}; "
-                  "Ctrl-C to stop")
+    console.print(f"emulating a PiPER (firmware {firmware}, start state {start}) on "
+                  f"{interface}:{channel}; Ctrl-C to stop")
+    signal.signal(signal.SIGTERM, _interrupt)  # `kill` ends it as cleanly as Ctrl-C
     try:
-        with PiperEmulator(bus, firmware=firmware, motion=motion):
-            start = time.monotonic()
-            while not seconds or time.monotonic() - start < seconds:
+        with PiperEmulator(bus, firmware=firmware, motion=motion, start=start):
+            began = time.monotonic()
+            while not seconds or time.monotonic() - began < seconds:
                 time.sleep(0.1)
     except KeyboardInterrupt:
         pass
     finally:
         bus.shutdown()
+        if hub is not None:
+            hub.close()
+
+
+def _interrupt(signum, frame) -> None:
+    raise KeyboardInterrupt
+
+
+def _power_up_joints(text: str) -> np.ndarray:
+    """--joints-deg as rad."""
+    try:
+        return np.radians([float(v) for v in text.split(",")])
+    except ValueError:
+        raise typer.BadParameter(f"--joints-deg: six numbers separated by commas, not "
+                                 f"{text!r}") from None

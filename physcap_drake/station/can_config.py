@@ -114,6 +114,10 @@ class PiperCan:
     emulated: SimPiper = dc.field(default_factory=SimPiper)
     # Faults on the emulated bus.
     faults: CanFaults = dc.field(default_factory=CanFaults)
+    # The state the emulated arm powers up in, for rehearsals (docs/piper_emulator.md):
+    # "normal", "teach" (drag-teach), "leader" (a linkage's leader arm), "standby" (its
+    # first mode frame is lost).
+    emulated_start: str = "normal"
 
     @property
     def real_arm(self) -> bool:
@@ -184,6 +188,9 @@ class PiperCan:
                     "emulate-piper` separately for socketcan)",
                     f"got emulate: true with interface {self.interface!r}")
         if self.emulate:
+            from physcap_drake.can.firmware import START_STATES
+
+            at.choice("emulated_start", self.emulated_start, list(START_STATES))
             self.emulated.check(at.child("emulated"))
             if self.emulated.gripper_servo.max_force != self.gripper_max_force:
                 at.fail("gripper_max_force", "equal to emulated.gripper_servo.max_force "

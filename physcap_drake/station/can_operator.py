@@ -46,7 +46,8 @@ def operator_link(scenario):
     if config.emulate:
         emulator_bus = can.Bus(interface="virtual", channel=config.channel)
         emulator = PiperEmulator(emulator_bus, firmware=config.firmware or EMULATED_FIRMWARE,
-                                 motion=simulated_motion(scenario)).start()
+                                 motion=simulated_motion(scenario),
+                                 start=config.emulated_start).start()
     link = PiperLink(open_bus(settings), settings).open()
     try:
         yield link

@@ -101,7 +101,7 @@ class CanSession:
             gripper_max_effort=config.gripper_max_effort,
             state_size=self.world_size, firmware=config.firmware or EMULATED_FIRMWARE,
             realtime_priority=max(config.realtime_priority - 1, 0),
-            pace_world=config.pace_world)
+            pace_world=config.pace_world, start=config.emulated_start)
         return self
 
     def wait_ready(self) -> CanSession:
