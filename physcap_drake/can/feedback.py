@@ -43,7 +43,7 @@ MAX_VOLTAGE, TEMPERATURES, MAX_CTRL_MODE, MAX_ARM_STATUS = 60.0, (-40.0, 150.0),
 CLOCK_MISMATCH = 10.0
 #: Reported joint angles beyond these are garbage, rad: the soft limits plus ANGLE_MARGIN,
 #: and J6 out to its mechanical stop (it turns past its soft limit by hand or on enable).
-J6_MECHANICAL_STOP = np.radians(175.0)
+J6_MECHANICAL_STOP = np.radians(175.0)  # its measured hard stop, 170°, and 5° more
 FEEDBACK_LOWER = np.append(JOINT_LOWER[:5] - ANGLE_MARGIN, -J6_MECHANICAL_STOP)
 FEEDBACK_UPPER = np.append(JOINT_UPPER[:5] + ANGLE_MARGIN, J6_MECHANICAL_STOP)
 #: Gripper status bits (0x2A8 byte 6) that are faults, in words.

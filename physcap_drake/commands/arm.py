@@ -3,6 +3,7 @@ CAN, outside an episode."""
 
 from __future__ import annotations
 
+import dataclasses as dc
 import math
 from pathlib import Path
 from typing import Annotated
@@ -23,7 +24,8 @@ from physcap_drake.commands.common import (
     save_json,
 )
 from physcap_drake.control.errors import SkillRefused
-from physcap_drake.scenario import Scenario
+from physcap_drake.resources import stations_dir
+from physcap_drake.scenario import Scenario, load_scenario
 from physcap_drake.station.can_config import PiperCan
 from physcap_drake.station.can_gate import confirm_enabling
 from physcap_drake.station.can_operator import ArmReport, arm_report, operator_link
@@ -31,13 +33,22 @@ from physcap_drake.station.can_operator import ArmReport, arm_report, operator_l
 app = typer.Typer(help="The PiPER over CAN: state, enabling, parking, the gripper, e-stop, "
                        "resume, clearing errors.", no_args_is_help=True)
 
+#: The scene of the arm commands without --scenario (its station replaced by the arm's).
+DEFAULT_SCENE = "piper_table.yaml"
+
 ScenarioOption = Annotated[Path | None, typer.Option(
     "--scenario", help="A scenario whose station: !PiperCan names the bus (emulate: true "
                        "starts an emulated arm). Default: the arm on socketcan can0.")]
 
 
 def _scenario(path: Path | None, interface: str | None, channel: str | None) -> Scenario:
-    scenario = Scenario(station=PiperCan()) if path is None else load_scenario_or_exit(path)
+    """The scenario, on --interface/--channel where given; without one, the PiPER on its
+    table (stations/piper_table.yaml, for park's collision checks) on socketcan can0."""
+    if path is None:
+        scenario = dc.replace(load_scenario(stations_dir() / DEFAULT_SCENE),
+                              station=PiperCan())
+    else:
+        scenario = load_scenario_or_exit(path)
     return with_bus(scenario, interface, channel)
 
 

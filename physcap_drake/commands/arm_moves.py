@@ -1,22 +1,22 @@
 """What `physcap arm park` and `physcap arm gripper` do with an open PiperLink.
 
-Parking plans a collision-checked joint move (the skills' planner, against the scenario's
-robot and fixed environment) from where the arm is to the rest pose (skills.home_position),
+Parking plans a collision-checked joint move (against the scenario's robot and fixed
+environment) from where the arm is to the rest pose (skills.home_position),
 streams it at PARK_SPEED_PERCENT of the arm's speed at most, waits until the arm is there,
 then switches the motors off. Enabling asks first on a real arm (`can_gate`).
 """
 
 from __future__ import annotations
 
-import dataclasses as dc
 import time
 
 import numpy as np
+from pydrake.trajectories import Trajectory
 
 from physcap_drake.can import codec
+from physcap_drake.control.errors import SkillRefused
 from physcap_drake.control.planning_model import PlanningModel
-from physcap_drake.control.requests import MoveToJoints
-from physcap_drake.control.skill_planner import SkillPlanner
+from physcap_drake.control.trajectories import time_parameterize
 from physcap_drake.station.can_config import MAX_JOINT_SPEED, rig_skills
 from physcap_drake.station.can_gate import confirm_enabling
 from physcap_drake.station.robot_model import robot_model
@@ -27,6 +27,9 @@ PARK_SPEED_PERCENT = 20
 PARK_TOLERANCE = np.radians(0.5)
 #: How long beyond the planned duration the arm may take to arrive, s.
 PARK_MARGIN = 5.0
+#: The way to rest is checked every this much joint travel, rad; a contact may deepen by
+#: this much on it (numerical noise), m.
+CHECK_STEP, CONTACT_SLACK = 0.01, 5e-4
 #: Interval between the samples of the plan handed to the link, s.
 SAMPLE_PERIOD = 0.01
 #: The gripper is where it was sent once within this, m; it gets this long, s.
@@ -39,20 +42,36 @@ def rest_pose(scenario) -> np.ndarray:
     return np.asarray(scenario.skills.home_position, dtype=float)
 
 
-def park_plan(scenario, q: np.ndarray, opening: float):
-    """The collision-checked JointPlan from `q` (rad) to the rest pose at the parking speed;
-    SkillRefused if the way is not clear."""
+def park_plan(scenario, q: np.ndarray, opening: float) -> Trajectory:
+    """The trajectory from `q` (rad) to the rest pose along a straight joint path at the
+    parking speed, checked against the robot's model and fixed environment: no contact may
+    deepen on the way (an arm left touching itself, as one that sank after an e-stop, may
+    leave that contact). SkillRefused naming the bodies if the way is not clear."""
     station = scenario.station
-    model = robot_model(scenario.directives, station.arm_model, station.gripper_model)
+    model = PlanningModel(robot=robot_model(scenario.directives, station.arm_model,
+                                            station.gripper_model))
     skills = rig_skills(scenario.skills, station)
-    skills = dc.replace(skills, max_joint_velocity=min(
-        skills.max_joint_velocity, MAX_JOINT_SPEED * PARK_SPEED_PERCENT / 100.0))
-    planner = SkillPlanner(PlanningModel(robot=model), skills,
-                           gripper_stroke=model.gripper_stroke)
-    planned = planner.plan(MoveToJoints(rest_pose(scenario), "park", check_workspace=False),
-                           now=0.0, q_now=q, opening_measured=opening,
-                           gripper_command=(opening, 0.0))
-    return planned.arm_plan
+    rest = rest_pose(scenario)
+    bad = [f"J{j + 1}" for j in range(6)
+           if not model.lower[j] - 1e-9 <= rest[j] <= model.upper[j] + 1e-9]
+    if bad:
+        raise SkillRefused(f"park refused: skills.home_position is beyond the limits of "
+                           f"{', '.join(bad)}")
+    travel = float(np.abs(rest - q).max())
+    allowed = 0.0
+    for s in np.linspace(0.0, 1.0, max(int(np.ceil(travel / CHECK_STEP)), 1) + 1):
+        contact = model.deepest_contact(q + s * (rest - q), opening)
+        if s == 0.0 and contact is not None:
+            allowed = contact[0]  # where it starts, touching
+        elif contact is not None and contact[0] < allowed - CONTACT_SLACK:
+            raise SkillRefused(f"park refused: the way to the rest pose would bring "
+                               f"{contact[1]} into contact: move the arm clear by hand "
+                               "(motors off) or with a skill, then park")
+        else:
+            allowed = 0.0 if contact is None else max(allowed, contact[0])
+    return time_parameterize(np.column_stack([q, rest]), max_velocity=min(
+        skills.max_joint_velocity, MAX_JOINT_SPEED * PARK_SPEED_PERCENT / 100.0),
+        max_acceleration=skills.max_joint_acceleration)
 
 
 def park(link, scenario, say=print) -> np.ndarray:
@@ -65,11 +84,12 @@ def park(link, scenario, say=print) -> np.ndarray:
     if not feedback.enabled.all():
         confirm_enabling(scenario.station)
     link.enable_motors().start_streaming()
-    say(f"parking: {plan.duration:.1f} s to the rest pose at {link.speed_percent} % speed")
+    duration = plan.end_time() - plan.start_time()
+    say(f"parking: {duration:.1f} s to the rest pose at {link.speed_percent} % speed")
     started = time.monotonic()
-    while (t := time.monotonic() - started) < plan.end_time:
-        q = plan.position(t)
-        velocity = (plan.position(t + SAMPLE_PERIOD) - q) / SAMPLE_PERIOD
+    while (t := time.monotonic() - started) < duration:
+        q = plan.value(t).ravel()
+        velocity = plan.EvalDerivative(t, 1).ravel()
         link.command(q, feedback.gripper_opening, 0.0, velocity)
         time.sleep(SAMPLE_PERIOD)
     rest = rest_pose(scenario)
@@ -80,7 +100,7 @@ def park(link, scenario, say=print) -> np.ndarray:
             link.stop_streaming()
             off = np.degrees(np.abs(link.listener.snapshot().q - rest).max())
             raise TimeoutError(f"the arm did not reach the rest pose ({off:.1f}° off after "
-                               f"{plan.duration + PARK_MARGIN:.0f} s): the motors stay on, "
+                               f"{duration + PARK_MARGIN:.0f} s): the motors stay on, "
                                "holding; look at the arm, then `physcap arm park` again")
         time.sleep(SAMPLE_PERIOD)
     link.stop_streaming()
