@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import dataclasses as dc
+import signal
 import tempfile
 from pathlib import Path
 from typing import Annotated
@@ -12,6 +13,7 @@ import typer
 from pydrake.common.yaml import yaml_dump_typed
 
 from physcap_drake.can.bring_up import INTERFACES
+from physcap_drake.commands.common import fail
 from physcap_drake.scenario import Scenario
 from physcap_drake.station.can_config import PiperCan
 from physcap_drake.station.can_gate import allow_enabling
@@ -53,3 +55,23 @@ def gate(yes: bool) -> None:
     """`--yes` given: enable without asking from now on in this process."""
     if yes:
         allow_enabling()
+
+
+def interruptible() -> None:
+    """Ctrl-C (SIGINT) ends this command, even if it was started with SIGINT ignored (as a
+    script's background job is): the command stops its CAN children itself."""
+    signal.signal(signal.SIGINT, signal.default_int_handler)
+
+
+def refuse_real_arm(scenario: Scenario, yes: bool, command: str) -> None:
+    """A command that moves the arm without checks (`physcap sim`, `physcap demo`) refuses
+    a real !PiperCan station unless `yes`; with it, the arm moves at the rig's defaults."""
+    station = scenario.station
+    if not isinstance(station, PiperCan) or not station.real_arm:
+        return
+    if not yes:
+        fail(f"the station is a real arm ({station.interface}:{station.channel}) and `physcap "
+             f"{command}` moves it without collision checks: clear the space around it and "
+             f"pass --yes (it then moves at {station.arm_speed_percent} % speed), or use a "
+             "scenario with emulate: true")
+    allow_enabling()
