@@ -189,6 +189,7 @@ def run(task: Annotated[str, typer.Option("--task", help=f"One of: {', '.join(TA
         scenario = scenario_file_with_bus(loaded, None, None)
     gate(yes)
     interruptible()
+    check_arm(loaded)
     if (judge or (scenario_task.judge if scenario_task else "")) == "operator" and not can_ask():
         fail("the operator judge (--judge operator, or the scenario's task.judge) asks you at "
              "the end of the episode, and stdin is not a terminal; run it in a terminal or "
@@ -263,6 +264,19 @@ def interrupted(task: str, agent: str, seed: int, out: Path | None,
     where = f"; the recording so far is in {out}" if out is not None else ""
     error_console.print(f"interrupted{escape(where)}", highlight=False)
     raise typer.Exit(code=130)
+
+
+def check_arm(scenario) -> None:
+    """On a real arm, before anything is built: the arm answers and takes CAN control
+    (start-up's checks, `PiperLink.connect`), else one line naming its state, exit 2."""
+    station = scenario.station
+    if not isinstance(station, PiperCan) or not station.real_arm:
+        return
+    try:
+        with operator_link(scenario) as link:
+            link.connect()
+    except (ConnectionError, StartupError) as error:
+        fail(str(error))
 
 
 def end_on_rig(scenario, hold_arm: bool) -> None:
