@@ -351,6 +351,12 @@ class FeedbackListener(can.Listener):
         with self._lock:
             return bool(np.all(np.isfinite(self._q)) and np.isfinite(self._opening))
 
+    def link_figures(self) -> tuple[float, float, int]:
+        """Feedback frames lost over the last LOSS_CYCLES cycles (fraction), how late the
+        newest arrived (s), frames rejected as garbled so far."""
+        with self._lock:
+            return self._loss.loss(), self._age, self.garbled_count
+
     def health(self, now: float) -> Health:
         """The watchdog's verdict at monotonic time `now` (see Health)."""
         with self._lock:

@@ -40,7 +40,8 @@ log = logging.getLogger("physcap_drake.can")
 TARGETS = Layout({"q": 6, "gripper": 2, "sim_time": 1, "written_at": 1})
 FEEDBACK = Layout({"published_at": 1, "q": 6, "v": 6, "torque": 6, "gripper": 2,
                    "enabled": 6, "status": 7, "end_pose": 6, "stale": 1, "stale_since": 1,
-                   "commands_sent": 1, "stale_count": 1},
+                   "commands_sent": 1, "stale_count": 1, "driver_status": 6,
+                   "gripper_status": 1, "figures": 3},
                   texts=("reason", "fault"))
 #: How long the diagram's side waits for the streaming process to finish a publication, s.
 FEEDBACK_PATIENCE = 0.002
@@ -56,7 +57,8 @@ class LinkFeedback:
     """The child's latest publication: when (monotonic s), joint positions (rad), speeds
     (rad/s) and torques (N·m, firmware scaling applied), gripper opening (m) and effort
     (N·m), drivers enabled, arm status (None before the first), end pose (m, rad), the
-    watchdog's verdict, since when the feedback is stale, commands sent, stale spells."""
+    watchdog's verdict, since when the feedback is stale, commands sent, stale spells, the
+    drivers' and gripper's status bits, and the link's figures."""
 
     published_at: float
     q: np.ndarray
@@ -71,6 +73,12 @@ class LinkFeedback:
     stale_since: float | None
     commands_sent: int
     stale_count: int
+    driver_status: np.ndarray = dc.field(default_factory=lambda: np.zeros(6, dtype=int))
+    gripper_status: int = 0
+    #: Feedback frames lost recently (fraction), how late the newest came (s), garbled ones.
+    lost_fraction: float = 0.0
+    late: float = 0.0
+    garbled: int = 0
 
 
 def open_bus(settings: LinkSettings):
@@ -211,7 +219,8 @@ def _feedback_of(r) -> LinkFeedback:
         float(r["gripper"][1]), r["enabled"] > 0.5, status, r["end_pose"],
         Health(bool(r["stale"][0] > 0.5), r["reason"], r["fault"]),
         None if np.isnan(since) else since, int(r["commands_sent"][0]),
-        int(r["stale_count"][0]))
+        int(r["stale_count"][0]), r["driver_status"].astype(int), int(r["gripper_status"][0]),
+        float(r["figures"][0]), float(r["figures"][1]), int(r["figures"][2]))
 
 
 # The child -------------------------------------------------------------------------------
@@ -334,4 +343,6 @@ def _publish(link, block: SharedBlock) -> None:
         "stale": [float(status.health.stale)],
         "stale_since": [np.nan if status.stale_since is None else status.stale_since],
         "commands_sent": [status.commands_sent], "stale_count": [status.stale_count],
+        "driver_status": f.driver_status, "gripper_status": [f.gripper_status],
+        "figures": list(link.listener.link_figures()),
     }, {"reason": status.health.reason, "fault": status.health.fault})
