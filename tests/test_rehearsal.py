@@ -127,3 +127,15 @@ def test_ctrl_c_on_a_can_run_exits_130_with_the_summary_and_no_traceback(tmp_pat
     assert stderr.strip() == f"interrupted; the recording so far is in {out}"
     assert "Traceback" not in stdout + stderr
     assert json.loads((out / "summary.json").read_text())["failure_kind"] == "interrupted"
+
+
+def test_enabling_without_a_terminal_or_yes_is_refused_and_nothing_enabled(serve, tmp_path):
+    from physcap_drake.station.can_gate import allow_enabling
+
+    path = serve()
+    allow_enabling(False)
+    result = arm("enable", path=path)
+    assert result.exit_code == 2
+    assert "enabled only when someone says so: run in a terminal to be asked, or pass --yes" \
+        in result.output.replace("\n", " ")
+    assert status(path, tmp_path)["enabled"] == [False] * 6
