@@ -5,16 +5,23 @@ on the other side of each."""
 
 from __future__ import annotations
 
+import time
+
 import numpy as np
 import pytest
 from piper_sdk_peer import MDEG, enable, joints, sdk_with_emulator, settled, status, stream
 
+from physcap_drake.can import codec
 from physcap_drake.can.emulator import wait_until
+from physcap_drake.can.emulator_process import EmulatorProcess
 from physcap_drake.can.firmware import START_STATES, Firmware
 from physcap_drake.can.motion import KinematicMotion
+from physcap_drake.can.socket_bus import SocketBus, socket_pair
 from physcap_drake.config_checks import ConfigChecker
 from physcap_drake.scenario_errors import ScenarioError
 from physcap_drake.station.can_config import PiperCan
+from physcap_drake.station.can_operator import arm_report, operator_link
+from physcap_drake.station.can_session import CanSession
 
 pytestmark = [pytest.mark.emulated_hardware,
               pytest.mark.filterwarnings("ignore:The .bustype. argument is deprecated")]
@@ -44,6 +51,9 @@ def test_a_scenario_names_a_bad_start_state_by_its_field():
         PiperCan(interface="virtual", emulate=True, emulated_start="drag").check(
             ConfigChecker("s.yaml", "station"))
     assert "'teach'" in str(error.value) and "'drag'" in str(error.value)
+    with pytest.raises(ScenarioError, match="station.emulated_start.*emulate: false"):
+        PiperCan(interface="socketcan", emulated_start="teach").check(
+            ConfigChecker("s.yaml", "station"))
 
 
 def test_a_normal_arm_confirms_can_control_at_once_and_follows_targets():
@@ -106,3 +116,44 @@ def test_a_standby_arm_loses_the_first_mode_frame_and_takes_the_second():
         sdk.MotionCtrl_2(0x01, 0x01, 30, 0x00)  # sent again, as a host confirming control
         assert wait_until(lambda: control_confirmed(sdk))
         assert stream(sdk, MOVED, lambda: np.allclose(joints(sdk), MOVED, atol=1e-5))
+
+
+def test_the_emulator_process_starts_in_the_state_asked_for():
+    emulator_end, host_end = socket_pair()
+    with pytest.raises(ValueError, match="'drag'"):
+        EmulatorProcess(emulator_end, start="drag")
+    host_end.close()
+    emulator_end, host_end = socket_pair()
+    emulator = EmulatorProcess(emulator_end, start="leader").wait_ready()
+    host = SocketBus(host_end, "host")
+    try:
+        seen = {}  # identifier: data of every frame in a second of its feedback
+        deadline = time.monotonic() + 1.0
+        while time.monotonic() < deadline:
+            message = host.recv(timeout=0.1)
+            if message is not None:
+                seen[message.arbitration_id] = bytes(message.data)
+        assert codec.decode_arm_status(seen[codec.ARM_STATUS]).ctrl_mode == 6
+        assert not set(codec.JOINT_FEEDBACK) & set(seen)
+        assert set(codec.JOINT_COMMAND) <= set(seen)
+    finally:
+        host.shutdown()
+        emulator.close()
+
+
+def test_an_emulated_station_starts_its_arm_in_the_scenarios_state(table_scenario):
+    table_scenario.station = PiperCan(interface="virtual", emulate=True,
+                                      emulated_start="teach")
+    session = CanSession(table_scenario).wait_ready()  # the emulated arm runs, unconnected
+    try:
+        arm = session.emulator.snapshot()
+        assert (arm.ctrl_mode, arm.arm_status, arm.teach_status) == (2, 0x0B, 1)
+    finally:
+        session.close()
+
+
+def test_the_operators_emulated_arm_starts_in_the_scenarios_state(table_scenario):
+    table_scenario.station = PiperCan(interface="virtual", channel="operator_leader",
+                                      emulate=True, emulated_start="leader")
+    with operator_link(table_scenario) as link:
+        assert arm_report(link).status.ctrl_mode == 6

@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import contextlib
 import errno
-import logging
 import os
 import select
 import socket
@@ -22,8 +21,6 @@ import threading
 import can
 
 from physcap_drake.can.socket_bus import BUFFER_BYTES, PACKET_BYTES, SocketBus, socket_pair
-
-log = logging.getLogger("physcap_drake.can")
 
 #: How often the hub looks for members added from another thread, s.
 HUB_POLL = 0.05
@@ -118,7 +115,7 @@ class UnixBusHub:
                 continue
             for sock in readable:
                 if sock is self._listener:
-                    with contextlib.suppress(BlockingIOError, InterruptedError):
+                    with contextlib.suppress(OSError):  # it gave up meanwhile, or no fds
                         self._add(self._listener.accept()[0])
                 else:
                     self._relay(sock)

@@ -22,6 +22,9 @@ from physcap_drake.station.simulated_motion import simulated_motion
 
 #: The buses it serves on.
 INTERFACES = ("socketcan", "unix", "virtual")
+#: Where the kinematic arm powers up, J1..J6 in degrees: off J2's and J3's stops, so that a
+#: rehearsed e-stop shows the arm sinking.
+DEFAULT_POWER_UP = "0,15,-15,0,0,0"
 
 
 def emulate_piper(
@@ -45,9 +48,9 @@ def emulate_piper(
         "--joints-deg", help="Where the kinematic arm is at power-up: J1..J6 in degrees, comma "
                              "separated, within the mechanical stops (e.g. J6 at 160, past its "
                              "120° limit, as a hand may leave it). Default: a little "
-                             "off its rest pose (J2 15°, J3 -15°), where an e-stop shows "
+                             "off its rest pose, 0,15,-15,0,0,0, where an e-stop shows "
                              "the arm sinking; 0,0,0,0,0,0 is the rest pose, on J2's and "
-                             "J3's stops.")] = "0,15,-15,0,0,0",
+                             "J3's stops.")] = "",
 ) -> None:
     """Answer on the bus like a PiPER arm: feedback at 200 Hz (status, end pose, joints,
     gripper, drivers), every command and query of the vendor's protocol (e-stop and resume,
@@ -59,14 +62,18 @@ def emulate_piper(
     if start not in START_STATES:
         raise typer.BadParameter(f"--start must be one of {', '.join(START_STATES)}, not "
                                  f"{start!r}")
-    # Without a scenario the joints move kinematically and hold the model's weight.
-    try:
-        motion = KinematicMotion(ArmGravity(), q0=_power_up_joints(joints_deg))
-    except ValueError as error:
-        raise typer.BadParameter(f"--joints-deg: {error}") from None
-    if scenario is not None:  # its world starts where the scenario puts the arm
+    if scenario is not None:
+        if joints_deg:
+            raise typer.BadParameter("--joints-deg is for the kinematic arm; with --scenario "
+                                     "the arm starts where the scenario puts it")
         # The world renders no camera here: cameras belong to the station that connects.
         motion = simulated_motion(emulated_world(load_scenario_or_exit(scenario), cameras=False))
+    else:  # the joints move kinematically and hold the model's weight
+        try:
+            motion = KinematicMotion(ArmGravity(),
+                                     q0=_power_up_joints(joints_deg or DEFAULT_POWER_UP))
+        except ValueError as error:
+            raise typer.BadParameter(f"--joints-deg: {error}") from None
     hub = None
     try:
         if interface == "unix":

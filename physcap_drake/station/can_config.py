@@ -196,6 +196,10 @@ class PiperCan:
                 at.fail("gripper_max_force", "equal to emulated.gripper_servo.max_force "
                         f"({self.emulated.gripper_servo.max_force} N)",
                         f"got {self.gripper_max_force}")
+        elif self.emulated_start != "normal":
+            at.fail("emulated_start", "'normal' unless emulate is true (a real arm starts "
+                    "as it is; `physcap emulate-piper --start` for a separate emulator)",
+                    f"got {self.emulated_start!r} with emulate: false")
         active = any((self.faults.loss, self.faults.delay, self.faults.garble))
         if active and not self.emulate:
             at.fail("faults", "no faults unless emulate is true (faults are injected on the "
