@@ -267,15 +267,19 @@ def interrupted(task: str, agent: str, seed: int, out: Path | None,
 
 
 def check_arm(scenario) -> None:
-    """On a real arm, before anything is built: the arm answers and takes CAN control
-    (start-up's checks, `PiperLink.connect`), else one line naming its state, exit 2."""
+    """On a real arm, before anything is built: an arm on the bus that cannot be controlled
+    (drag-teach, a leader, silent, never confirming; start-up's checks, `PiperLink.connect`)
+    is one line naming its state, exit 2. A bus that does not open is left to the episode,
+    which checks its configuration first and then says the same at start-up."""
     station = scenario.station
     if not isinstance(station, PiperCan) or not station.real_arm:
         return
     try:
         with operator_link(scenario) as link:
             link.connect()
-    except (ConnectionError, StartupError) as error:
+    except ConnectionError:
+        return
+    except StartupError as error:
         fail(str(error))
 
 
