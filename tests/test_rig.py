@@ -135,23 +135,30 @@ def _arm_not_emulated_by_the_station(monkeypatch) -> None:
     monkeypatch.setattr(CanSession, "prepare", prepare_with_an_arm)
 
 
+def _rig_without_a_world(tmp_path, monkeypatch, image_period: float):
+    """(sink, robot): a robot stack on a CAN station whose arm it does not emulate (see
+    `_arm_not_emulated_by_the_station`), with a recorded RealSense, recording to
+    tmp_path/rig.mcap."""
+    recording = tmp_path / "camera.db3"
+    _record_frames(recording)
+    _arm_not_emulated_by_the_station(monkeypatch)
+    scenario = load_scenario_text(
+        ROBOT + f"station: !PiperCan {{interface: virtual, channel: {unique_channel()}}}\n"
+        f"cameras: [!RealSense {{width: {W}, height: {H}, recording: {recording}, "
+        f"{CAMERA_POSE}}}]\n")
+    sink = McapSink(tmp_path / "rig.mcap")
+    robot = build_robot_stack(scenario, make_recorder=lambda station: make_mcap_recorder(
+        sink, station, scenario, image_period=image_period))
+    return sink, robot
+
+
 def test_a_rig_without_a_world_records_images_and_frames_from_the_joints(tmp_path, monkeypatch):
     """A CAN station talking to an arm it does not emulate (here a kinematic emulated arm
     in a process of its own, as `physcap emulate-piper` runs one) with a recorded
     RealSense: the camera ports give the recording's frames, the simulation-only ports
     refuse naming why, and the MCAP recorder writes camera images and the robot's frames
     by forward kinematics."""
-    recording = tmp_path / "camera.db3"
-    _record_frames(recording)
-    channel = unique_channel()
-    _arm_not_emulated_by_the_station(monkeypatch)
-    scenario = load_scenario_text(
-        ROBOT + f"station: !PiperCan {{interface: virtual, channel: {channel}}}\n"
-        f"cameras: [!RealSense {{width: {W}, height: {H}, recording: {recording}, "
-        f"{CAMERA_POSE}}}]\n")
-    sink = McapSink(tmp_path / "rig.mcap")
-    robot = build_robot_stack(scenario, make_recorder=lambda station: make_mcap_recorder(
-        sink, station, scenario, image_period=0.5))
+    sink, robot = _rig_without_a_world(tmp_path, monkeypatch, image_period=0.5)
     try:
         station = robot.station
         assert isinstance(station.GetSubsystemByName("realsense_camera"), RealSenseCamera)
@@ -294,16 +301,7 @@ def test_a_real_arms_skills_move_at_the_rig_defaults(tmp_path, monkeypatch):
     """A station whose arm is not emulated by it (a real interface) sends 30 % in its mode
     frame, and a skill's joints move no faster than 30 % of 3 rad/s (the rig's 1 rad/s,
     capped by the arm's speed percentage), as the recorded joint speeds show."""
-    recording = tmp_path / "camera.db3"
-    _record_frames(recording)
-    _arm_not_emulated_by_the_station(monkeypatch)
-    scenario = load_scenario_text(
-        ROBOT + f"station: !PiperCan {{interface: virtual, channel: {unique_channel()}}}\n"
-        f"cameras: [!RealSense {{width: {W}, height: {H}, recording: {recording}, "
-        f"{CAMERA_POSE}}}]\n")
-    sink = McapSink(tmp_path / "rig.mcap")
-    robot = build_robot_stack(scenario, make_recorder=lambda station: make_mcap_recorder(
-        sink, station, scenario, image_period=0.0))
+    sink, robot = _rig_without_a_world(tmp_path, monkeypatch, image_period=0.0)
     try:
         clock = robot.make_clock()
         api = RobotAPI(robot, clock)

@@ -100,14 +100,18 @@ class ControlSteps:
                                "that nothing else (a teach pendant, another program) controls "
                                "it; power-cycle it if it stays so") from None
 
+    def _ask_parameter(self, query: int, field: str, what: str):
+        """The reply to a fresh 0x477 `query`, kept in ArmParameters.`field`."""
+        parameters = self.listener.parameters
+        setattr(parameters, field, None)
+        request = codec.encode_parameter_request(codec.ParameterRequest(query=query))
+        return self._wait_for(lambda: getattr(parameters, field), what,
+                              ask=lambda: self._send(*request))
+
     def collision_levels(self) -> tuple[int, ...]:
         """The arm's collision protection levels J1..J6 (0x477 -> 0x47B), asked now."""
-        parameters = self.listener.parameters
-        parameters.crash_levels = None
-        request = codec.encode_parameter_request(codec.ParameterRequest(
-            query=codec.QUERY_CRASH))
-        return self._wait_for(lambda: parameters.crash_levels, "the collision levels (0x47B)",
-                              ask=lambda: self._send(*request))
+        return self._ask_parameter(codec.QUERY_CRASH, "crash_levels",
+                                   "the collision levels (0x47B)")
 
     def set_collision_level(self, level: int) -> None:
         """Sets every joint's collision protection level (0x47A) and reads it back."""
@@ -124,12 +128,8 @@ class ControlSteps:
 
     def gripper_parameters(self) -> codec.GripperParameters:
         """The arm's stored gripper parameters (0x477 -> 0x47E), asked now."""
-        parameters = self.listener.parameters
-        parameters.gripper = None
-        request = codec.encode_parameter_request(codec.ParameterRequest(
-            query=codec.QUERY_GRIPPER))
-        return self._wait_for(lambda: parameters.gripper, "the gripper parameters (0x47E)",
-                              ask=lambda: self._send(*request))
+        return self._ask_parameter(codec.QUERY_GRIPPER, "gripper",
+                                   "the gripper parameters (0x47E)")
 
     def set_gripper_stroke(self, stroke_mm: int) -> bool:
         """Writes the gripper stroke (0x47D) only if the arm's stored one differs, with the
