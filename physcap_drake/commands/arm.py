@@ -30,8 +30,8 @@ from physcap_drake.station.can_config import PiperCan
 from physcap_drake.station.can_gate import confirm_enabling
 from physcap_drake.station.can_operator import ArmReport, arm_report, operator_link
 
-app = typer.Typer(help="The PiPER over CAN: state, enabling, parking, the gripper, e-stop, "
-                       "resume, clearing errors.", no_args_is_help=True)
+app = typer.Typer(help="The PiPER over CAN: state, enable, park, gripper, e-stop.",
+                  no_args_is_help=True)
 
 #: The scene of the arm commands without --scenario (its station replaced by the arm's).
 DEFAULT_SCENE = "piper_table.yaml"
@@ -111,10 +111,11 @@ def status_json(report: ArmReport, link, station: PiperCan) -> dict:
 @app.command("enable")
 def enable(scenario: ScenarioOption = None, interface: Interface = None,
            channel: Channel = None, yes: Yes = False) -> None:
-    """Take CAN control and enable the motors; the arm holds where it is.
+    """Take CAN control and enable the motors.
 
-    Start-up's checks first (drag-teach, leader arm, feedback, CAN control confirmed); on
-    a real arm it asks first, naming speed and collision level, unless --yes."""
+    The arm then holds where it is. Start-up's checks come first (drag-teach, leader arm,
+    feedback, CAN control confirmed); on a real arm it asks, naming speed and collision
+    level, unless --yes."""
     gate(yes)
 
     def switch_on(link, loaded):
@@ -131,8 +132,10 @@ def disable(scenario: ScenarioOption = None, interface: Interface = None,
             channel: Channel = None, yes: Annotated[bool, typer.Option(
                 "--yes", help="Confirm that the arm is supported (or parked): its motors "
                               "lose power.")] = False) -> None:
-    """Switch the motors off where the arm is: it falls unless supported or parked (`physcap
-    arm park` moves it to rest first, then switches them off)."""
+    """Switch the motors off where the arm is.
+
+    It falls unless supported or parked (`physcap arm park` moves it to rest first, then
+    switches them off)."""
     if not yes:
         fail("disable cuts the motors' power and the arm falls unless supported: park it "
              "(`physcap arm park`), or support it and run again with --yes")
@@ -143,7 +146,9 @@ def disable(scenario: ScenarioOption = None, interface: Interface = None,
 @app.command("park")
 def park(scenario: ScenarioOption = None, interface: Interface = None,
          channel: Channel = None, yes: Yes = False) -> None:
-    """Move to the rest pose (collision-checked, at most 20 % speed), then motors off."""
+    """Park: to the rest pose slowly, then motors off.
+
+    A collision-checked move at 20 % speed at most."""
     gate(yes)
     q = _with_arm(scenario, lambda link, loaded: arm_moves.park(
         link, loaded, say=console.print), interface, channel, code=2)
@@ -155,7 +160,9 @@ def park(scenario: ScenarioOption = None, interface: Interface = None,
 def gripper(action: Annotated[str, typer.Argument(help="open, close or zero.")],
             scenario: ScenarioOption = None, interface: Interface = None,
             channel: Channel = None, yes: Yes = False) -> None:
-    """Open or close the gripper, or make its current opening the zero (set-zero)."""
+    """Open or close the gripper, or zero it.
+
+    Zero makes the current opening the gripper's zero (set-zero)."""
     if action not in ("open", "close", "zero"):
         fail(f"gripper {action!r}: one of open, close, zero")
     gate(yes)
