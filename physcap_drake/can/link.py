@@ -107,9 +107,8 @@ class LinkStatus:
 
 
 class PiperLink(ControlSteps):
-    """See module docstring. `config` is a `PiperCan` station config (or its
-    LinkSettings); `bus` an open
-    python-can bus (the link owns it once opened and shuts it down in `close`).
+    """See module docstring. `config` is a `PiperCan` station config (or its LinkSettings);
+    `bus` an open python-can bus (the link owns it once opened and shuts it down in `close`).
     `on_cycle()`, if given, runs at the start of every streaming cycle (before the targets
     are sent), in the streaming thread."""
 

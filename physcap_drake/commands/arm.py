@@ -16,11 +16,19 @@ from physcap_drake.can.bring_up import bus_state
 from physcap_drake.can.feedback import GRIPPER_FAULTS
 from physcap_drake.can.link import StartupError
 from physcap_drake.commands import arm_moves
-from physcap_drake.commands.can_options import Channel, Interface, Yes, gate, with_bus
+from physcap_drake.commands.can_options import (
+    Channel,
+    Interface,
+    Yes,
+    gate,
+    interruptible,
+    with_bus,
+)
 from physcap_drake.commands.common import (
     console,
     fail,
     load_scenario_or_exit,
+    print_error,
     save_json,
 )
 from physcap_drake.control.errors import SkillRefused
@@ -56,6 +64,7 @@ def _with_arm(path: Path | None, action, interface=None, channel=None, *, code: 
     """Runs action(link, scenario) on the scenario's arm (on --interface/--channel where
     given); a failure is one line on stderr and exit `code`."""
     loaded = _scenario(path, interface, channel)
+    interruptible()
     try:
         with operator_link(loaded) as link:
             return action(link, loaded)
@@ -63,6 +72,10 @@ def _with_arm(path: Path | None, action, interface=None, channel=None, *, code: 
         fail(f"--scenario {path}: {error}")
     except (ConnectionError, StartupError, RuntimeError, SkillRefused) as error:
         fail(f"arm: {error}", code=code)
+    except KeyboardInterrupt:
+        print_error("interrupted: the arm holds where it is (`physcap arm status` says how "
+                    "it is)")
+        raise typer.Exit(code=130) from None
 
 
 @app.command("status")

@@ -281,6 +281,9 @@ def check_arm(scenario) -> None:
         return
     except StartupError as error:
         fail(str(error))
+    except KeyboardInterrupt:
+        print_error("interrupted before the episode: nothing was enabled")
+        raise typer.Exit(code=130) from None
 
 
 def end_on_rig(scenario, hold_arm: bool) -> None:
@@ -296,6 +299,10 @@ def end_on_rig(scenario, hold_arm: bool) -> None:
     except (ConnectionError, StartupError, RuntimeError, SkillRefused, TimeoutError) as error:
         print_error(f"the arm was not parked ({error}); it holds where it is: "
                     "`physcap arm park` once it is clear")
+    except KeyboardInterrupt:
+        print_error("interrupted while parking: the arm holds where it is; `physcap arm park` "
+                    "to end")
+        raise typer.Exit(code=130) from None
 
 
 def exit_code(summary: dict) -> int:
