@@ -41,6 +41,7 @@ from physcap_drake.physx.stiffness_levels import load_thresholds
 from physcap_drake.physx.stiffness_probe import StiffnessProbe
 from physcap_drake.scenario import Scenario
 from physcap_drake.station import MakeStation, ports
+from physcap_drake.station.can_config import rig_skills
 from physcap_drake.station.robot_model import RobotModel, robot_model
 
 #: The robot stack's request path, when its client is outside the diagram.
@@ -138,7 +139,7 @@ def build_robot_stack(scenario: Scenario, meshcat: Meshcat | None = None, *,
                                  station_config.gripper_model, tuple(scenario.skills.furniture))
     builder = DiagramBuilder()
     station = builder.AddNamedSystem("station", MakeStation(scenario, meshcat))
-    skills = scenario.skills
+    skills = rig_skills(scenario.skills, station_config)  # slow on a real arm
     planner = SkillPlanner(PlanningModel(robot=model), skills,
                            gripper_stroke=model.gripper_stroke)
     executor = builder.AddNamedSystem(

@@ -27,3 +27,14 @@ _can_channels = itertools.count()
 def unique_channel() -> str:
     """A virtual CAN channel name of its own (python-can's virtual buses meet by name)."""
     return f"physcap_test_{next(_can_channels)}"
+
+
+@pytest.fixture(autouse=True)
+def _motors_enabled_without_asking():
+    """Tests run without a terminal: arms that count as real (an emulator outside the
+    station) are enabled as with `--yes`; the gate's own tests ask for it (can_gate)."""
+    from physcap_drake.station.can_gate import allow_enabling
+
+    allow_enabling(True)
+    yield
+    allow_enabling(True)

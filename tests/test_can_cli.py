@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import re
 
 import pytest
@@ -75,5 +76,57 @@ def test_a_simulated_station_is_refused_naming_the_option():
 def test_no_arm_on_the_bus_is_one_line_naming_what_did_not_answer(tmp_path, interface):
     result = run("status", "--scenario", scenario(tmp_path, interface, emulate=False))
     assert result.exit_code == 1
-    assert re.search(r"arm: .*(firmware version \(0x4AF\)|cannot open the CAN bus)",
-                     result.output.replace("\n", " "))
+    expected = {"virtual": r"firmware version \(0x4AF\)",  # status does not start up
+                "socketcan": r"no CAN interface .* in this machine: plug the arm's USB-CAN"}
+    assert re.search(rf"arm: .*{expected[interface]}", result.output.replace("\n", " "))
+    assert len(result.output.strip().splitlines()) == 1
+
+
+def test_status_json_has_every_field_of_the_arm(tmp_path):
+    out = tmp_path / "F.json"
+    result = run("status", "--scenario", str(stations_dir() / "identify_empty_can_piper_can.yaml"),
+                 "--json", str(out))
+    assert result.exit_code == 0, result.output
+    state = json.loads(out.read_text())
+    assert (state["ctrl_mode"], state["move_mode"], state["arm_status"]) == (
+        "standby", "MOVE P", "normal")
+    assert len(state["joints_deg"]) == 6 and state["enabled"] == [False] * 6
+    assert state["speed_percent"] == 100  # an emulated twin's
+    assert len(state["collision_levels"]) == 6 and state["teach_status"] == 0
+    assert state["role"] == "follower"
+    assert set(state["gripper"]) >= {"opening_mm", "zeroed", "errors"}
+    assert state["bus"] == {"interface": "virtual", "channel": "piper_emulated",
+                            "state": None, "bitrate": None}
+
+
+def test_gripper_open_close_and_zero(tmp_path):
+    path = scenario(tmp_path)
+    opened = run("gripper", "open", "--scenario", path)
+    assert opened.exit_code == 0, opened.output
+    assert float(re.search(r"opening ([\d.]+) mm", opened.output).group(1)) > 95.0
+    closed = run("gripper", "close", "--scenario", path)
+    assert float(re.search(r"opening ([\d.]+) mm", closed.output).group(1)) < 2.0
+    assert run("gripper", "zero", "--scenario", path).exit_code == 0
+    assert run("gripper", "wide", "--scenario", path).exit_code == 2
+
+
+def test_disable_without_yes_is_refused_naming_park():
+    result = run("disable")
+    assert result.exit_code == 2 and "physcap arm park" in result.output
+
+
+REAL_ARM = "station: !PiperCan {interface: socketcan, channel: physcap_no_can}\n"
+
+
+@pytest.mark.parametrize("command", [["sim"], ["demo", "pick-place"]])
+def test_sim_and_demo_refuse_a_real_arm_unless_yes(tmp_path, command):
+    text = (stations_dir() / "identify_empty_can_piper_can.yaml").read_text()
+    real = tmp_path / "real.yaml"
+    scene = text.split("\nstation: !PiperCan")[0]
+    real.write_text(f"{scene}\n{REAL_ARM}simulator_config:\n  target_realtime_rate: 1.0\n")
+    refused = CliRunner().invoke(app, [*command, "--scenario", str(real)])
+    assert refused.exit_code == 2
+    assert "moves it without collision checks" in refused.output.replace("\n", " ")
+    if command == ["sim"]:  # with --yes it goes on, to the bring-up check of can0
+        tried = CliRunner().invoke(app, [*command, "--scenario", str(real), "--yes"])
+        assert tried.exit_code == 2 and "no CAN interface 'physcap_no_can'" in tried.output

@@ -33,9 +33,14 @@ def test_start_up_reads_firmware_enables_and_sets_the_gripper_stroke(can_rig):
     assert arm.enabled.all() and arm.ctrl_mode == 1 and arm.move_mode == 1
     assert wait_until(lambda: 0x155 in [m.arbitration_id for m in list(can_rig.sent)])
     ids = [m.arbitration_id for m in can_rig.sent]
-    # The order of the start-up sequence: limits, then mode, enable, stroke, then streaming.
-    assert ids.index(0x472) < ids.index(0x151) < ids.index(0x471) < ids.index(0x47D) \
+    # The order of the start-up sequence: limits, then mode, stroke (a new gripper stores
+    # none), enable, then streaming; the stroke written once, the gripper disabled before.
+    assert ids.index(0x472) < ids.index(0x151) < ids.index(0x47D) < ids.index(0x471) \
         < ids.index(0x155)
+    assert ids.count(0x47D) == 1
+    before = [m for m in can_rig.sent if m.arbitration_id == 0x159][:1]
+    assert before and codec.decode_gripper_command(bytes(before[0].data)).code == 0
+    assert ids.index(0x159) < ids.index(0x47D)
 
 
 def test_streams_targets_at_the_control_rate_without_anyone_calling(can_rig):
@@ -102,8 +107,8 @@ def test_no_arm_on_the_bus_fails_start_up_naming_what_did_not_answer():
     channel = unique_channel()
     config = PiperCan(interface="virtual", channel=channel, startup_timeout=0.2)
     started = time.monotonic()
-    with pytest.raises(StartupError, match=rf"virtual:{channel}.*firmware version \(0x4AF\)"
-                                           r".*startup_timeout = 0.2"):
+    with pytest.raises(StartupError, match=rf"no frames from the arm on virtual:{channel}"
+                                           r".*startup_timeout = 0.2 s: power the arm on"):
         PiperLink(can.Bus(interface="virtual", channel=channel), config).start()
     assert time.monotonic() - started < 1.0
 
@@ -139,7 +144,7 @@ def test_read_parameters_reports_what_the_arm_answers(can_rig):
     assert parameters.limits[3].min_angle == pytest.approx(np.radians(-170.0), abs=1e-3)
     assert parameters.accelerations == {m: pytest.approx(5.0) for m in range(1, 7)}
     assert parameters.end_limits.linear_speed == pytest.approx(0.5)
-    assert parameters.crash_levels == (0,) * 6
+    assert parameters.crash_levels == (4,) * 6  # a real arm's default, set at start-up
     assert parameters.gripper.stroke_mm == 100  # set by start-up (0x47D)
     assert can_rig.link.read_firmware() == "S-V1.8-2"
 

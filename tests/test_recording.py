@@ -398,7 +398,8 @@ def test_ctrl_c_closes_the_recording_and_says_why(tmp_path):
     error = json.loads((tmp_path / "error.json").read_text())
     assert error["error"].startswith("KeyboardInterrupt")
     assert "**Stopped:** KeyboardInterrupt" in (tmp_path / "transcript.md").read_text()
-    assert not (tmp_path / "summary.json").exists()
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    assert summary["failure_kind"] == "interrupted" and summary["success"] is False
 
 
 def test_a_torn_recording_is_recovered(tmp_path, episode_folder):

@@ -27,11 +27,13 @@ from physcap_drake.recording.mcap_sink import McapSink
 from physcap_drake.recording.reading import read_recording
 from physcap_drake.recording.time_base import WALL_CLOCK
 from physcap_drake.resources import stations_dir
+from physcap_drake.robot_api import RobotAPI
 from physcap_drake.robot_stack import build_robot_stack
 from physcap_drake.scenario import load_scenario, load_scenario_text
 from physcap_drake.scenario_errors import ScenarioError
 from physcap_drake.station import MakeStation, close_station, ports
 from physcap_drake.station.can_session import CanSession
+from physcap_drake.station.can_station import can_session
 from physcap_drake.station.realsense.camera_system import (
     EmulatedRealSenseCamera,
     RealSenseCamera,
@@ -136,23 +138,30 @@ def _arm_not_emulated_by_the_station(monkeypatch) -> None:
     monkeypatch.setattr(CanSession, "prepare", prepare_with_an_arm)
 
 
+def _rig_without_a_world(tmp_path, monkeypatch, image_period: float):
+    """(sink, robot): a robot stack on a CAN station whose arm it does not emulate (see
+    `_arm_not_emulated_by_the_station`), with a recorded RealSense, recording to
+    tmp_path/rig.mcap."""
+    recording = tmp_path / "camera.db3"
+    _record_frames(recording)
+    _arm_not_emulated_by_the_station(monkeypatch)
+    scenario = load_scenario_text(
+        ROBOT + f"station: !PiperCan {{interface: virtual, channel: {unique_channel()}}}\n"
+        f"cameras: [!RealSense {{width: {W}, height: {H}, recording: {recording}, "
+        f"{CAMERA_POSE}}}]\n")
+    sink = McapSink(tmp_path / "rig.mcap")
+    robot = build_robot_stack(scenario, make_recorder=lambda station: make_mcap_recorder(
+        sink, station, scenario, image_period=image_period))
+    return sink, robot
+
+
 def test_a_rig_without_a_world_records_images_and_frames_from_the_joints(tmp_path, monkeypatch):
     """A CAN station talking to an arm it does not emulate (here a kinematic emulated arm
     in a process of its own, as `physcap emulate-piper` runs one) with a recorded
     RealSense: the camera ports give the recording's frames, the simulation-only ports
     refuse naming why, and the MCAP recorder writes camera images and the robot's frames
     by forward kinematics."""
-    recording = tmp_path / "camera.db3"
-    _record_frames(recording)
-    channel = unique_channel()
-    _arm_not_emulated_by_the_station(monkeypatch)
-    scenario = load_scenario_text(
-        ROBOT + f"station: !PiperCan {{interface: virtual, channel: {channel}}}\n"
-        f"cameras: [!RealSense {{width: {W}, height: {H}, recording: {recording}, "
-        f"{CAMERA_POSE}}}]\n")
-    sink = McapSink(tmp_path / "rig.mcap")
-    robot = build_robot_stack(scenario, make_recorder=lambda station: make_mcap_recorder(
-        sink, station, scenario, image_period=0.5))
+    sink, robot = _rig_without_a_world(tmp_path, monkeypatch, image_period=0.5)
     try:
         station = robot.station
         assert isinstance(station.GetSubsystemByName("realsense_camera"), RealSenseCamera)
@@ -288,3 +297,23 @@ def test_over_the_emulated_rig_the_camera_judge_agrees_with_the_simulator(tmp_pa
         assert after.reason == f"the camera sees the {answer} alone in the brown tray"
     finally:
         episode.close()
+
+
+@pytest.mark.emulated_hardware
+def test_a_real_arms_skills_move_at_the_rig_defaults(tmp_path, monkeypatch):
+    """A station whose arm is not emulated by it (a real interface) sends 30 % in its mode
+    frame, and a skill's joints move no faster than 30 % of 3 rad/s (the rig's 1 rad/s,
+    capped by the arm's speed percentage), as the recorded joint speeds show."""
+    sink, robot = _rig_without_a_world(tmp_path, monkeypatch, image_period=0.0)
+    try:
+        clock = robot.make_clock()
+        api = RobotAPI(robot, clock)
+        api.move_joints([0.9, 0.8, -0.7, 0.0, 0.4, 0.0])
+        arm = can_session(robot.station).emulator.snapshot()
+        assert arm.speed_percent == 30
+    finally:
+        close_station(robot.station)
+        sink.close()
+    states = read_recording(tmp_path / "rig.mcap").on(topics.JOINT_STATES)
+    speeds = np.array([[abs(j.velocity) for j in m.value.joints[:6]] for m in states])
+    assert 0.6 < speeds.max() <= 0.9 + 0.05

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import importlib
 import multiprocessing
+import signal
 import subprocess
 import sys
 from multiprocessing.connection import Connection
@@ -86,6 +87,9 @@ def named_function(name: str):
 
 
 def main(target: str, fd: str) -> None:
+    # Ctrl-C reaches the whole process group: the parent stops its children, they do not
+    # stop themselves half-way (and print no traceback).
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
     conn = Connection(int(fd))
     args = conn.recv()
     named_function(target)(conn, *args)

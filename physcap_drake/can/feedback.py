@@ -33,6 +33,27 @@ MAX_REACH, MAX_POSE_ANGLE = 1.0, 2.0 * np.pi
 MAX_VOLTAGE, TEMPERATURES, MAX_CTRL_MODE, MAX_ARM_STATUS = 60.0, (-40.0, 150.0), 7, 15
 #: A frame timestamp this far from the host clock is on another clock (no age check), s.
 CLOCK_MISMATCH = 10.0
+#: Reported joint angles beyond these are garbage, rad: the soft limits plus ANGLE_MARGIN,
+#: and J6 out to its mechanical stop (it turns past its soft limit by hand or on enable).
+J6_MECHANICAL_STOP = np.radians(175.0)  # its measured hard stop, 170°, and 5° more
+FEEDBACK_LOWER = np.append(JOINT_LOWER[:5] - ANGLE_MARGIN, -J6_MECHANICAL_STOP)
+FEEDBACK_UPPER = np.append(JOINT_UPPER[:5] + ANGLE_MARGIN, J6_MECHANICAL_STOP)
+#: Gripper status bits (0x2A8 byte 6) that are faults, in words.
+GRIPPER_FAULTS = {codec.LOW_VOLTAGE: "low voltage", codec.MOTOR_OVERHEAT: "motor "
+                  "over-temperature", codec.OVER_CURRENT: "over-current",
+                  codec.DRIVER_OVERHEAT: "driver over-temperature",
+                  codec.COLLISION_TRIPPED: "sensor fault", codec.DRIVER_ERROR: "driver error"}
+#: A gripper fault counts once this many 0x2A8 frames in a row report it (one garbled
+#: frame can carry any bits; the gripper's frame has no other field to tell it by).
+GRIPPER_FAULT_FRAMES = 3
+#: Frames only a leader (teach-input) arm sends on the bus: joint targets for its followers,
+#: at any of the linkage offsets.
+LEADER_FRAMES = frozenset(i + offset for i in codec.JOINT_COMMAND for offset in codec.ID_OFFSETS)
+
+
+def gripper_faults(status: int) -> str:
+    """The fault bits of a gripper status (0x2A8 byte 6) in words, "" if none."""
+    return ", ".join(what for bit, what in GRIPPER_FAULTS.items() if status & bit)
 
 
 class Garbled(ValueError):
@@ -128,6 +149,7 @@ class FeedbackListener(can.Listener):
         self._opening = np.nan
         self._effort = 0.0
         self._gripper_status = 0
+        self._gripper_fault_frames = 0
         self._enabled = np.zeros(6, dtype=bool)
         self._driver_status = np.zeros(6, dtype=int)
         self._driver_at = np.full(6, -np.inf)  # when each driver last reported, monotonic s
@@ -145,6 +167,8 @@ class FeedbackListener(can.Listener):
         self._garbled_at = -np.inf
         self._garbled_what = ""
         self.garbled_count = 0
+        #: Joint targets seen on the bus from another sender: a leader arm's (LEADER_FRAMES).
+        self.leader_frames = 0
         self._fault = ""
         self._loss = LossMonitor()
 
@@ -183,8 +207,7 @@ class FeedbackListener(can.Listener):
             pair = codec.decode_joint_pair(data)
             first = 2 * codec.JOINT_FEEDBACK.index(identifier)
             for joint, angle in zip((first, first + 1), pair, strict=True):
-                if not (JOINT_LOWER[joint] - ANGLE_MARGIN <= angle
-                        <= JOINT_UPPER[joint] + ANGLE_MARGIN):
+                if not FEEDBACK_LOWER[joint] <= angle <= FEEDBACK_UPPER[joint]:
                     raise Garbled(f"J{joint + 1} at {angle:.3g} rad, beyond its limits")
             self._q[first:first + 2] = pair
         elif identifier in codec.END_POSE_FEEDBACK:
@@ -208,6 +231,10 @@ class FeedbackListener(can.Listener):
                 raise Garbled(f"gripper opening {gripper.opening:.3g} m")
             self._opening, self._effort = gripper.opening, gripper.effort
             self._gripper_status = gripper.status
+            faults = gripper_faults(gripper.status)
+            self._gripper_fault_frames = self._gripper_fault_frames + 1 if faults else 0
+            if self._gripper_fault_frames >= GRIPPER_FAULT_FRAMES and not self._fault:
+                self._set_fault(f"the arm reports: gripper {faults}")
         elif identifier == codec.ARM_STATUS:
             status = codec.decode_arm_status(data)
             if status.ctrl_mode > MAX_CTRL_MODE or status.arm_status > MAX_ARM_STATUS:
@@ -236,6 +263,8 @@ class FeedbackListener(can.Listener):
                     self._set_fault(f"the arm reports: J{joint + 1} {what}")
         elif identifier == codec.FIRMWARE:
             self._firmware_frames.append(data)
+        elif identifier in LEADER_FRAMES:
+            self.leader_frames += 1
         else:
             self._take_reply(identifier, data)
 
@@ -255,6 +284,20 @@ class FeedbackListener(can.Listener):
             parameters.gripper = codec.decode_gripper_parameters(data)
         elif identifier == codec.INSTRUCTION_ACK:
             self.acks.append((time.monotonic(), codec.decode_instruction_ack(data)))
+
+    def role(self) -> str:
+        """The arm's linkage role as its frames show it: "leader" (it reports linkage-teach
+        input, ctrl_mode 6, or sends joint targets), "follower" (it sends joint feedback),
+        "unknown" (neither yet)."""
+        with self._lock:
+            if self.leader_frames or (self._status is not None and self._status.ctrl_mode == 6):
+                return "leader"
+            return "follower" if np.isfinite(self._q).any() else "unknown"
+
+    def heard(self) -> bool:
+        """Whether any periodic frame of the arm has arrived."""
+        with self._lock:
+            return np.isfinite(self._last_heartbeat)
 
     def clear_fault(self) -> None:
         """Forgets the remembered fault (after the arm's errors were cleared on it); a status
@@ -290,10 +333,21 @@ class FeedbackListener(can.Listener):
         with self._lock:
             return self._enabled & (self._driver_at >= since)
 
+    def reported_since(self, since: float) -> np.ndarray:
+        """Which drivers reported (0x261-0x266) at or after monotonic time `since`."""
+        with self._lock:
+            return self._driver_at >= since
+
     def complete(self) -> bool:
         """Whether every joint angle and the gripper have been reported at least once."""
         with self._lock:
             return bool(np.all(np.isfinite(self._q)) and np.isfinite(self._opening))
+
+    def link_figures(self) -> tuple[float, float, int]:
+        """Feedback frames lost over the last LOSS_CYCLES cycles (fraction), how late the
+        newest arrived (s), frames rejected as garbled so far."""
+        with self._lock:
+            return self._loss.loss(), self._age, self.garbled_count
 
     def health(self, now: float) -> Health:
         """The watchdog's verdict at monotonic time `now` (see Health)."""

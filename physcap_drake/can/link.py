@@ -18,19 +18,21 @@ import numpy as np
 from physcap_drake.can import codec
 from physcap_drake.can.feedback import ArmParameters, FeedbackListener, Health
 from physcap_drake.can.joint_profile import STALE_TARGET, step_towards
+from physcap_drake.can.link_control import CAN_CONTROL, MOVE_J, ControlSteps, StartupError
 from physcap_drake.kinematics.piper_dh import JOINT_LOWER, JOINT_UPPER
 
 log = logging.getLogger("physcap_drake.can")
 
 MAX_JOINT_SPEED = 3.0  # rad/s, the firmware's largest joint speed (0x474)
 MAX_JOINT_ACCELERATION = 5.0  # rad/s², the firmware's largest joint acceleration (0x475)
-ENABLE_RETRY = 0.05  # s between enable commands during start-up
 #: Interval at which an unanswered query or action is asked again, s.
 QUERY_RETRY = 0.1
-
-
-class StartupError(RuntimeError):
-    """The arm did not answer, or did not do what it was asked, in time."""
+#: The mode frame (0x151) goes out again every this many streaming cycles (0.1 s at 200 Hz).
+MODE_REPEAT = 20
+#: Speed (%) at which an arm found beyond a joint limit is brought back to it.
+RECOVERY_SPEED_PERCENT = 10
+#: A joint this far beyond its limit still counts as within it, rad (about 0.06°).
+LIMIT_TOLERANCE = 1e-3
 
 
 @dc.dataclass(frozen=True)
@@ -41,6 +43,11 @@ class LinkSettings:
     interface: str = "socketcan"
     channel: str = "can0"
     control_rate: float = 200.0
+    bitrate: int = 1_000_000
+    speed_percent: int = 30
+    joint_speed: float = 1.0  # rad/s
+    joint_acceleration: float = 2.0  # rad/s²
+    collision_level: int | None = None  # None: leave the arm's
     firmware: str = ""
     gripper_stroke_mm: int = 100
     startup_timeout: float = 2.0
@@ -50,8 +57,17 @@ class LinkSettings:
 
     @classmethod
     def of(cls, config) -> LinkSettings:
-        """The settings of a `PiperCan` (or any object with these attributes)."""
-        return cls(**{f.name: getattr(config, f.name) for f in dc.fields(cls)})
+        """The settings of a `PiperCan` (its effective speed and collision level; an
+        emulated twin streams at the firmware's largest joint speed and acceleration)."""
+        if isinstance(config, LinkSettings):
+            return config
+        values = {f.name: getattr(config, f.name) for f in dc.fields(cls)}
+        values["speed_percent"] = config.arm_speed_percent
+        values["collision_level"] = config.arm_collision_level
+        if not config.real_arm:
+            values["joint_speed"] = MAX_JOINT_SPEED
+            values["joint_acceleration"] = MAX_JOINT_ACCELERATION
+        return cls(**values)
 
 
 @dc.dataclass(frozen=True)
@@ -66,14 +82,14 @@ class LinkStatus:
     stale_count: int = 0
 
 
-class PiperLink:
-    """See module docstring. `config` is a `PiperCan` station config; `bus` an open
-    python-can bus (the link owns it once opened and shuts it down in `close`).
+class PiperLink(ControlSteps):
+    """See module docstring. `config` is a `PiperCan` station config (or its LinkSettings);
+    `bus` an open python-can bus (the link owns it once opened and shuts it down in `close`).
     `on_cycle()`, if given, runs at the start of every streaming cycle (before the targets
     are sent), in the streaming thread."""
 
     def __init__(self, bus: can.BusABC, config, on_cycle: Callable[[], None] | None = None):
-        self.config = config
+        self.config = config = LinkSettings.of(config)
         self._bus = bus
         self._period = 1.0 / config.control_rate
         self._stroke = config.gripper_stroke_mm / 1000.0
@@ -92,6 +108,12 @@ class PiperLink:
         self._target_at: float | None = None  # when it was last commanded (monotonic s)
         self._gripper = codec.GripperCommand(0.0, 0.0)
         self._lower, self._upper = JOINT_LOWER.copy(), JOINT_UPPER.copy()
+        self.speed_percent = config.speed_percent
+        #: Per-joint speed (rad/s) and acceleration (rad/s²) of the streamed targets.
+        self.max_speed = np.full(6, config.joint_speed)
+        self.max_acceleration = np.full(6, config.joint_acceleration)
+        self._cycles = 0
+        self._recovering = False  # bringing an arm found beyond a limit back, slowly
         self._stale_since: float | None = None
         self._commands_sent = 0
         self._stale_count = 0
@@ -148,16 +170,7 @@ class PiperLink:
         """Asks for every parameter the arm reports (see ArmParameters) and waits for all."""
         self.open()
         parameters = self.listener.parameters
-
-        def ask_missing(acceleration: bool):
-            known = parameters.accelerations if acceleration else parameters.limits
-            return lambda: [self._send(*codec.encode_limit_query(m, acceleration))
-                            for m in range(1, 7) if m not in known]
-
-        self._wait_for(lambda: len(parameters.limits) == 6 or None,
-                       "the joint limits (0x472 -> 0x473)", ask=ask_missing(False))
-        self._wait_for(lambda: len(parameters.accelerations) == 6 or None,
-                       "the joint accelerations (0x472 -> 0x47C)", ask=ask_missing(True))
+        self._read_limits()
         for query, field, what in (
                 (codec.QUERY_END_LIMITS, "end_limits", "the end-effector limits (0x478)"),
                 (codec.QUERY_CRASH, "crash_levels", "the collision levels (0x47B)"),
@@ -218,35 +231,68 @@ class PiperLink:
     def start(self) -> PiperLink:
         """Runs the start-up sequence (module docstring) and starts streaming.
         Raises StartupError naming what did not answer."""
+        return self.connect().enable_motors().start_streaming()
+
+    def connect(self) -> PiperLink:
+        """Start-up up to, not including, enabling the motors (module docstring)."""
         self.open()
+        self.check_ready()
         reported = self.read_firmware()
         self.firmware = self.config.firmware or reported
         if self.config.firmware and self.config.firmware != reported:
             log.warning("firmware override %s (the arm reports %s)", self.config.firmware,
                         reported)
         self.torque_scale = codec.torque_scale(self.firmware)
-        limits = self.listener.parameters.limits
+        self._read_limits()
+        self.take_control()
+        if self.config.collision_level is not None:
+            self.set_collision_level(self.config.collision_level)
+        self.set_gripper_stroke(self.config.gripper_stroke_mm)
+        return self
 
-        def ask_missing_limits() -> None:
-            for motor in range(1, 7):
-                if motor not in limits:
-                    self._send(*codec.encode_limit_query(motor))
+    def _read_limits(self) -> None:
+        """The joint limits and accelerations the arm reports: its limits are kept where
+        tighter, its maximum speeds and accelerations cap the station's."""
+        parameters = self.listener.parameters
 
-        self._wait_for(lambda: len(limits) == 6 or None, "the joint limits (0x472 -> 0x473)",
-                       ask=ask_missing_limits)
-        for motor, limit in limits.items():  # keep the tighter of the two
-            self._lower[motor - 1] = max(self._lower[motor - 1], limit.min_angle)
-            self._upper[motor - 1] = min(self._upper[motor - 1], limit.max_angle)
-        self._wait_for(lambda: self.listener.complete() or None,
-                       "joint and gripper feedback (0x2A5-0x2A8)")
-        self._send(*codec.encode_mode_control(ctrl_mode=1, move_mode=1, speed_percent=100))
-        self._enable()
-        self._send(*codec.encode_gripper_parameters(self.config.gripper_stroke_mm))
-        feedback = self.listener.snapshot()
+        def ask_missing(acceleration: bool):
+            known = parameters.accelerations if acceleration else parameters.limits
+            return lambda: [self._send(*codec.encode_limit_query(m, acceleration))
+                            for m in range(1, 7) if m not in known]
+
+        self._wait_for(lambda: len(parameters.limits) == 6 or None,
+                       "the joint limits (0x472 -> 0x473)", ask=ask_missing(False))
+        self._wait_for(lambda: len(parameters.accelerations) == 6 or None,
+                       "the joint accelerations (0x472 -> 0x47C)", ask=ask_missing(True))
+        for motor, limit in parameters.limits.items():  # keep the tighter of the two
+            j = motor - 1
+            self._lower[j] = max(self._lower[j], limit.min_angle)
+            self._upper[j] = min(self._upper[j], limit.max_angle)
+            if limit.max_speed > 0:  # the arm moves at speed_percent of its maximum
+                self.max_speed[j] = min(self.max_speed[j],
+                                        limit.max_speed * self.speed_percent / 100.0)
+            if parameters.accelerations[motor] > 0:
+                self.max_acceleration[j] = min(self.max_acceleration[j],
+                                               parameters.accelerations[motor])
+
+    def enable_motors(self) -> PiperLink:
+        """Enables the motors (after `connect`); a fault the arm reports stops it here."""
+        self.enable()
         fault = self.listener.health(time.monotonic()).fault
         if fault:
             self.close()
             raise StartupError(f"{self.where}: {fault}; clear it on the arm before starting")
+        return self
+
+    def start_streaming(self) -> PiperLink:
+        """Streams from where the arm is (after `enable_motors`); an arm found beyond a
+        limit goes back to it at RECOVERY_SPEED_PERCENT first."""
+        feedback = self.listener.snapshot()
+        self._recovering = not self._within_limits()
+        if self._recovering:
+            log.warning("PiPER on %s: %s beyond its limits: brought back at %d %% speed",
+                        self.where, self._beyond_limits(), RECOVERY_SPEED_PERCENT)
+            self._send(*self.mode_frame())
         self.command(feedback.q, feedback.gripper_opening, 0.0)
         self._sent_q = None  # stream from where the arm is
         self._stop.clear()
@@ -256,6 +302,31 @@ class PiperLink:
         log.info("PiPER on %s: firmware %s, streaming at %.0f Hz", self.where, self.firmware,
                  self.config.control_rate)
         return self
+
+    def _beyond_limits(self) -> str:
+        q = self.listener.snapshot().q
+        return ", ".join(f"J{j + 1} at {np.degrees(q[j]):.1f}°" for j in range(6)
+                         if not self._lower[j] - LIMIT_TOLERANCE <= q[j]
+                         <= self._upper[j] + LIMIT_TOLERANCE)
+
+    def _within_limits(self) -> bool:
+        return not self._beyond_limits()
+
+    def mode_frame(self) -> tuple[int, bytes]:
+        """The mode frame at the station's speed (RECOVERY_SPEED_PERCENT at most while an
+        arm found beyond a limit goes back to it)."""
+        speed = self.speed_percent
+        if self._recovering:
+            speed = min(speed, RECOVERY_SPEED_PERCENT)
+        return codec.encode_mode_control(ctrl_mode=CAN_CONTROL, move_mode=MOVE_J,
+                                         speed_percent=speed)
+
+    def limit_speed(self, percent: int) -> None:
+        """Slows the arm to `percent` % of its speed (the mode frame's, and the streamed
+        targets' joint speed as a share of 3 rad/s), never faster than it was."""
+        self.speed_percent = min(self.speed_percent, percent)
+        self.max_speed = np.minimum(self.max_speed, MAX_JOINT_SPEED * percent / 100.0)
+        self._send(*self.mode_frame())
 
     def _wait_for(self, probe, what: str, ask=None):
         """Waits until probe() is not None; `ask()` sends the request, again every
@@ -275,20 +346,6 @@ class PiperLink:
                                    "the bus up at 1 Mbit/s?)")
             time.sleep(0.002)
         return value
-
-    def _enable(self) -> None:
-        """Enables the motors until every driver says so in a frame sent after the request."""
-        since = time.monotonic()
-        deadline = since + self.config.startup_timeout
-        while not (enabled := self.listener.enabled_since(since)).all():
-            if time.monotonic() > deadline:
-                missing = [f"J{j + 1}" for j, on in enumerate(enabled) if not on]
-                self.close()
-                raise StartupError(f"{self.where}: the motors of {', '.join(missing)} did "
-                                   f"not report enabled (0x261-0x266 bit 6) within "
-                                   f"station.startup_timeout = {self.config.startup_timeout} s")
-            self._send(*codec.encode_motor_enable(True))
-            time.sleep(ENABLE_RETRY)
 
     # Commands and feedback ---------------------------------------------------------------
 
@@ -364,9 +421,14 @@ class PiperLink:
             previous = np.clip(self.listener.snapshot().q, self._lower, self._upper)
             self._sent_v = np.zeros(6)
         q, self._sent_v = step_towards(previous, self._sent_v, target, target_v,
-                                       np.full(6, MAX_JOINT_SPEED),
-                                       np.full(6, MAX_JOINT_ACCELERATION), self._period)
+                                       self.max_speed, self.max_acceleration, self._period)
         q = np.clip(q, self._lower, self._upper)  # the arm refuses targets beyond its limits
+        self._cycles += 1
+        if self._recovering and self._within_limits():
+            self._recovering = False  # back inside: the station's speed again
+            self._cycles = 0
+        if self._cycles % MODE_REPEAT == 0:
+            self._send(*self.mode_frame())
         for frame in codec.encode_joints(codec.JOINT_COMMAND, q):
             self._send(*frame)
         self._send(*codec.encode_gripper_command(gripper, stroke=self._stroke))

@@ -14,7 +14,7 @@ import time
 
 import numpy as np
 
-from physcap_drake.can import codec
+from physcap_drake.can import bring_up, codec
 from physcap_drake.can.child_process import ChildError, ChildProcess
 from physcap_drake.can.feedback import Health
 from physcap_drake.can.link import LinkSettings, LinkStatus, StartupError
@@ -26,7 +26,8 @@ log = logging.getLogger("physcap_drake.can")
 TARGETS = Layout({"q": 6, "gripper": 2, "sim_time": 1, "written_at": 1})
 FEEDBACK = Layout({"published_at": 1, "q": 6, "v": 6, "torque": 6, "gripper": 2,
                    "enabled": 6, "status": 7, "end_pose": 6, "stale": 1, "stale_since": 1,
-                   "commands_sent": 1, "stale_count": 1},
+                   "commands_sent": 1, "stale_count": 1, "driver_status": 6,
+                   "gripper_status": 1, "figures": 3},
                   texts=("reason", "fault"))
 #: How long the diagram's side waits for the streaming process to finish a publication, s.
 FEEDBACK_PATIENCE = 0.002
@@ -42,7 +43,8 @@ class LinkFeedback:
     """The child's latest publication: when (monotonic s), joint positions (rad), speeds
     (rad/s) and torques (N·m, firmware scaling applied), gripper opening (m) and effort
     (N·m), drivers enabled, arm status (None before the first), end pose (m, rad), the
-    watchdog's verdict, since when the feedback is stale, commands sent, stale spells."""
+    watchdog's verdict, since when the feedback is stale, commands sent, stale spells, the
+    drivers' and gripper's status bits, and the link's figures."""
 
     published_at: float
     q: np.ndarray
@@ -57,20 +59,18 @@ class LinkFeedback:
     stale_since: float | None
     commands_sent: int
     stale_count: int
+    driver_status: np.ndarray = dc.field(default_factory=lambda: np.zeros(6, dtype=int))
+    gripper_status: int = 0
+    #: Feedback frames lost recently (fraction), how late the newest came (s), garbled ones.
+    lost_fraction: float = 0.0
+    late: float = 0.0
+    garbled: int = 0
 
 
 def open_bus(settings: LinkSettings):
-    """The python-can bus `settings` names; ConnectionError naming the fields if it fails."""
-    import can
-
-    try:
-        if settings.interface in ("slcan", "gs_usb"):
-            return can.Bus(interface=settings.interface, channel=settings.channel,
-                           bitrate=1_000_000)
-        return can.Bus(interface=settings.interface, channel=settings.channel)
-    except (OSError, can.CanError, ValueError) as error:
-        raise ConnectionError(f"station.interface {settings.interface!r}, station.channel "
-                              f"{settings.channel!r}: cannot open the CAN bus: {error}") from None
+    """The python-can bus `settings` names, a socketcan one checked first (`bring_up`);
+    ConnectionError naming the fields and the fix if it fails."""
+    return bring_up.open_bus(settings.interface, settings.channel, settings.bitrate)
 
 
 class LinkProcess:
@@ -111,13 +111,21 @@ class LinkProcess:
         self._request(("ready",), timeout=REQUEST_TIMEOUT * 6, close_on_error=True)
         return self
 
-    def start(self) -> LinkProcess:
+    def start(self, confirm=None) -> LinkProcess:
         """Runs the arm's start-up sequence in the streaming process and waits for its
-        first publication. Raises StartupError or ConnectionError with the child's words
+        first publication; `confirm()`, if given, runs before the motors are enabled (it
+        raises to refuse). Raises StartupError or ConnectionError with the child's words
         (the process is closed then)."""
-        reply = self._request(("start",), timeout=self.settings.startup_timeout * 6 + 30.0,
-                              close_on_error=True)
+        timeout = self.settings.startup_timeout * 8 + 30.0
+        reply = self._request(("connect",), timeout=timeout, close_on_error=True)
         self.firmware, self.torque_scale, self.realtime = reply
+        if confirm is not None:
+            try:
+                confirm()
+            except BaseException:
+                self.close()
+                raise
+        self._request(("enable",), timeout=timeout, close_on_error=True)
         deadline = time.monotonic() + REQUEST_TIMEOUT
         while self.feedback() is None:  # the first cycle publishes right after start-up
             if time.monotonic() > deadline:
@@ -197,7 +205,8 @@ def _feedback_of(r) -> LinkFeedback:
         float(r["gripper"][1]), r["enabled"] > 0.5, status, r["end_pose"],
         Health(bool(r["stale"][0] > 0.5), r["reason"], r["fault"]),
         None if np.isnan(since) else since, int(r["commands_sent"][0]),
-        int(r["stale_count"][0]))
+        int(r["stale_count"][0]), r["driver_status"].astype(int), int(r["gripper_status"][0]),
+        float(r["figures"][0]), float(r["figures"][1]), int(r["figures"][2]))
 
 
 # The child -------------------------------------------------------------------------------
@@ -263,7 +272,7 @@ def serve(conn, settings: LinkSettings, faults, seed: int, targets_fd: int,
             if kind == "close":
                 conn.send(("ok", None))
                 break
-            if kind == "start":
+            if kind == "connect":
                 try:
                     link = link or open_link()
                 except ConnectionError as error:
@@ -283,10 +292,13 @@ def _answer(link, faulty, kind: str, args, realtime: bool) -> tuple[str, object]
     if link is None:
         return "StartupError", f"{kind!r} before the link started"
     try:
-        if kind == "start":
-            link.start()
-            gc.freeze()  # what start-up allocated is never collected again: shorter pauses
+        if kind == "connect":
+            link.connect()
             return "ok", (link.firmware, link.torque_scale, realtime)
+        if kind == "enable":
+            link.enable_motors().start_streaming()
+            gc.freeze()  # what start-up allocated is never collected again: shorter pauses
+            return "ok", None
         if kind == "faults":
             if faulty is None:
                 return "StartupError", "fault drills need the emulated bus (emulate: true)"
@@ -317,4 +329,6 @@ def _publish(link, block: SharedBlock) -> None:
         "stale": [float(status.health.stale)],
         "stale_since": [np.nan if status.stale_since is None else status.stale_since],
         "commands_sent": [status.commands_sent], "stale_count": [status.stale_count],
+        "driver_status": f.driver_status, "gripper_status": [f.gripper_status],
+        "figures": list(link.listener.link_figures()),
     }, {"reason": status.health.reason, "fault": status.health.fault})

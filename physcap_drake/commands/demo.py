@@ -11,6 +11,7 @@ from physcap_drake.app.pick_place_demo import check_can_in_tray, pick_and_place
 from physcap_drake.app.scene_layout import check_placed, object_position
 from physcap_drake.app.sim_runner import save_meshcat_html
 from physcap_drake.commands.agent_demo import agent_demo
+from physcap_drake.commands.can_options import refuse_real_arm
 from physcap_drake.commands.common import (
     console,
     fail,
@@ -42,6 +43,9 @@ def pick_place(
     hold: Hold = None,
     html: HtmlOut = None,
     contact_forces: ContactForces = False,
+    yes: Annotated[bool, typer.Option(
+        "--yes", help="Move a real arm (a !PiperCan station without emulate) at the rig's "
+                      "defaults, without collision checks.")] = False,
 ) -> None:
     """Put the soda can on the tray with the robot skills.
 
@@ -51,6 +55,7 @@ def pick_place(
     (this demo shows the skills; `physcap run` finds objects with the camera).
     """
     loaded = load_scenario_or_exit(scenario, scenario_text)
+    refuse_real_arm(loaded, yes, "demo pick-place")
     check_placed(loaded, DEMO_MODELS, scenario)
     viewer = make_meshcat(loaded, live=meshcat) if (meshcat or html) else None
     robot = build_robot_stack(loaded, viewer)

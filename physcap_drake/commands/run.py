@@ -2,8 +2,9 @@
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
-from typing import Annotated
+from typing import Annotated, NoReturn
 
 import typer
 from rich.markup import escape
@@ -14,8 +15,18 @@ from physcap_drake.agent.transcript import TranscriptEntry, entry_text
 from physcap_drake.agent.variant import variant_names
 from physcap_drake.app.agent_episode import run_agent_episode
 from physcap_drake.app.episode import JUDGES, PERCEPTIONS
-from physcap_drake.app.episode_folder import MCAP_FILE, record_episode
+from physcap_drake.app.episode_folder import MCAP_FILE, SUMMARY_FILE, record_episode
 from physcap_drake.can.link import StartupError
+from physcap_drake.commands.arm_moves import park
+from physcap_drake.commands.can_options import (
+    Channel,
+    Interface,
+    Yes,
+    gate,
+    interruptible,
+    scenario_file_with_bus,
+    with_bus,
+)
 from physcap_drake.commands.common import (
     BAD_INPUT,
     MODEL_FAILURE,
@@ -50,7 +61,11 @@ from physcap_drake.commands.operator_judge import ask_operator, can_ask
 from physcap_drake.commands.options import ContactForces, Hold, LiveMeshcat, ScenarioText
 from physcap_drake.commands.progress import Heartbeat
 from physcap_drake.config_checks import check_scenario_task
+from physcap_drake.control.errors import SkillRefused
+from physcap_drake.resources import stations_dir
 from physcap_drake.scenario_errors import ScenarioError
+from physcap_drake.station.can_config import PiperCan
+from physcap_drake.station.can_operator import operator_link
 from physcap_drake.station.view import frame_on_table
 from physcap_drake.tasks.registry import TASKS
 
@@ -141,6 +156,13 @@ def run(task: Annotated[str, typer.Option("--task", help=f"One of: {', '.join(TA
         meshcat: LiveMeshcat = False,
         hold: Hold = None,
         contact_forces: ContactForces = False,
+        interface: Interface = None,
+        channel: Channel = None,
+        yes: Yes = False,
+        hold_arm: Annotated[bool, typer.Option(
+            "--hold-arm", help="On a real arm: leave it enabled and holding at the end "
+                               "instead of parking it and switching its motors off.")
+                            ] = False,
         ) -> None:
     """Run one episode of a task with an agent.
 
@@ -168,6 +190,14 @@ def run(task: Annotated[str, typer.Option("--task", help=f"One of: {', '.join(TA
             check_scenario_task(task, scenario_task.name, str(scenario))
         except ScenarioError as error:
             fail(str(error))
+    loaded = load_scenario_or_exit(scenario or stations_dir() / TASKS[task].scenario_file,
+                                   scenario_text)
+    if interface is not None or channel is not None:
+        loaded = with_bus(loaded, interface, channel)
+        scenario = scenario_file_with_bus(loaded, None, None)
+    gate(yes)
+    interruptible()
+    check_arm(loaded)
     if (judge or (scenario_task.judge if scenario_task else "")) == "operator" and not can_ask():
         fail("the operator judge (--judge operator, or the scenario's task.judge) asks you at "
              "the end of the episode, and stdin is not a terminal; run it in a terminal or "
@@ -210,12 +240,13 @@ def run(task: Annotated[str, typer.Option("--task", help=f"One of: {', '.join(TA
     except (ValueError, ImportError, ConnectionError, StartupError) as error:
         fail(str(error))
     except KeyboardInterrupt:
-        where = f"; the recording so far is in {out}" if out is not None else ""
-        error_console.print(f"[bold red]interrupted[/]{escape(where)}")
-        raise typer.Exit(code=130) from None
+        if printer is not None:
+            printer.stop()
+        interrupted(task, agent, seed, out, json_path)
     finally:
         if printer is not None:
             printer.stop()
+    end_on_rig(loaded, hold_arm)
     report_outcome(result.summary(), json_path, out)
     if record is not None:
         save_jsonl(result.calls, record)
@@ -226,6 +257,61 @@ def run(task: Annotated[str, typer.Option("--task", help=f"One of: {', '.join(TA
             viewer.PublishRecording()
         hold_open(viewer, hold)
     raise typer.Exit(code=exit_code(result.summary()))
+
+
+def interrupted(task: str, agent: str, seed: int, out: Path | None,
+                json_path: Path | None) -> NoReturn:
+    """Ctrl-C: the summary says so (in the episode folder and --json), one line, exit 130.
+    The arm holds where the episode left it (the station's streaming stopped)."""
+    summary = {"task": task, "agent": agent, "seed": seed, "success": False,
+               "reason": "interrupted (Ctrl-C)", "failure": "interrupted (Ctrl-C)",
+               "failure_kind": "interrupted"}
+    for path in ([out / SUMMARY_FILE] if out is not None else []) + (
+            [json_path] if json_path is not None else []):
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text(json.dumps(summary, indent=2))
+    where = f"; the recording so far is in {out}" if out is not None else ""
+    error_console.print(f"interrupted{escape(where)}", highlight=False)
+    raise typer.Exit(code=130)
+
+
+def check_arm(scenario) -> None:
+    """On a real arm, before anything is built: an arm on the bus that cannot be controlled
+    (drag-teach, a leader, silent, never confirming; start-up's checks, `PiperLink.connect`)
+    is one line naming its state, exit 2. A bus that does not open is left to the episode,
+    which checks its configuration first and then says the same at start-up."""
+    station = scenario.station
+    if not isinstance(station, PiperCan) or not station.real_arm:
+        return
+    try:
+        with operator_link(scenario) as link:
+            link.connect()
+    except ConnectionError:
+        return
+    except StartupError as error:
+        fail(str(error))
+    except KeyboardInterrupt:
+        print_error("interrupted before the episode: nothing was enabled")
+        raise typer.Exit(code=130) from None
+
+
+def end_on_rig(scenario, hold_arm: bool) -> None:
+    """On a real arm, unless `hold_arm`: park it and switch its motors off (a failure to is
+    one line; the arm then holds)."""
+    station = scenario.station
+    if not isinstance(station, PiperCan) or not station.real_arm or hold_arm:
+        return
+    try:
+        with operator_link(scenario) as link:
+            park(link, scenario, say=console.print)
+        console.print("the arm is parked, motors off")
+    except (ConnectionError, StartupError, RuntimeError, SkillRefused, TimeoutError) as error:
+        print_error(f"the arm was not parked ({error}); it holds where it is: "
+                    "`physcap arm park` once it is clear")
+    except KeyboardInterrupt:
+        print_error("interrupted while parking: the arm holds where it is; `physcap arm park` "
+                    "to end")
+        raise typer.Exit(code=130) from None
 
 
 def exit_code(summary: dict) -> int:

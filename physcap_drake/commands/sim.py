@@ -8,9 +8,12 @@ from typing import Annotated
 import typer
 
 from physcap_drake.app.sim_runner import save_meshcat_html
+from physcap_drake.can.link import StartupError
 from physcap_drake.clock import Clock
+from physcap_drake.commands.can_options import refuse_real_arm
 from physcap_drake.commands.common import (
     console,
+    fail,
     load_scenario_or_exit,
     make_meshcat,
     sim_progress,
@@ -31,6 +34,9 @@ def sim(
     hold: Hold = None,
     html: HtmlOut = None,
     contact_forces: ContactForces = False,
+    yes: Annotated[bool, typer.Option(
+        "--yes", help="Move a real arm (a !PiperCan station without emulate) at the rig's "
+                      "defaults, without collision checks.")] = False,
     wiggle: Annotated[bool, typer.Option(
         "--wiggle", help="Sweep all six joints and the gripper instead of holding.")] = False,
     realtime_rate: Annotated[float | None, typer.Option(
@@ -47,6 +53,7 @@ def sim(
     --wiggle) and prints the simulated time, the wall time and the real-time factor.
     """
     loaded = load_scenario_or_exit(scenario, scenario_text)
+    refuse_real_arm(loaded, yes, "sim")
     seconds = loaded.simulation_duration if duration is None else duration
     viewer = make_meshcat(loaded, live=meshcat) if (meshcat or html) else None
     diagram, _ = build_commanded_station(loaded, meshcat=viewer, sweep=wiggle, duration=seconds)
@@ -54,7 +61,10 @@ def sim(
         graphviz.parent.mkdir(parents=True, exist_ok=True)
         graphviz.write_text(diagram.GetGraphvizString())
         console.print(f"wrote the diagram to {graphviz}")
-    clock = Clock(diagram, loaded.simulator_config)
+    try:
+        clock = Clock(diagram, loaded.simulator_config)  # a CAN station starts up here
+    except (ConnectionError, StartupError) as error:
+        fail(str(error))
     if realtime_rate is not None or meshcat:
         pace_in_real_time(clock, 1.0 if realtime_rate is None else realtime_rate)
     if viewer is not None:

@@ -82,6 +82,31 @@ _GRIPPER = {"type": "object", "properties": {
                                                 "gripper's maximum, 0..1 (no unit; the "
                                                 "paper's f-hat)"}},
     "required": ["opening_m", "effort"]}
+_INTEGER, _BOOLEAN = {"type": "integer"}, {"type": "boolean"}
+_SIX_BOOLEANS = {"type": "array", "items": _BOOLEAN, "minItems": 6, "maxItems": 6}
+_ARM_STATUS = {"type": "object", "properties": {
+    "ctrl_mode": _STRING, "move_mode": _STRING, "arm_status": _STRING,
+    "error_code": {"type": "integer", "description": "0x2A1 err_code: bits 0-5 "
+                   "communication error of J1-J6, bits 8-13 J1-J6 at an angle limit"},
+    "errors": _STRING, "teach_status": _INTEGER, "motion_status": _INTEGER,
+    "enabled": _SIX_BOOLEANS,
+    "driver_status": {"type": "array", "items": _INTEGER, "description": "0x261-0x266 "
+                      "byte 5 of J1-J6 (bit 6 enabled, 4 collision, 7 stall)"},
+    "gripper_status": {"type": "integer", "description": "0x2A8 byte 6 (bit 6 enabled, "
+                       "7 zeroed, 0-5 faults)"},
+    "gripper_errors": {"type": "array", "items": _STRING}},
+    "required": ["ctrl_mode", "move_mode", "arm_status", "error_code", "enabled"]}
+_LINK = {"type": "object", "properties": {
+    "stale": {"type": "boolean", "description": "the watchdog holds the arm"},
+    "reason": _STRING, "fault": _STRING,
+    "watchdog_trips": {"type": "integer", "description": "stale spells so far"},
+    "commands_sent": _INTEGER,
+    "lost_fraction": {"type": "number", "description": "feedback frames lost over the "
+                      "last 16 cycles, 0..1"},
+    "late_s": {"type": "number", "description": "how late the newest feedback frame "
+               "arrived, s"},
+    "garbled_frames": {"type": "integer", "description": "rejected so far"}},
+    "required": ["stale", "watchdog_trips", "commands_sent"]}
 _SUMMARY = {"type": "object", "properties": {
     "task": _STRING, "agent": _STRING, "seed": {"type": "integer"},
     "success": {"type": ["boolean", "null"]}, "oi": {"type": "integer"},
@@ -101,6 +126,8 @@ def agent_schemas() -> dict[str, tuple[str, dict[str, Any]]]:
         topics.AGENT_ERROR: ("physcap.AgentError", _entry_schema(_AGENT_ERROR)),
         topics.AGENT_MEASUREMENT: ("physcap.Measurement", _entry_schema(_MEASUREMENT)),
         topics.GRIPPER_STATE: ("physcap.GripperState", _GRIPPER),
+        topics.ARM_STATUS: ("physcap.ArmStatus", _ARM_STATUS),
+        topics.LINK: ("physcap.LinkHealth", _LINK),
         topics.LLM_CALLS: ("physcap.LLMCall", _LLM_CALL),
         topics.AGENT_PROGRESS: ("physcap.AgentProgress", _PROGRESS),
         topics.EPISODE_SUMMARY: ("physcap.EpisodeSummary", _SUMMARY),

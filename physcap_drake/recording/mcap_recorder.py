@@ -16,6 +16,7 @@ from pydrake.systems.sensors import ImageRgba8U
 from physcap_drake.control.planning_model import TCP_FRAME, PlanningModel
 from physcap_drake.perception.jpeg import encode_jpeg
 from physcap_drake.recording import topics
+from physcap_drake.recording.can_topics import arm_feedback_of, arm_status_message, link_message
 from physcap_drake.recording.mcap_sink import McapSink
 from physcap_drake.recording.scene_geometry import body_frame_name, scene_update
 from physcap_drake.recording.time_base import TimeBase, time_base_for
@@ -52,13 +53,17 @@ class McapRecorder(LeafSystem):
             periodic images; `record_image_now` still works).
         time_base: the episode's time base, started when the diagram initializes (default:
             simulated time; `make_mcap_recorder` picks it from the station).
+        arm_feedback: on a CAN station, a callable giving the streaming link's latest
+            publication (`can.link_process.LinkFeedback`, or None): written every state
+            period to /piper/arm_status and /piper/link (`can_topics`).
     """
 
     def __init__(self, sink: McapSink, joint_names: list[str], *,
                  plant: MultibodyPlant | None = None, scene_graph=None, kinematics=None,
                  fingertip: tuple | None = None, camera_frame: str = "camera",
                  state_period: float = 0.04, image_period: float = 2.0,
-                 flush_period: float = 1.0, time_base: TimeBase | None = None):
+                 flush_period: float = 1.0, time_base: TimeBase | None = None,
+                 arm_feedback=None):
         super().__init__()
         if len(joint_names) != ports.NUM_ARM_JOINTS:
             raise ValueError(f"joint_names needs {ports.NUM_ARM_JOINTS} names, got "
@@ -73,6 +78,7 @@ class McapRecorder(LeafSystem):
                              "(poses from the joints), not both")
         self._sink = sink
         self._time_base = time_base
+        self._arm_feedback = arm_feedback
         self._joint_names = [*joint_names, GRIPPER_JOINT]
         self._kinematics = kinematics
         if kinematics is not None:  # its forward kinematics gives the poses
@@ -126,6 +132,10 @@ class McapRecorder(LeafSystem):
         self._sink.joint_states(at, self._joint_names, position, velocity, effort)
         self._sink.gripper_state(at, value[ports.GRIPPER_POSITION_MEASURED][0],
                                  value[ports.GRIPPER_EFFORT_MEASURED][0])
+        feedback = None if self._arm_feedback is None else self._arm_feedback()
+        if feedback is not None:
+            self._sink.json(topics.ARM_STATUS, at, arm_status_message(feedback))
+            self._sink.json(topics.LINK, at, link_message(feedback))
         poses = self._poses(context, value)
         if poses is not None:
             frames = [(name, poses[index]) for index, name in self._frames]
@@ -165,7 +175,8 @@ def make_mcap_recorder(sink: McapSink, station, scenario, *, image_period: float
     """The recorder for a built station: joint names from the arm model; the bodies, geometry
     and the gripper's TCP frame (as the fingertip) of the station's simulated world
     (subsystems "plant" and "scene_graph") when it has one, else of the robot's model; the
-    episode's time base chosen by the scenario's kind of station (`time_base_for`)."""
+    episode's time base chosen by the scenario's kind of station (`time_base_for`); on a
+    CAN station, the arm's status and the link's health too (`can_topics`)."""
     config = scenario.station
     if station.HasSubsystemNamed("plant") and station.HasSubsystemNamed("scene_graph"):
         kinematics = None
@@ -178,9 +189,11 @@ def make_mcap_recorder(sink: McapSink, station, scenario, *, image_period: float
     joint_names = [joint.name() for joint in moving_joints(plant, arm)]
     tcp = plant.GetFrameByName(TCP_FRAME, plant.GetModelInstanceByName(config.gripper_model))
     fingertip = (tcp.body(), tcp.GetFixedPoseInBodyFrame())
+    feedback = arm_feedback_of(station)
     if kinematics is not None:
         return McapRecorder(sink, joint_names, kinematics=kinematics, fingertip=fingertip,
-                            image_period=image_period, time_base=time_base_for(config))
+                            image_period=image_period, time_base=time_base_for(config),
+                            arm_feedback=feedback)
     return McapRecorder(sink, joint_names, plant=plant, scene_graph=scene_graph,
                         fingertip=fingertip, image_period=image_period,
-                        time_base=time_base_for(config))
+                        time_base=time_base_for(config), arm_feedback=feedback)

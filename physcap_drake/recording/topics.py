@@ -9,6 +9,13 @@ JOINT_STATES = "/piper/joint_states"
 #: physcap.GripperState (JSON): the gripper's opening (m) and measured effort as a fraction of
 #: its maximum (0..1), which has no place in JointStates (whose efforts are N or N·m).
 GRIPPER_STATE = "/piper/gripper"
+#: physcap.ArmStatus (JSON), CAN stations only: the arm's own status as it reports it (0x2A1
+#: control mode, move mode, arm status, error code, teach state; the drivers' enable and
+#: status bits; the gripper's status bits).
+ARM_STATUS = "/piper/arm_status"
+#: physcap.LinkHealth (JSON), CAN stations only: the streaming link's watchdog (stale,
+#: why, trips so far), frames lost, late and garbled, motion commands sent.
+LINK = "/piper/link"
 #: foxglove.FrameTransforms: every body's pose in the world frame, and the fingertip frame.
 TRANSFORMS = "/tf"
 #: foxglove.SceneUpdate: the scene's geometry, each entity locked to its body's frame.

@@ -10,6 +10,7 @@ simulated scene provides what a real arm cannot (camera images, and the ground t
 # No `from __future__ import annotations`: yaml_load_typed reads the field types at run time.
 import dataclasses as dc
 
+from physcap_drake.can.bring_up import INTERFACES
 from physcap_drake.can.playback import DELAY as PLAYBACK_DELAY
 from physcap_drake.config_checks import ConfigChecker
 from physcap_drake.station.sim_config import SimPiper
@@ -38,16 +39,42 @@ class CanFaults:
         at.number("seed", self.seed, minimum=0)
 
 
+#: A real arm's defaults (see PiperCan): speed %, joint speed rad/s, acceleration rad/s²,
+#: collision protection level.
+RIG_SPEED_PERCENT, RIG_JOINT_SPEED, RIG_JOINT_ACCELERATION, RIG_COLLISION_LEVEL = 30, 1.0, 2.0, 4
+#: The PiPER's largest joint speed, rad/s (0x474; its speed percentage scales it).
+MAX_JOINT_SPEED = 3.0
+#: What an emulated twin (emulate: true) keeps: full speed, collision protection as it is.
+EMULATED_SPEED_PERCENT = 100
+
+
 @dc.dataclass
 class PiperCan:
     """The real PiPER arm on a CAN bus (1 Mbit/s classic CAN, see `reference/piper.md` §2)."""
 
-    # python-can interface: "socketcan" for the arm's USB adapter, "virtual" for the emulator.
+    # python-can interface: "socketcan" for the arm's USB adapter, "virtual" for the emulator
+    # in these processes, "unix" for `physcap emulate-piper --interface unix` (channel: the
+    # socket's path).
     interface: str = "socketcan"
     # python-can channel, e.g. "can0".
     channel: str = "can0"
     # Rate at which joint targets are streamed in joint mode, Hz.
     control_rate: float = 200.0
+    # Bit rate of the bus, bit/s: a socketcan interface must run at it (checked before the
+    # bus opens). Default 1 000 000, the PiPER's.
+    bitrate: int = 1_000_000
+    # Speed of the arm's own motion, % of its maximum (0x151 byte 2). Default (None): 30 on
+    # a real arm, 100 with emulate: true.
+    speed_percent: int | None = None
+    # Fastest joint speed of the skills and the streamed targets on a real arm, rad/s (never
+    # above the arm's reported per-joint maxima; emulate: true keeps the skills' own).
+    # Default 1.
+    joint_speed: float = RIG_JOINT_SPEED
+    # Largest joint acceleration of the same, rad/s². Default 2.
+    joint_acceleration: float = RIG_JOINT_ACCELERATION
+    # Collision protection level set on every joint at start-up and read back (0x47A), 0
+    # (off) to 8. Default (None): 4 on a real arm, the arm's own (0) with emulate: true.
+    collision_level: int | None = None
     # Firmware version string such as "S-V1.8-2"; empty: read it from the arm (0x4AF).
     # Given, it overrides what the arm reports (it selects the torque scaling).
     firmware: str = ""
@@ -93,6 +120,26 @@ class PiperCan:
     emulated_start: str = "normal"
 
     @property
+    def real_arm(self) -> bool:
+        """Whether an arm outside this program answers (not an emulated twin): a real one,
+        or a rehearsal's `physcap emulate-piper`, both treated as real."""
+        return not self.emulate
+
+    @property
+    def arm_speed_percent(self) -> int:
+        """The speed percentage sent in the mode frame (0x151)."""
+        if self.speed_percent is not None:
+            return self.speed_percent
+        return RIG_SPEED_PERCENT if self.real_arm else EMULATED_SPEED_PERCENT
+
+    @property
+    def arm_collision_level(self) -> int | None:
+        """The collision level set at start-up; None: leave the arm's."""
+        if self.collision_level is not None:
+            return self.collision_level
+        return RIG_COLLISION_LEVEL if self.real_arm else None
+
+    @property
     def command_latency(self) -> float:
         """How long after a command reaches the station's inputs it can first show in the
         measured outputs, s: the streaming process plays targets back `playback.DELAY`
@@ -104,11 +151,20 @@ class PiperCan:
         return PLAYBACK_DELAY + 2.0 / self.control_rate + self.arm_response_time + bus
 
     def check(self, at: ConfigChecker) -> None:
-        at.choice("interface", self.interface, ["socketcan", "virtual", "slcan", "gs_usb"])
+        at.choice("interface", self.interface, list(INTERFACES))
         if not self.channel:
             at.fail("channel", "a CAN channel name such as 'can0'", "got an empty string")
         at.number("control_rate", self.control_rate, minimum=0.0, maximum=500.0,
                   open_minimum=True)
+        at.choice("bitrate", self.bitrate, [125_000, 250_000, 500_000, 1_000_000])
+        if self.speed_percent is not None:
+            at.number("speed_percent", self.speed_percent, minimum=1, maximum=100)
+        at.number("joint_speed", self.joint_speed, minimum=0.0, maximum=3.0,
+                  open_minimum=True, why="the PiPER's joints allow up to 3 rad/s")
+        at.number("joint_acceleration", self.joint_acceleration, minimum=0.0, maximum=5.0,
+                  open_minimum=True, why="the PiPER's joints allow up to 5 rad/s²")
+        if self.collision_level is not None:
+            at.number("collision_level", self.collision_level, minimum=0, maximum=8)
         at.choice("gripper_stroke_mm", self.gripper_stroke_mm, [70, 100])
         at.number("gripper_max_force", self.gripper_max_force, minimum=0.0, open_minimum=True)
         at.number("gripper_max_effort", self.gripper_max_effort, minimum=0.0, maximum=5.0,
@@ -149,3 +205,16 @@ class PiperCan:
             at.fail("faults", "no faults unless emulate is true (faults are injected on the "
                     "emulated bus only)", "faults set on a real bus")
         self.faults.check(at.child("faults"))
+
+
+def rig_skills(skills, station):
+    """The skills' limits for `station`: on a real arm (PiperCan, not emulated) the joint
+    speed and acceleration are at most the station's, and the speed at most the arm's at
+    its speed percentage; elsewhere `skills` unchanged."""
+    if not isinstance(station, PiperCan) or not station.real_arm:
+        return skills
+    arm_speed = MAX_JOINT_SPEED * station.arm_speed_percent / 100.0
+    return dc.replace(skills, max_joint_velocity=min(skills.max_joint_velocity,
+                                                     station.joint_speed, arm_speed),
+                      max_joint_acceleration=min(skills.max_joint_acceleration,
+                                                 station.joint_acceleration))

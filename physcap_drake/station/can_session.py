@@ -16,6 +16,7 @@ from physcap_drake.can.link import LinkSettings
 from physcap_drake.can.link_process import LinkProcess
 from physcap_drake.can.socket_bus import socket_pair
 from physcap_drake.station.can_config import PiperCan
+from physcap_drake.station.can_gate import confirm_enabling
 
 #: What builds the emulated arm's world in the emulator's process, by name: it is built from
 #: the scenario, a layer above the station (see `physcap_drake.emulated_world`).
@@ -114,7 +115,7 @@ class CanSession:
             return self
         self.wait_ready()
         try:
-            self.link.start()
+            self.link.start(confirm=lambda: confirm_enabling(self.config))
         except BaseException:
             self.close()
             raise

@@ -15,17 +15,16 @@ from physcap_drake.station.can_config import PiperCan
 from physcap_drake.station.can_interface import PiperCanInterface
 from physcap_drake.station.can_scene import EmulatedScene, NoScene
 from physcap_drake.station.can_session import CanSession
+from physcap_drake.station.can_view import add_measured_view
 
 INTERFACE, SCENE = "piper_can", "scene"
 
 
 def MakeCanStation(scenario, meshcat=None) -> Diagram:
     """Builds the CAN station for `scenario` (whose `station` is a `PiperCan`); see the design
-    notes. Nothing is connected yet."""
+    notes. Nothing is connected yet. With `meshcat`, the robot is drawn there at its
+    measured joints (`can_view`)."""
     config: PiperCan = scenario.station
-    if meshcat is not None:
-        raise ValueError("station: !PiperCan does not draw in Meshcat yet; run without "
-                         "--meshcat")
     # The emulated arm's process simulates the world (its cameras are built, never
     # rendered): this station renders them from its own copy of that world (EmulatedScene).
     session = CanSession(emulated_world(scenario))
@@ -51,6 +50,8 @@ def MakeCanStation(scenario, meshcat=None) -> Diagram:
     for name in ports.VECTOR_OUTPUTS:
         builder.ExportOutput(interface.GetOutputPort(name), name)
     cameras.add_to(builder)
+    if meshcat is not None:
+        add_measured_view(builder, interface, scenario, meshcat)
     diagram = builder.Build()
     diagram.set_name("station")
     return diagram
