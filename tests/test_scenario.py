@@ -254,8 +254,9 @@ def test_a_real_arm_that_is_not_there_fails_naming_the_bus():
                                   "socketcan, channel: nocan7}\n")
     assert isinstance(scenario.station, PiperCan) and scenario.station.channel == "nocan7"
     station = MakeStation(scenario)  # building connects nothing; starting does
-    with pytest.raises(ConnectionError, match="station.interface 'socketcan', "
-                                              "station.channel 'nocan7'"):
+    # The bring-up check names the missing interface and the command that brings one up.
+    with pytest.raises(ConnectionError, match="no CAN interface 'nocan7'.*ip link set nocan7 "
+                                              "up type can bitrate 1000000"):
         start_can_station(station)
     close_station(station)
 
