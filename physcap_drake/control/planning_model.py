@@ -36,6 +36,8 @@ class PlanningModel:
     def __init__(self, directives: list | None = None, arm_model: str = "",
                  gripper_model: str = "", *, robot: RobotModel | None = None):
         if robot is None:
+            if directives is None:
+                raise ValueError("PlanningModel needs the scenario's directives or robot=")
             robot = robot_model(directives, arm_model, gripper_model)
         self.robot = robot
         self.diagram, plant, scene_graph = robot.workcell

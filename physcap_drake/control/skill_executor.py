@@ -64,6 +64,12 @@ class ExecutorState(Immutable):
     reference_opening: float = 0.0
     reference_time: float = 0.0
 
+    @property
+    def running(self) -> PlannedSkill:
+        """The skill being monitored (asked only while there is one)."""
+        assert self.skill is not None
+        return self.skill
+
 
 class SkillExecutor(LeafSystem):
     """Drives the station's inputs from planned skills.
@@ -195,7 +201,7 @@ class SkillExecutor(LeafSystem):
 
     def _monitor(self, context: Context, current: ExecutorState) -> ExecutorState:
         now = context.get_time()
-        skill = current.skill
+        skill = current.running
         outcome = None
         if skill.kind is SkillKind.ARM:
             outcome = self._arm_outcome(context, current, now)
@@ -215,12 +221,12 @@ class SkillExecutor(LeafSystem):
             arm_plan = JointPlan.hold(self._q.Eval(context).copy(), now)
         status = dc.replace(current.status, state=result, message=message, finished_at=now,
                             robot_time=current.status.robot_time + now
-                            - current.skill.start_time,
+                            - current.running.start_time,
                             joint_target=tuple(map(float, arm_plan.final_position)))
         return dc.replace(current, arm_plan=arm_plan, status=status)
 
     def _arm_outcome(self, context: Context, current: ExecutorState, now: float):
-        skill = current.skill
+        skill = current.running
         if now < skill.arm_plan.end_time:
             return None
         error = np.abs(self._q.Eval(context) - skill.arm_plan.final_position)
@@ -237,7 +243,7 @@ class SkillExecutor(LeafSystem):
         return None
 
     def _gripper_outcome(self, context: Context, current: ExecutorState, now: float):
-        skill = current.skill
+        skill = current.running
         opening = float(self._opening.Eval(context)[0])
         if abs(opening - skill.gripper_opening) <= GRIPPER_TOLERANCE:
             return (SkillState.SUCCEEDED,

@@ -13,6 +13,7 @@ import enum
 import numpy as np
 from pydrake.common.eigen_geometry import Quaternion
 from pydrake.math import RotationMatrix
+from pydrake.trajectories import Trajectory
 
 from physcap_drake.control.errors import SkillRefused
 from physcap_drake.control.ik import FingertipGoal, solve_fingertip_ik, tilt_from_vertical
@@ -177,6 +178,7 @@ class SkillPlanner:
         where = "(" + ", ".join(f"{v:.3f}" for v in target) + ") m"
         label = f"goto_pose {where}" + (f" from {z_approach:.3f} m above" if z_approach else "")
         self._check_workspace(target, label)
+        segments: tuple[Trajectory, ...]
         if z_approach > 0:
             above = target + [0.0, 0.0, z_approach]
             self._check_workspace(above, label + " (approach point)")
@@ -212,6 +214,7 @@ class SkillPlanner:
                 failure = error
                 continue
             return np.column_stack(solutions if order is heights else solutions[::-1])
+        assert failure is not None  # both orders were refused
         raise failure
 
     def _check_straight(self, descent, target, label) -> None:
