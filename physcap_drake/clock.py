@@ -98,6 +98,7 @@ class Clock:
         reported = [start_time]
 
         def report(context: Context) -> EventStatus:
+            assert on_progress is not None  # report is monitored only with on_progress
             if context.get_time() - reported[0] >= PROGRESS_PERIOD - 1e-12:
                 reported[0] = context.get_time()
                 on_progress(reported[0] - start_time)

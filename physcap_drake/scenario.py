@@ -153,7 +153,7 @@ def load_scenario(filename: str | Path, scenario_text: str = "") -> Scenario:
     if not Path(filename).is_file():
         raise ScenarioError(filename=label, key_path="", expected="an existing scenario file",
                             problem="no such file")
-    scenario = read_layers(Path(filename), label, _read_file)
+    scenario: Scenario = read_layers(Path(filename), label, _read_file)
     if scenario_text:
         scenario = _read(TEXT_LABEL, defaults=scenario, data=scenario_text)
     check_scenario(scenario, label if not scenario_text else f"{label} with {TEXT_LABEL}")

@@ -10,6 +10,7 @@ import threading
 import time
 
 import numpy as np
+import pytest
 from conftest import unique_channel
 
 from physcap_drake.agent.llm import make_llm
@@ -18,6 +19,12 @@ from physcap_drake.recording import topics
 from physcap_drake.recording.mcap_sink import McapSink
 from physcap_drake.recording.reading import read_recording
 from physcap_drake.resources import stations_dir
+
+pytestmark = [
+    pytest.mark.episode,
+    pytest.mark.emulated_hardware,
+    pytest.mark.xdist_group("realtime"),
+]
 
 MODEL_CALL_S = 3.0  # how long the first model call takes, s of wall time
 ESTOP_AFTER_S = 1.0  # when the e-stop comes, s into that call

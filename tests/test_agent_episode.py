@@ -14,6 +14,8 @@ from physcap_drake.agent.sandbox import SandboxLimits
 from physcap_drake.app.agent_episode import run_agent_episode
 from physcap_drake.station import ports
 
+pytestmark = [pytest.mark.episode, pytest.mark.xdist_group("test_agent_episode")]
+
 OPENED = {"red can", "green can"}
 
 

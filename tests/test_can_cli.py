@@ -12,6 +12,8 @@ from typer.testing import CliRunner
 from physcap_drake.cli import app
 from physcap_drake.resources import stations_dir
 
+pytestmark = [pytest.mark.emulated_hardware, pytest.mark.xdist_group("realtime")]
+
 SCENARIO = """\
 directives:
 - add_directives:

@@ -21,7 +21,11 @@ from physcap_drake.can.emulator import wait_until
 from physcap_drake.can.motion import KinematicMotion
 
 #: piper_sdk 0.6.2 opens its bus with python-can's deprecated `bustype` argument.
-pytestmark = pytest.mark.filterwarnings("ignore:The .bustype. argument is deprecated")
+pytestmark = [
+    pytest.mark.filterwarnings("ignore:The .bustype. argument is deprecated"),
+    pytest.mark.emulated_hardware,
+    pytest.mark.xdist_group("realtime"),
+]
 #: A posture over the table, well inside the limits and away from singularities (rad).
 READY = np.array([0.0, 1.2, -1.2, 0.0, 0.6, 0.0])
 

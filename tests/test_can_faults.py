@@ -18,6 +18,8 @@ from physcap_drake.can.emulator import wait_until
 from physcap_drake.can.faults import garbled
 from physcap_drake.can.feedback import FeedbackListener
 
+pytestmark = [pytest.mark.emulated_hardware, pytest.mark.xdist_group("realtime")]
+
 can_rig = rig.can_rig  # the fixture (see tests/can_rig.py)
 
 DETECTION_LIMIT = 0.100  # s, the bound

@@ -10,6 +10,8 @@ from physcap_drake.can import codec
 from physcap_drake.can.firmware import Firmware
 from physcap_drake.can.motion import KinematicMotion, MotionReading
 
+pytestmark = pytest.mark.emulated_hardware
+
 
 class PushedArm(KinematicMotion):
     """A kinematic arm on which something pushes J2 with `push` N·m beyond the model."""

@@ -21,6 +21,8 @@ from physcap_drake.can.paced_world import (
 )
 from physcap_drake.can.socket_bus import SocketBus, socket_pair
 
+pytestmark = [pytest.mark.emulated_hardware, pytest.mark.xdist_group("realtime")]
+
 PERIOD = 0.005
 
 

@@ -29,6 +29,8 @@ from physcap_drake.station.can_session import TRIP_MARGIN
 from physcap_drake.station.can_station import can_session, start_can_station
 from physcap_drake.station.sim_config import SimPiper
 
+pytestmark = [pytest.mark.emulated_hardware, pytest.mark.xdist_group("realtime")]
+
 TARGET = np.array([0.3, 0.6, -0.7, 0.2, 0.4, -0.3])
 
 
@@ -222,6 +224,7 @@ def can_scenario(tmp_path, faults: str = "") -> str:
     return str(path)
 
 
+@pytest.mark.episode
 @pytest.mark.parametrize("station", ["sim", "can", "can with 1% frame loss"])
 def test_the_agent_finds_the_empty_can_over_either_station(tmp_path, station):
     """Runs in real time over CAN (about 25 s each)."""

@@ -77,6 +77,7 @@ def demo_run(tmp_path_factory):
                          ), html
 
 
+@pytest.mark.episode
 def test_demo_pick_place_puts_the_can_on_the_tray(demo_run):
     result, _ = demo_run
     assert result.exit_code == 0, result.output
@@ -91,6 +92,7 @@ def scene_fraction(image) -> float:
     return float(((hsv[..., 1] > 40) | (hsv[..., 2] < 60)).mean())
 
 
+@pytest.mark.episode
 @pytest.mark.parametrize("size", [(1024, 768), (1280, 720)])
 def test_demo_html_opens_framed_on_the_table(demo_run, tmp_path, size):
     """Before framing, the table filled 2 % of a 1024 × 768 window (the rest was sky and
@@ -104,11 +106,13 @@ def test_demo_html_opens_framed_on_the_table(demo_run, tmp_path, size):
     assert scene_fraction(image) > 0.5
 
 
+@pytest.mark.episode
 def test_demo_html_hides_contact_forces_axes_and_grid(demo_run):
     for path in ("/drake/contact_forces", "/Axes", "/Grid"):
         assert meshcat_visibility(demo_run[1], path) == {False}, path
 
 
+@pytest.mark.episode
 def test_bench_pick_place_writes_its_figures(tmp_path):
     out = tmp_path / "pick.json"
     result = runner.invoke(app, ["bench", "pick-place", "--trials", "1", "--json", str(out)])
@@ -132,6 +136,7 @@ def test_calibrate_mass_writes_one_entry_per_reference_mass(tmp_path):
     assert "error (g)" in result.output
 
 
+@pytest.mark.episode
 def test_run_prints_the_transcript_and_writes_the_summary(tmp_path):
     summary_path, calls_path = tmp_path / "summary.json", tmp_path / "calls.jsonl"
     result = runner.invoke(app, ["run", "--task", "identify_empty_can", "--seed", "0",

@@ -19,6 +19,8 @@ from physcap_drake.can.socket_bus import socket_pair
 from physcap_drake.resources import add_model_packages
 from physcap_drake.station.can_session import EMULATED_WORLD_BUILDER
 
+pytestmark = [pytest.mark.emulated_hardware, pytest.mark.xdist_group("realtime")]
+
 #: The builders in tests/recording_world.py, imported by the child from PYTHONPATH.
 RECORDING_BUILDER = "recording_world:record_start"
 MASS_RECORDING_BUILDER = "recording_world:record_masses"

@@ -95,6 +95,7 @@ def _physcap(*args: str) -> subprocess.CompletedProcess:
                           env={**os.environ, "COLUMNS": "200"})
 
 
+@pytest.mark.episode
 def test_eval_runs_the_grid_in_parallel_and_resumes(tmp_path):
     args = ["eval", "--tasks", "identify_empty_can", "--agents", "physcap,cap",
             "--trials", "2", "--workers", "2", "--out", str(tmp_path)]
@@ -127,6 +128,7 @@ def test_eval_names_an_unknown_agent_and_keeps_the_paper_grid_whole():
     assert result.exit_code == 2 and "--paper runs the paper's grid" in result.output
 
 
+@pytest.mark.episode
 def test_a_replayed_run_gives_identical_results(tmp_path):
     first = record_episode(tmp_path / "first", "identify_empty_can", 2, agent="physcap")
     again = record_episode(tmp_path / "again", "identify_empty_can", 2, agent="physcap",

@@ -17,6 +17,8 @@ from pathlib import Path
 
 import pytest
 
+pytestmark = pytest.mark.xdist_group("ray")
+
 ray = pytest.importorskip("ray")
 # The remote functions below travel by value: Ray's workers cannot import this test module.
 ray.cloudpickle.register_pickle_by_value(sys.modules[__name__])
@@ -64,6 +66,7 @@ def pool_episodes(tmp_path_factory) -> dict[str, dict]:
     return _episodes(out)
 
 
+@pytest.mark.episode
 def test_a_grid_on_ray_gives_the_episodes_of_the_process_pool(tmp_path, pool_episodes):
     out = _finish(_physcap(*GRID, "--ray", "--out", str(tmp_path)))
     assert "2 to run on a local Ray instance with 2 CPU(s)" in out
@@ -92,6 +95,7 @@ def _episode_workers() -> list[int]:
     return pids
 
 
+@pytest.mark.episode
 def test_an_episode_whose_worker_is_killed_is_run_again(tmp_path, pool_episodes):
     grid = _physcap(*GRID, "--ray", "--out", str(tmp_path))
     deadline, killed = time.monotonic() + 300, None

@@ -14,6 +14,8 @@ from physcap_drake.agent.llm import make_llm
 from physcap_drake.app.agent_episode import run_agent_episode
 from physcap_drake.cli import app
 
+pytestmark = pytest.mark.episode
+
 runner = CliRunner()
 
 

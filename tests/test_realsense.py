@@ -23,6 +23,8 @@ from physcap_drake.station.realsense.config import RealSense
 from physcap_drake.station.realsense.pipeline_camera import CameraUnavailable, PipelineRealSense
 from physcap_drake.station.realsense.software_camera import SoftwareRealSense
 
+pytestmark = pytest.mark.emulated_hardware
+
 runner = CliRunner()
 #: A tiny emulated RealSense where the station's camera is (fast to render).
 W, H = 64, 48

@@ -36,6 +36,8 @@ from physcap_drake.recording.reading import read_recording
 from physcap_drake.recording.scene_geometry import body_frame_name
 from physcap_drake.recording.time_base import KIND, SIMULATED, START_DATE_NS, TIME_METADATA
 
+pytestmark = pytest.mark.xdist_group("test_recording")
+
 TASK, SEED = "identify_empty_can", 0
 
 EXPECTED_SCHEMAS = {
@@ -77,11 +79,13 @@ def recording(episode_folder):
     return read_recording(episode_folder / "episode.mcap")
 
 
+@pytest.mark.episode
 def test_recording_has_the_documented_topics_and_schemas(recording):
     assert recording.complete
     assert recording.topics() == EXPECTED_SCHEMAS
 
 
+@pytest.mark.episode
 def test_every_recorded_message_decodes(episode_folder, recording):
     with (episode_folder / "episode.mcap").open("rb") as stream:
         raw = sum(1 for _ in NonSeekingReader(stream).iter_messages(log_time_order=False))
@@ -90,6 +94,7 @@ def test_every_recorded_message_decodes(episode_folder, recording):
         assert message.value is not None, message.topic
 
 
+@pytest.mark.episode
 def test_joint_states_and_frames_carry_the_robot_signals(recording):
     states = recording.on(topics.JOINT_STATES)
     names = [joint.name for joint in states[0].value.joints]
@@ -110,6 +115,7 @@ def test_joint_states_and_frames_carry_the_robot_signals(recording):
     assert all(t.parent_frame_id == topics.WORLD_FRAME for t in frames)
 
 
+@pytest.mark.episode
 def test_a_simulated_episode_starts_at_its_real_date_and_logs_simulated_time(recording):
     """Foxglove shows the date the episode ran; log times are that date plus simulated
     time, and the simulated time of every JSON message is in it as sim_time_s."""
@@ -125,6 +131,7 @@ def test_a_simulated_episode_starts_at_its_real_date_and_logs_simulated_time(rec
     assert min(m.log_time_ns for m in recording.messages) == recording.episode_start_ns
 
 
+@pytest.mark.episode
 def test_every_json_message_follows_its_own_schema(episode_folder):
     """Each agent topic's message validates against the JSON Schema its channel carries
     (what Foxglove and any other reader are told to expect)."""
@@ -145,6 +152,7 @@ def test_every_json_message_follows_its_own_schema(episode_folder):
             topics.LLM_CALLS, topics.GRIPPER_STATE, topics.EPISODE_SUMMARY} <= set(checked)
 
 
+@pytest.mark.episode
 def test_gripper_effort_is_a_fraction_on_its_own_topic(recording):
     """JointStates efforts are N·m (or N): the gripper's normalized effort is not one."""
     gripper = [m.value for m in recording.on(topics.GRIPPER_STATE)]
@@ -157,6 +165,7 @@ def test_gripper_effort_is_a_fraction_on_its_own_topic(recording):
     assert abs(last.position - gripper[-1]["opening_m"]) < 1e-12
 
 
+@pytest.mark.episode
 def test_scene_and_camera_images(recording):
     scene = recording.on(topics.SCENE)[0].value
     frames = {entity.frame_id for entity in scene.entities}
@@ -169,6 +178,7 @@ def test_scene_and_camera_images(recording):
     assert images[0].value.format == "jpeg" and image.shape[2] == 3 and image.shape[0] >= 240
 
 
+@pytest.mark.episode
 def test_agent_messages_are_structured(recording):
     planner = recording.on(topics.AGENT_PLANNER)[0].value
     assert planner["kind"] == "planner" and planner["data"]["sufficient"] is False
@@ -186,6 +196,7 @@ def test_agent_messages_are_structured(recording):
     assert (meta["task"], meta["seed"], meta["agent"]) == (TASK, str(SEED), "physcap")
 
 
+@pytest.mark.episode
 def test_episode_folder_holds_transcript_summary_and_calls(episode_folder, recording):
     summary = json.loads((episode_folder / "summary.json").read_text())
     for key in ("task", "agent", "seed", "success", "oi", "robot_time_s", "wall_time_s",
@@ -204,6 +215,7 @@ def test_episode_folder_holds_transcript_summary_and_calls(episode_folder, recor
     assert len(load_jsonl(episode_folder / "calls.jsonl")) == summary["llm_calls"]
 
 
+@pytest.mark.episode
 def test_meshcat_html_shows_the_arm_in_headless_chromium(episode_folder, tmp_path):
     chromium = find_chromium()
     if chromium is None:
@@ -219,6 +231,7 @@ def test_meshcat_html_shows_the_arm_in_headless_chromium(episode_folder, tmp_pat
         False}
 
 
+@pytest.mark.episode
 def test_replay_rebuilds_the_motion_from_the_mcap(episode_folder, recording):
     replayed = replay_in_meshcat(episode_folder / "episode.mcap", Meshcat())
     assert (replayed.task, replayed.seed) == (TASK, SEED)
@@ -229,6 +242,7 @@ def test_replay_rebuilds_the_motion_from_the_mcap(episode_folder, recording):
     assert "# Code block 0" in text
 
 
+@pytest.mark.episode
 def test_the_replayed_scene_stands_where_the_recording_says(recording):
     """The replay's diagram, run to the last sample, poses every recorded frame it knows
     where /tf put it then, read from SceneGraph's query: the cans and the tray exactly (it is posed
@@ -338,6 +352,7 @@ def _announced_code_blocks(child: subprocess.Popen, seen: int) -> list[int]:
     return list(range(seen)) + [int(m.group(1)) for m in rest if m]
 
 
+@pytest.mark.episode
 def test_a_killed_run_leaves_files_every_reader_opens_up_to_the_kill(tmp_path):
     child = _start_run(tmp_path)
     try:
@@ -382,6 +397,7 @@ def test_a_killed_run_leaves_files_every_reader_opens_up_to_the_kill(tmp_path):
     assert (tmp_path / "episode.mcap.orig").is_file()
 
 
+@pytest.mark.episode
 def test_ctrl_c_closes_the_recording_and_says_why(tmp_path):
     child = _start_run(tmp_path)
     try:
@@ -402,6 +418,7 @@ def test_ctrl_c_closes_the_recording_and_says_why(tmp_path):
     assert summary["failure_kind"] == "interrupted" and summary["success"] is False
 
 
+@pytest.mark.episode
 def test_a_torn_recording_is_recovered(tmp_path, episode_folder):
     """A file cut in the middle of a record (a kill inside a write, or an older recorder's
     unfinished chunk) is made whole up to the last complete record."""

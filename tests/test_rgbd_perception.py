@@ -245,6 +245,7 @@ def test_a_footprint_is_the_outline_of_the_points_less_strays():
         footprint_outline(points[:2])
 
 
+@pytest.mark.emulated_hardware
 @pytest.mark.parametrize(("task", "seed"), [*((task, 0) for task in sorted(TASKS)),
                                              ("empty_cup", 9)])  # a cup behind another
 def test_first_views_through_an_emulated_realsense(task, seed):
@@ -275,6 +276,8 @@ def test_a_tray_with_a_can_standing_in_it_keeps_its_rectangle():
     assert extent == pytest.approx([0.20 * 0.96, 0.27 * 0.96], abs=0.01)
 
 
+@pytest.mark.episode
+@pytest.mark.emulated_hardware
 def test_an_agent_episode_on_rgbd_perception_judged_by_the_camera():
     """The physcap agent solves identify_empty_can seed 0 seeing through the emulated
     RealSense; the camera's verdict agrees with the simulator's ground truth."""

@@ -67,6 +67,8 @@ def _twin(tmp_path, task: str = "identify_empty_can", small: bool = True) -> str
     return str(path)
 
 
+@pytest.mark.emulated_hardware
+@pytest.mark.xdist_group("realtime")
 def test_the_emulated_twin_sees_the_emulators_world_through_librealsense(tmp_path):
     """The CAN station's camera is an emulated RealSense on the CAN station itself, fed by
     the emulator's rendered world: colour exactly as rendered, depth in 1 mm steps with the
@@ -158,6 +160,8 @@ def _rig_without_a_world(tmp_path, monkeypatch, image_period: float):
     return sink, robot
 
 
+@pytest.mark.emulated_hardware
+@pytest.mark.xdist_group("realtime")
 def test_a_rig_without_a_world_records_images_and_frames_from_the_joints(tmp_path, monkeypatch):
     """A CAN station talking to an arm it does not emulate (here a kinematic emulated arm
     in a process of its own, as `physcap emulate-piper` runs one) with a recorded
@@ -261,6 +265,7 @@ def test_judge_operator_needs_a_terminal():
     assert len(lines) == 1 and "--judge operator" in lines[0] and "not a terminal" in lines[0]
 
 
+@pytest.mark.episode
 def test_the_operators_verdict_is_the_outcome_beside_the_ground_truth():
     """The operator says failure although the task succeeded: the summary holds the
     operator's verdict and reason, and the simulator's beside it."""
@@ -273,6 +278,9 @@ def test_the_operators_verdict_is_the_outcome_beside_the_ground_truth():
     assert run.transcript.entries[-1].text.startswith("success: False (the operator")
 
 
+@pytest.mark.episode
+@pytest.mark.emulated_hardware
+@pytest.mark.xdist_group("realtime")
 def test_over_the_emulated_rig_the_camera_judge_agrees_with_the_simulator(tmp_path):
     """The rig twin of identify_empty_can (CAN emulator, emulated RealSense, RGB-D
     perception, judged by the camera): before, the camera judge and the simulator's ground

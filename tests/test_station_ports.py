@@ -20,7 +20,8 @@ EXPECTED_VECTOR_OUTPUTS = {
 EXPECTED_ABSTRACT_OUTPUTS = {"camera.rgb", "camera.depth", "camera.label", "body_poses"}
 
 
-@pytest.fixture(params=["sim", "can"])
+@pytest.fixture(params=["sim", pytest.param("can", marks=[
+    pytest.mark.emulated_hardware, pytest.mark.xdist_group("realtime")])])
 def any_station(request, table_scenario):
     """The sim station, and the CAN station over an emulator of the same scene."""
     if request.param == "can":

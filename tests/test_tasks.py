@@ -117,6 +117,7 @@ def test_the_empty_cup_can_be_pinned_only_to_a_straw_cup():
         task.instance(4, plain)
 
 
+@pytest.mark.episode
 @pytest.mark.parametrize("name", ["identify_empty_can", "find_blue_cube", "empty_cup"])
 def test_the_oracle_succeeds_and_a_wrong_solution_fails(name):
     right = make_episode(name, 5)

@@ -172,6 +172,7 @@ class S:
 # --- an episode -----------------------------------------------------------------------------
 
 
+@pytest.mark.episode
 def test_a_finished_episode_is_freed_once_its_run_is_dropped():
     """Each episode used to stay in its process for good, about 0.1 GB each (the evaluation
     replaced its workers every 4 episodes for it)."""

@@ -48,6 +48,8 @@ class PlanningModel:
     def __init__(self, directives: list | None = None, arm_model: str = "",
                  gripper_model: str = "", *, robot: RobotModel | None = None):
         if robot is None:
+            if directives is None:
+                raise ValueError("PlanningModel needs the scenario's directives or robot=")
             robot = robot_model(directives, arm_model, gripper_model)
         self.robot = robot
         self.diagram, plant, scene_graph = robot.workcell
@@ -69,11 +71,11 @@ class PlanningModel:
         # A second one for solvers that hold the context they evaluate in (e.g.
         # InverseKinematics): shared by them one after the other, never at once.
         self._solver_context = self.diagram.CreateDefaultContext()
-        robot = {arm, gripper}
+        robot_instances = {arm, gripper}
         self._robot_frames = {plant.GetBodyFrameIdOrThrow(body.index())
                               for body in (plant.get_body(BodyIndex(i))
                                            for i in range(plant.num_bodies()))
-                              if body.model_instance() in robot}
+                              if body.model_instance() in robot_instances}
         hand = [plant.GetBodyFrameIdOrThrow(i) for i in plant.GetBodyIndices(gripper)]
         hand.append(plant.GetBodyFrameIdOrThrow(self.tcp_frame.body().index()))
         self._hand_frames = hand
@@ -122,10 +124,14 @@ class PlanningModel:
             return None
         deepest = min(pairs, key=lambda p: p.distance)
         inspector = query.inspector()
-        held = self._held[1] if self._held is not None else None
-        names = " and ".join(self._held[0].describe() if g == held
-                             else inspector.GetName(inspector.GetFrameId(g))
-                             for g in (deepest.id_A, deepest.id_B))
+        held = self._held
+
+        def name(geometry) -> str:
+            if held is not None and geometry == held[1]:
+                return held[0].describe()
+            return inspector.GetName(inspector.GetFrameId(geometry))
+
+        names = " and ".join(name(g) for g in (deepest.id_A, deepest.id_B))
         return deepest.distance, names
 
     def hold(self, held: HeldObject | None) -> None:

@@ -74,6 +74,12 @@ class ExecutorState(Immutable):
     stopping: tuple | None = None
     settled_at: float = 0.0
 
+    @property
+    def running(self) -> PlannedSkill:
+        """The skill being monitored (asked only while there is one)."""
+        assert self.skill is not None
+        return self.skill
+
 
 class SkillExecutor(LeafSystem):
     """Drives the station's inputs from planned skills.
@@ -234,7 +240,7 @@ class SkillExecutor(LeafSystem):
 
     def _monitor(self, context: Context, current: ExecutorState) -> ExecutorState:
         now = context.get_time()
-        skill = current.skill
+        skill = current.running
         outcome = None
         if skill.kind is SkillKind.ARM and current.stopping is not None:
             if now < current.settled_at - 1e-9:
@@ -266,12 +272,12 @@ class SkillExecutor(LeafSystem):
             arm_plan = JointPlan.hold(self._q.Eval(context).copy(), now)
         status = dc.replace(current.status, state=result, message=message, finished_at=now,
                             robot_time=current.status.robot_time + now
-                            - current.skill.start_time,
+                            - current.running.start_time,
                             joint_target=tuple(map(float, arm_plan.final_position)))
         return dc.replace(current, arm_plan=arm_plan, status=status)
 
     def _arm_outcome(self, context: Context, current: ExecutorState, now: float):
-        skill, config = current.skill, self._planner.config
+        skill, config = current.running, self._planner.config
         q = self._q.Eval(context)
         off_plan = self._off_plan(skill.arm_plan, q, now)
         if off_plan.max() > config.tracking_tolerance:
@@ -308,7 +314,7 @@ class SkillExecutor(LeafSystem):
         """How long the station takes to brake a reference that followed the plan at `now`
         and bring it back to a hold there, s: the command latency, twice the plan's joint
         speed over the skills' acceleration limit, and an event."""
-        plan = current.skill.arm_plan
+        plan = current.running.arm_plan
         speed = np.abs(plan.position(now) - plan.position(now - TRACKING_STEP)).max() / \
             TRACKING_STEP
         return (self._latency + 2.0 * speed / self._planner.config.max_joint_acceleration
@@ -335,7 +341,7 @@ class SkillExecutor(LeafSystem):
         return distances[:, int(np.argmin(distances.max(axis=0)))]
 
     def _gripper_outcome(self, context: Context, current: ExecutorState, now: float):
-        skill = current.skill
+        skill = current.running
         opening = float(self._opening.Eval(context)[0])
         if abs(opening - skill.gripper_opening) <= GRIPPER_TOLERANCE:
             return (SkillState.SUCCEEDED,
@@ -367,8 +373,10 @@ class SkillExecutor(LeafSystem):
         """What the fingers hold once a gripper skill succeeded: what they stopped on while
         closing, else nothing."""
         opening = float(self._opening.Eval(context)[0])
-        if current.skill.gripper_opening < opening - GRIPPER_TOLERANCE:
-            return self._planner.held_from_grasp(current.action, self._q.Eval(context), opening)
+        action = current.action
+        if current.running.gripper_opening < opening - GRIPPER_TOLERANCE:
+            assert isinstance(action, MoveGripper)  # only a gripper skill gets here
+            return self._planner.held_from_grasp(action, self._q.Eval(context), opening)
         return None
 
     def _fully_open(self, target: float, opening: float) -> bool:

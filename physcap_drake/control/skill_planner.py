@@ -14,6 +14,7 @@ import enum
 import numpy as np
 from pydrake.common.eigen_geometry import Quaternion
 from pydrake.math import RotationMatrix
+from pydrake.trajectories import Trajectory
 
 from physcap_drake.control.errors import SkillRefused
 from physcap_drake.control.ik import FingertipGoal, solve_fingertip_ik, tilt_from_vertical
@@ -203,6 +204,7 @@ class SkillPlanner:
         label = f"goto_pose {where}" + (f" from {z_approach:.3f} m above" if z_approach else "")
         self._check_workspace(target, label)
         descent_from = None
+        segments: tuple[Trajectory, ...]
         if z_approach > 0:
             above = target + [0.0, 0.0, z_approach]
             self._check_workspace(above, label + " (approach point)")
@@ -240,6 +242,7 @@ class SkillPlanner:
                 failure = error
                 continue
             return np.column_stack(solutions if order is heights else solutions[::-1])
+        assert failure is not None  # both orders were refused
         raise failure
 
     def _check_straight(self, descent, target, label) -> None:

@@ -216,5 +216,6 @@ class MassProbe(ProbeSequence):
         if m.failure:
             empty = None if estimate is None else estimate.empty
             return MassMeasurement(False, math.nan, m.failure, robot_time, empty)
+        assert estimate is not None  # no failure: the loaded window's estimate came in
         return MassMeasurement(not estimate.reason, estimate.mass_kg, estimate.reason,
                                robot_time, estimate.empty, estimate.loaded)

@@ -138,6 +138,7 @@ class ProbeSequence(LeafSystem):
 
     def _update(self, context: Context, state: State) -> EventStatus | None:
         current = self._get(context)
+        updated: SequenceState | None
         if current.job is None:
             request = self._request.Eval(context)
             if not self._takes(request) or not current.served.is_new(request):
@@ -187,6 +188,7 @@ class ProbeSequence(LeafSystem):
 
     def _end(self, context: Context, current: SequenceState, status: SkillStatus,
              outcome: SkillState, message: str, result) -> SequenceState:
+        assert current.report is not None  # a job's status is reported from its taking
         report = dc.replace(current.report, state=outcome, message=message,
                             finished_at=context.get_time(), robot_time=status.robot_time,
                             joint_target=status.joint_target, result=result)

@@ -256,6 +256,7 @@ class StiffnessEstimator(LeafSystem):
 
     def _back_off(self, s: ProbeState, d: float, f: float, now: float) -> ProbeState:
         c = self._config
+        assert s.contact is not None  # set on entering BACK_OFF
         d_contact, f_contact = s.contact
         if f_contact - f >= c.backoff_drop * (f_contact - s.free_effort):
             return self._hold(s, now, phase=Phase.SQUEEZE, d0=d_contact,

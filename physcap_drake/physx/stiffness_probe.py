@@ -140,5 +140,6 @@ class StiffnessProbe(ProbeSequence):
         if m.stage is Stage.RELEASE:
             return Step(dc.replace(m, stage=Stage.RETREAT),
                         MoveToPose(point + [0.0, 0.0, APPROACH]))
+        assert m.result is not None  # set on leaving SQUEEZE
         return Step(m, result=StiffnessMeasurement(  # RETREAT
             m.result.level, m.result, status.robot_time - m.started_robot_time))

@@ -14,7 +14,11 @@ from pydrake.multibody.parsing import FlattenModelDirectives, ModelDirectives
 from pydrake.multibody.plant import MultibodyPlant
 
 from physcap_drake.resources import make_package_map
-from physcap_drake.station.body_masses import mass_texts, scale_moments_of_inertia
+from physcap_drake.station.body_masses import (
+    element_number,
+    mass_texts,
+    scale_moments_of_inertia,
+)
 from physcap_drake.station.directive_loader import load_directives, sdf_text
 from physcap_drake.station.sim_config import AsBuilt
 
@@ -55,16 +59,21 @@ def deviate_links(sdf: str, as_built: AsBuilt, label: str) -> str:
     if not as_built.links:
         return sdf
     root = ET.fromstring(sdf)
-    links = {link.get("name"): link for link in root.iter("link")}
+    links = {link.get("name", ""): link for link in root.iter("link")}
     for name, deviation in as_built.links.items():
         if name not in links:
             raise ValueError(f"station.as_built.links.{name}: {label} has no link {name!r} "
                              f"(links: {', '.join(sorted(links))})")
         inertial = links[name].find("inertial")
-        mass = inertial.find("mass")
-        mass.text = repr(float(mass.text) * deviation.mass_scale)
+        mass = inertial.find("mass") if inertial is not None else None
+        if inertial is None or mass is None:
+            raise ValueError(f"station.as_built.links.{name}: {label} gives the link "
+                             f"{name!r} no inertial mass to scale")
+        mass.text = repr(element_number(mass) * deviation.mass_scale)
         scale_moments_of_inertia(inertial, deviation.mass_scale)
         pose = inertial.find("pose")
+        if pose is None or not pose.text:  # the centre of mass is the link's origin
+            continue
         values = [float(v) for v in pose.text.split()]
         values[:3] = [v * s for v, s in zip(values[:3], deviation.com_scale, strict=True)]
         pose.text = " ".join(repr(v) for v in values)

@@ -36,7 +36,7 @@ def with_masses(sdf: str, masses: Mapping[str, float], model: str) -> str:
     mass stays). Raises ValueError naming a link the model does not have or one without an
     inertial mass."""
     root = ET.fromstring(sdf)
-    links = {link.get("name"): link for link in root.iter("link")}
+    links = {link.get("name", ""): link for link in root.iter("link")}
     for link_name, kg in masses.items():
         scoped = f"{model}::{link_name}"
         if link_name not in links:
@@ -44,10 +44,10 @@ def with_masses(sdf: str, masses: Mapping[str, float], model: str) -> str:
                              f"the model instance {model!r} does not have")
         inertial = links[link_name].find("inertial")
         mass = inertial.find("mass") if inertial is not None else None
-        if mass is None or not float(mass.text) > 0.0:
+        if inertial is None or mass is None or not element_number(mass) > 0.0:
             raise ValueError(f"body_masses: {scoped!r}: the model gives the body no mass "
                              "to replace")
-        scale_moments_of_inertia(inertial, kg / float(mass.text))
+        scale_moments_of_inertia(inertial, kg / element_number(mass))
         mass.text = repr(kg)
     return ET.tostring(root, encoding="unicode")
 
@@ -57,7 +57,14 @@ def scale_moments_of_inertia(inertial: ET.Element, scale: float) -> None:
     `scale` (as a mass scaled by it with the same shape has them)."""
     inertia = inertial.find("inertia")
     for moment in (inertia if inertia is not None else ()):
-        moment.text = repr(float(moment.text) * scale)
+        moment.text = repr(element_number(moment) * scale)
+
+
+def element_number(element: ET.Element) -> float:
+    """The number an SDFormat element holds. Raises ValueError naming an empty one."""
+    if element.text is None:
+        raise ValueError(f"the SDFormat element <{element.tag}> holds no number")
+    return float(element.text)
 
 
 def mass_texts(directives: list, masses: Mapping[str, float],

@@ -85,6 +85,7 @@ def arm_report(link: PiperLink) -> ArmReport:
     parameters = link.read_parameters()
     link.read_status()
     feedback = link.listener.snapshot()
+    assert feedback.status is not None  # read_status waited for one
     problems = [feedback.status.error] if feedback.status.error else []
     for joint, bits in enumerate(feedback.driver_status):
         problems += [f"J{joint + 1} {what}" for bit, what in DRIVER_FAULTS.items() if bits & bit]

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import atexit
 import dataclasses as dc
+from typing import TYPE_CHECKING
 
 from pydrake.common.yaml import yaml_dump_typed
 
@@ -17,6 +18,12 @@ from physcap_drake.can.link_process import LinkProcess
 from physcap_drake.can.socket_bus import socket_pair
 from physcap_drake.station.can_config import PiperCan
 from physcap_drake.station.can_gate import confirm_enabling
+
+if TYPE_CHECKING:
+    import numpy as np
+
+    from physcap_drake.can.emulator import EmulatorTiming
+    from physcap_drake.can.link import LinkStatus
 
 #: What builds the emulated arm's world in the emulator's process, by name: it is built from
 #: the scenario, a layer above the station (see `physcap_drake.emulated_world`).
@@ -43,14 +50,14 @@ class CanSession:
         self.emulator: EmulatorProcess | None = None
         #: The emulated world as it was when the session closed ((time s, state) or None):
         #: success checks read it after the episode released the station.
-        self.last_world = None
+        self.last_world: tuple[float, np.ndarray] | None = None
         #: The streaming process's last status (LinkStatus) and stale reasons when it closed.
-        self.last_status = None
+        self.last_status: LinkStatus | None = None
         self.last_stale_reasons: list[str] = []
         #: When (monotonic s) and why the feedback went stale, as of closing.
         self.last_stale_events: list[tuple[float, str]] = []
         #: How the emulated arm kept its pace (`can.emulator.EmulatorTiming`) when it closed.
-        self.last_emulator_timing = None
+        self.last_emulator_timing: EmulatorTiming | None = None
         atexit.register(self.close)  # processes must not outlive the interpreter
 
     def unexplained_trips(self) -> list[str]:
@@ -97,11 +104,12 @@ class CanSession:
     def wait_ready(self) -> CanSession:
         """Waits until the processes `prepare` started are ready to connect (the emulated
         arm's world is built). Raises RuntimeError naming what failed."""
-        self.prepare()
+        link = self.prepare().link
+        assert link is not None  # prepare() starts it
         try:
             if self.emulator is not None:
                 self.emulator.wait_ready()
-            self.link.wait_ready()
+            link.wait_ready()
         except BaseException:
             self.close()
             raise
@@ -113,9 +121,10 @@ class CanSession:
         running then)."""
         if self.started:
             return self
-        self.wait_ready()
+        link = self.wait_ready().link
+        assert link is not None  # prepare() starts it
         try:
-            self.link.start(confirm=lambda: confirm_enabling(self.config))
+            link.start(confirm=lambda: confirm_enabling(self.config))
         except BaseException:
             self.close()
             raise

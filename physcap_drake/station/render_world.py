@@ -230,7 +230,7 @@ def _key(renderers: tuple[RendererSpec, ...]) -> tuple:
 class _Pool:
     """Idle render worlds by key (`_key`), the least recently returned dropped first."""
 
-    def __init__(self):
+    def __init__(self) -> None:
         self._idle: dict[tuple, list[RenderWorld]] = {}
         self._returned: list[RenderWorld] = []
         self._lock = threading.Lock()
