@@ -25,7 +25,13 @@ from physcap_drake.robot_api import RobotAPI
 #: The functions of every variant, and those only variants with the PhysX modules get.
 MOTION_FUNCTIONS = ("get_object_pose", "goto_pose", "open_gripper", "close_gripper",
                     "home_pose")
-PHYSX_FUNCTIONS = ("get_mass", "get_weight", "get_stiffness")
+PHYSX_FUNCTIONS = ("get_mass", "get_stiffness")
+#: The explorations the planner may propose: each is a function of PHYSX_FUNCTIONS or a
+#: manoeuvre of MANOEUVRES, with the robot time it takes (s; the functions' docstrings
+#: state the same figure).
+EXPLORATIONS_ROBOT_S = {"get_mass": 10.0, "get_stiffness": 20.0, "lift_and_look": 15.0}
+#: Explorations that are no single function: how the coder composes each (the prompts say).
+MANOEUVRES = ("lift_and_look",)
 
 #: Longest object name or description a call may carry (characters).
 MAX_NAME_CHARS = 120

@@ -43,6 +43,7 @@ from physcap_drake.agent.schemas import (
 from physcap_drake.agent.structured_call import AgentAnswerError, ask_structured, unfence_code
 from physcap_drake.agent.transcript import Transcript
 from physcap_drake.agent.variant import AgentVariant
+from physcap_drake.agent.world_facts import WorldFacts
 from physcap_drake.control.errors import SkillError
 from physcap_drake.robot_api import RobotAPI
 from physcap_drake.station.arm_fault import ArmFault
@@ -181,7 +182,10 @@ class AgentLoop:
         self._check = check
         self._seed = seed
         self._limits = limits or SandboxLimits()
-        self._prompts = prompts or PromptBook(images=takes_images(llm))
+        # A stand-in arm (tests) has no robot model or camera to state facts from.
+        self._prompts = prompts or PromptBook(
+            images=takes_images(llm),
+            world=WorldFacts.of(api) if isinstance(api, RobotAPI) else None)
         self._robot_time_limit = robot_time_limit
         self.transcript = transcript or Transcript()
         self._on_phase = on_phase

@@ -130,7 +130,7 @@ def _planner_blocks(plan: dict) -> list[str]:
     if candidates:
         blocks.append(_table(("candidate", "action", "reveals", "cost"), [
             (c["name"], call_signature(c), c.get("expected_info", ""),
-             c.get("estimated_cost", "")) for c in candidates]))
+             _robot_seconds(c)) for c in candidates]))
     if plan.get("ordering_reason"):
         blocks.append(f"Order: {plan['ordering_reason']}")
     return blocks
@@ -138,11 +138,11 @@ def _planner_blocks(plan: dict) -> list[str]:
 
 def _ranking(answer: dict) -> list[tuple[str, str, str, str]]:
     """The prioritizer's candidates in its order: (rank, name, score, reason)."""
-    scores = {s["name"]: s for s in answer["scored_candidates"]}
-    order = [c["name"] for c in answer.get("prioritized_candidates", [])] or list(scores)
-    return [(str(rank), name, f"{scores[name]['priority_score']:.1f}",
-             scores[name].get("reason", "")) for rank, name in enumerate(order, start=1)
-            if name in scores]
+    scores = answer["scored_candidates"]
+    order = [i for i in answer.get("order", []) if 0 <= i < len(scores)] or range(len(scores))
+    return [(str(rank), f"{scores[i]['name']} ({scores[i].get('action', '')})",
+             f"{scores[i]['priority_score']:.1f}", scores[i].get("reason", ""))
+            for rank, i in enumerate(order, start=1)]
 
 
 def _priority_table(answer: dict) -> str:
@@ -150,10 +150,13 @@ def _priority_table(answer: dict) -> str:
 
 
 def call_signature(candidate: dict) -> str:
-    """A candidate's action as a call, e.g. "get_mass(name: str)"."""
-    parameters = candidate.get("parameters") or {}
-    return f"{candidate.get('action', '')}(" + ", ".join(
-        f"{name}: {kind}" for name, kind in parameters.items()) + ")"
+    """A candidate's action, e.g. "get_mass"."""
+    return str(candidate.get("action", ""))
+
+
+def _robot_seconds(candidate: dict) -> str:
+    seconds = candidate.get("estimated_robot_s")
+    return f"{seconds:g} s" if isinstance(seconds, int | float) else "?"
 
 
 def _table(header: tuple[str, ...], rows: list[tuple[str, ...]]) -> str:
@@ -176,7 +179,7 @@ def entry_text(entry: TranscriptEntry) -> str:
     if entry.kind == "planner" and "sufficient" in data:
         lines = [_verdict(data)]
         lines += [f"  - {call_signature(c)} on '{c['name']}': {c.get('expected_info', '')} "
-                  f"(cost {c.get('estimated_cost', '?')})"
+                  f"(about {_robot_seconds(c)} of robot time)"
                   for c in data.get("exploration_candidates") or []]
         if data.get("ordering_reason"):
             lines.append(f"  order: {data['ordering_reason']}")

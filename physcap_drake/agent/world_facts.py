@@ -1,0 +1,84 @@
+"""The robot's and the camera's facts the prompts state, read from the running robot stack.
+
+Design notes: docs/agent_prompts.md.
+"""
+
+from __future__ import annotations
+
+import dataclasses as dc
+
+import numpy as np
+from pydrake.geometry import Box, Role
+from pydrake.math import RigidTransform
+
+from physcap_drake.robot_api import RobotAPI
+from physcap_drake.station.robot_model import RobotModel, moving_joints
+
+_AXIS_WORDS = {(0, 1): "+x (away from the arm)", (0, -1): "-x (towards the arm)",
+               (1, 1): "+y (to the arm's left)", (1, -1): "-y (to the arm's right)"}
+
+
+@dc.dataclass(frozen=True)
+class WorldFacts:
+    """Gripper stroke and finger length (m), fingertip workspace box (m, world frame), and
+    which world direction the image's right and up show ("" without a camera)."""
+
+    gripper_stroke_m: float
+    finger_length_m: float
+    workspace_lower: tuple[float, float, float]
+    workspace_upper: tuple[float, float, float]
+    image_right: str = ""
+    image_up: str = ""
+
+    @classmethod
+    def of(cls, api: RobotAPI) -> WorldFacts:
+        # RobotAPI keeps its stack private; "the house" split of robot_api.py is to give it
+        # a public accessor (issue 44).
+        robot = api._robot
+        box = robot.scenario.skills.workspace
+        right, up = image_axes(api.locator.camera.X_WC) if api.locator else ("", "")
+        return cls(robot.model.gripper_stroke, finger_length(robot.model),
+                   tuple(box.lower), tuple(box.upper), right, up)
+
+    def coder_text(self) -> str:
+        lo, hi = self.workspace_lower, self.workspace_upper
+        return (f"The fitted gripper opens to {self.gripper_stroke_m:.3f} m between the "
+                f"fingers; each finger reaches {self.finger_length_m:.3f} m back from the "
+                "fingertip point, so the fingertip may go that deep beside an object.\n"
+                f"Fingertip targets must lie in the workspace box x {lo[0]:.2f} to "
+                f"{hi[0]:.2f}, y {lo[1]:.2f} to {hi[1]:.2f}, z {lo[2]:.3f} to {hi[2]:.2f} "
+                "(m, world frame); a target outside it raises SkillRefused without moving.")
+
+    def image_text(self) -> str:
+        if not self.image_right:
+            return ""
+        return (f"In the camera image, rightwards is world {self.image_right} and upwards is "
+                f"world {self.image_up} (the table seen from above, roughly).")
+
+
+def image_axes(X_WC: RigidTransform) -> tuple[str, str]:
+    """The world directions (in words) closest to the image's right and up, on the table
+    plane, for a camera whose optical frame (x right, y down) has pose X_WC."""
+    R = X_WC.rotation().matrix()
+    return _nearest_axis(R[:2, 0]), _nearest_axis(-R[:2, 1])
+
+
+def _nearest_axis(direction_xy: np.ndarray) -> str:
+    axis = int(np.argmax(np.abs(direction_xy)))
+    return _AXIS_WORDS[(axis, 1 if direction_xy[axis] > 0 else -1)]
+
+
+def finger_length(model: RobotModel) -> float:
+    """How far a finger's collision boxes reach back from the fingertip point, m (the
+    finger frame sits at the fingertip, its -z along the finger)."""
+    _, plant, scene_graph = model.workcell
+    inspector = scene_graph.model_inspector()
+    finger = moving_joints(plant, plant.GetModelInstanceByName(model.gripper_model))[0]
+    frame = plant.GetBodyFrameIdOrThrow(finger.child_body().index())
+    depths = [-(inspector.GetPoseInFrame(g).translation()[2] - inspector.GetShape(g).size()[2] / 2)
+              for g in inspector.GetGeometries(frame, Role.kProximity)
+              if isinstance(inspector.GetShape(g), Box)]
+    if not depths:
+        raise ValueError(f"the gripper model {model.gripper_model!r} has no finger boxes to "
+                         "measure the finger length from")
+    return max(depths)
