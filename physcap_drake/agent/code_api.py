@@ -6,6 +6,7 @@ Design notes: docs/design/agent.md.
 from __future__ import annotations
 
 import inspect
+import re
 from collections.abc import Callable
 
 import numpy as np
@@ -98,9 +99,17 @@ class CodeAPI:
             parameters = [p for p in signature.parameters.values() if p.name != "self"]
             shown = signature.replace(parameters=parameters, return_annotation=inspect.
                                       Signature.empty)
-            parts.append(f"def {name}{shown}:\n    \"\"\"{inspect.cleandoc(target.__doc__ or '')}"
-                         .replace("\n", "\n    ") + "\n    \"\"\"")
-        return "\n\n".join(parts)
+            doc = inspect.cleandoc(target.__doc__ or "").replace("\n", "\n    ")
+            parts.append(f"def {name}{shown}:\n    \"\"\"{doc}\n    \"\"\"")
+        return in_metres("\n\n".join(parts))
+
+
+def in_metres(text: str) -> str:
+    """`text` with lengths in millimetres or centimetres written in metres (the prompts speak
+    in metres only)."""
+    scale = {"mm": 1e-3, "cm": 1e-2}
+    return re.sub(r"(\d+(?:\.\d+)?) ?(mm|cm)\b",
+                  lambda m: f"{float(m.group(1)) * scale[m.group(2)]:.3f} m", text)
 
 
 def spec_of(name: str, function: Callable) -> FunctionSpec:

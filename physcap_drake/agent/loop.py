@@ -503,8 +503,9 @@ class AgentLoop:
             repairs=self.variant.repair_attempts,
             check=lambda a: check_reordering(candidates, a))
         self._note(mind, "prioritizer", "\n".join(
-            f"{s.priority_score:4.1f}  {s.name}: {s.reason}" for s in answer.scored_candidates),
-            answer.model_dump())
+            f"{s.priority_score:4.1f}  {s.name} ({s.action}): {s.reason}"
+            for s in answer.scored_candidates),
+            answer.model_dump() | {"candidates": [c.model_dump() for c in candidates]})
         return ordered
 
     def _write_code(self, context: AgentContext, decision: Decision, mind: AgentMind,

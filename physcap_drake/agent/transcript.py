@@ -137,12 +137,16 @@ def _planner_blocks(plan: dict) -> list[str]:
 
 
 def _ranking(answer: dict) -> list[tuple[str, str, str, str]]:
-    """The prioritizer's candidates in its order: (rank, name, score, reason)."""
-    scores = answer["scored_candidates"]
-    order = [i for i in answer.get("order", []) if 0 <= i < len(scores)] or range(len(scores))
-    return [(str(rank), f"{scores[i]['name']} ({scores[i].get('action', '')})",
-             f"{scores[i]['priority_score']:.1f}", scores[i].get("reason", ""))
-            for rank, i in enumerate(order, start=1)]
+    """The prioritizer's candidates in its order: (rank, candidate, score, reason). The
+    order's indices count in `candidates` (the list it was given, kept with its answer)."""
+    scores = {(s["name"], s.get("action", "")): s for s in answer["scored_candidates"]}
+    candidates = [(c["name"], c.get("action", "")) for c in answer.get("candidates", [])]
+    order = [candidates[i] for i in answer.get("order", []) if 0 <= i < len(candidates)]
+    return [(str(rank), f"{name} ({action})" if action else name,
+             f"{scores[name, action]['priority_score']:.1f}",
+             scores[name, action].get("reason", ""))
+            for rank, (name, action) in enumerate(order or list(scores), start=1)
+            if (name, action) in scores]
 
 
 def _priority_table(answer: dict) -> str:

@@ -11,8 +11,12 @@ import numpy as np
 from pydrake.geometry import Box, Role
 from pydrake.math import RigidTransform
 
+from physcap_drake.control.skills_config import WorkspaceBox
+from physcap_drake.perception.camera_geometry import CameraGeometry
 from physcap_drake.robot_api import RobotAPI
-from physcap_drake.station.robot_model import RobotModel, moving_joints
+from physcap_drake.scenario import MAIN_CAMERA, Scenario
+from physcap_drake.station.realsense.config import RealSense
+from physcap_drake.station.robot_model import RobotModel, moving_joints, robot_model
 
 _AXIS_WORDS = {(0, 1): "+x (away from the arm)", (0, -1): "-x (towards the arm)",
                (1, 1): "+y (to the arm's left)", (1, -1): "-y (to the arm's right)"}
@@ -32,20 +36,36 @@ class WorldFacts:
 
     @classmethod
     def of(cls, api: RobotAPI) -> WorldFacts:
+        """The facts of the robot `api` drives, its camera as its locator calibrated it."""
         # RobotAPI keeps its stack private; "the house" split of robot_api.py is to give it
         # a public accessor (issue 44).
         robot = api._robot
-        box = robot.scenario.skills.workspace
-        right, up = image_axes(api.locator.camera.X_WC) if api.locator else ("", "")
-        return cls(robot.model.gripper_stroke, finger_length(robot.model),
-                   tuple(box.lower), tuple(box.upper), right, up)
+        return cls.build(robot.model, robot.scenario.skills.workspace,
+                         api.locator.camera.X_WC if api.locator else None)
+
+    @classmethod
+    def from_scenario(cls, scenario: Scenario) -> WorldFacts:
+        """The facts of a scenario's robot and main camera, without running it."""
+        station = scenario.station
+        model = robot_model(scenario.directives, station.arm_model, station.gripper_model)
+        camera = next(c for c in scenario.cameras if c.name == MAIN_CAMERA)
+        X_WC = (camera.pose() if isinstance(camera, RealSense)
+                else CameraGeometry.from_config(camera).X_WC)
+        return cls.build(model, scenario.skills.workspace, X_WC)
+
+    @classmethod
+    def build(cls, model: RobotModel, workspace: WorkspaceBox,
+              X_WC: RigidTransform | None) -> WorldFacts:
+        right, up = image_axes(X_WC) if X_WC is not None else ("", "")
+        return cls(float(model.gripper_stroke), float(finger_length(model)), tuple(workspace.lower),
+                   tuple(workspace.upper), right, up)
 
     def coder_text(self) -> str:
         lo, hi = self.workspace_lower, self.workspace_upper
         return (f"The fitted gripper opens to {self.gripper_stroke_m:.3f} m between the "
-                f"fingers; each finger reaches {self.finger_length_m:.3f} m back from the "
+                f"fingers; each finger reaches {self.finger_length_m:.4f} m back from the "
                 "fingertip point, so the fingertip may go that deep beside an object.\n"
-                f"Fingertip targets must lie in the workspace box x {lo[0]:.2f} to "
+                f"Fingertip targets must lie in the workspace: x {lo[0]:.2f} to "
                 f"{hi[0]:.2f}, y {lo[1]:.2f} to {hi[1]:.2f}, z {lo[2]:.3f} to {hi[2]:.2f} "
                 "(m, world frame); a target outside it raises SkillRefused without moving.")
 
