@@ -15,6 +15,7 @@ import cv2
 import numpy as np
 from pydantic import BaseModel
 
+from physcap_drake.agent.closer_view import CloserView, closer_view
 from physcap_drake.agent.code_api import EXPLORATIONS_ROBOT_S
 from physcap_drake.agent.coder_contract import sandbox_rules_text
 from physcap_drake.agent.history import StepRecord, history_text
@@ -95,12 +96,13 @@ class PromptBook:
             raise KeyError(f"prompt template {template}.md needs a value for "
                            f"${error.args[0]}") from None
 
-    def _context_text(self, ctx: AgentContext) -> str:
+    def _context_text(self, ctx: AgentContext, view: CloserView | None) -> str:
         scene = "" if self.images else "\n" + self.render(
             "scene_text", description=scene_description(ctx.observation)) + "\n"
-        axes = self.world.image_text() if self.world else ""
+        notes = [self.world.image_text() if self.world else "",
+                 view.describe() if view else ""]
         return self.render("context", task=ctx.task, objects=objects_text(ctx.observation),
-                           image_axes=axes + "\n" if axes else "",
+                           image_notes="".join(f"{n}\n" for n in notes if n),
                            scene=scene, knowledge=ctx.knowledge_text(),
                            history=history_text(list(ctx.history)))
 
@@ -112,10 +114,12 @@ class PromptBook:
 
     def _request(self, role: str, system: str, ctx: AgentContext, extra_text: str,
                  schema: type[BaseModel], mode: str, **extra_context) -> LLMRequest:
-        prompt = self._context_text(ctx) + (f"\n\n{extra_text}" if extra_text else "")
+        view = closer_view(ctx.observation) if self.images else None
+        prompt = self._context_text(ctx, view) + (f"\n\n{extra_text}" if extra_text else "")
         context = ctx.as_context() | {"mode": mode} | extra_context
+        images = (ctx.observation.jpeg, view.jpeg) if view else (ctx.observation.jpeg,)
         return LLMRequest(role=role, system=system, prompt=prompt,
-                          images=(ctx.observation.jpeg,) if self.images else (),
+                          images=images if self.images else (),
                           json_schema=json_schema(schema), context=context)
 
     def planner(self, ctx: AgentContext, mode: str) -> LLMRequest:

@@ -50,7 +50,7 @@ class FilesClient:
         while not answer.is_file():
             if self._clock() - started > self._timeout_s:
                 raise LLMTimeout(f"no answer in {answer} after {self._timeout_s:g} s "
-                                 "(write the model's answer there, then run again)")
+                                 "(raise --timeout to wait longer)")
             self._sleep(POLL_S)
         text = answer.read_text()
         return LLMResponse(text, MODEL, input_tokens=len(request.prompt.split()),
