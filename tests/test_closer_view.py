@@ -34,4 +34,6 @@ def test_the_region_around_the_objects_is_enlarged_where_it_says():
 
 def test_no_view_without_objects_or_when_the_region_fills_the_image():
     assert closer_view(_observation([])) is None
+    no_image = _observation([(250.0, 140.0)])
+    assert closer_view(Observation(no_image.objects, b"", 0.0)) is None
     assert closer_view(_observation([(5.0, 5.0), (630.0, 350.0)])) is None

@@ -42,9 +42,9 @@ class CloserView:
 
 
 def closer_view(observation: Observation) -> CloserView | None:
-    """The enlarged region around the objects in view; None when no object is in view or
-    the region spans nearly the image's width (MIN_ZOOM)."""
-    if not observation.objects:
+    """The enlarged region around the objects in view; None when there is no image, no
+    object is in view or the region spans nearly the image's width (MIN_ZOOM)."""
+    if not observation.objects or not observation.jpeg:
         return None
     image = cv2.imdecode(np.frombuffer(observation.jpeg, np.uint8), cv2.IMREAD_COLOR)
     if image is None:
