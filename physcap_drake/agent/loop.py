@@ -38,12 +38,12 @@ from physcap_drake.agent.schemas import (
     JointPlannerAnswer,
     PlannerAnswer,
     PrioritizerAnswer,
+    PrioritizerRecord,
     check_reordering,
 )
 from physcap_drake.agent.structured_call import AgentAnswerError, ask_structured, unfence_code
 from physcap_drake.agent.transcript import Transcript
 from physcap_drake.agent.variant import AgentVariant
-from physcap_drake.agent.world_facts import WorldFacts
 from physcap_drake.control.errors import SkillError
 from physcap_drake.robot_api import RobotAPI
 from physcap_drake.station.arm_fault import ArmFault
@@ -182,10 +182,7 @@ class AgentLoop:
         self._check = check
         self._seed = seed
         self._limits = limits or SandboxLimits()
-        # A stand-in arm (tests) has no robot model or camera to state facts from.
-        self._prompts = prompts or PromptBook(
-            images=takes_images(llm),
-            world=WorldFacts.of(api) if isinstance(api, RobotAPI) else None)
+        self._prompts = prompts or PromptBook(images=takes_images(llm))
         self._robot_time_limit = robot_time_limit
         self.transcript = transcript or Transcript()
         self._on_phase = on_phase
@@ -505,7 +502,7 @@ class AgentLoop:
         self._note(mind, "prioritizer", "\n".join(
             f"{s.priority_score:4.1f}  {s.name} ({s.action}): {s.reason}"
             for s in answer.scored_candidates),
-            answer.model_dump() | {"candidates": [c.model_dump() for c in candidates]})
+            PrioritizerRecord(**answer.model_dump(), candidates=candidates).model_dump())
         return ordered
 
     def _write_code(self, context: AgentContext, decision: Decision, mind: AgentMind,

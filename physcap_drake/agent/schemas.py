@@ -77,6 +77,13 @@ class PrioritizerAnswer(_Strict):
                                          "received, in the order to explore them; each once.")
 
 
+class PrioritizerRecord(PrioritizerAnswer):
+    """What the transcript keeps of a prioritizer's turn: its answer and the candidates it
+    ranked (the order's indices count in them)."""
+
+    candidates: list[Candidate]
+
+
 class JointPlannerAnswer(PlannerAnswer):
     """The merged planner-prioritizer's answer: candidates already in exploration order,
     with a reason for the order."""

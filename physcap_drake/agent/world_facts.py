@@ -13,7 +13,6 @@ from pydrake.math import RigidTransform
 
 from physcap_drake.control.skills_config import WorkspaceBox
 from physcap_drake.perception.camera_geometry import CameraGeometry
-from physcap_drake.robot_api import RobotAPI
 from physcap_drake.scenario import MAIN_CAMERA, Scenario
 from physcap_drake.station.realsense.config import RealSense
 from physcap_drake.station.robot_model import RobotModel, moving_joints, robot_model
@@ -35,15 +34,6 @@ class WorldFacts:
     image_up: str = ""
 
     @classmethod
-    def of(cls, api: RobotAPI) -> WorldFacts:
-        """The facts of the robot `api` drives, its camera as its locator calibrated it."""
-        # RobotAPI keeps its stack private; "the house" split of robot_api.py is to give it
-        # a public accessor (issue 44).
-        robot = api._robot
-        return cls.build(robot.model, robot.scenario.skills.workspace,
-                         api.locator.camera.X_WC if api.locator else None)
-
-    @classmethod
     def from_scenario(cls, scenario: Scenario) -> WorldFacts:
         """The facts of a scenario's robot and main camera, without running it."""
         station = scenario.station
@@ -56,6 +46,8 @@ class WorldFacts:
     @classmethod
     def build(cls, model: RobotModel, workspace: WorkspaceBox,
               X_WC: RigidTransform | None) -> WorldFacts:
+        """The facts of the robot `model`, its workspace box and the camera at X_WC (the
+        calibrated one in an episode; None: no image axes)."""
         right, up = image_axes(X_WC) if X_WC is not None else ("", "")
         return cls(float(model.gripper_stroke), float(finger_length(model)), tuple(workspace.lower),
                    tuple(workspace.upper), right, up)
