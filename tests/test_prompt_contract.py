@@ -5,6 +5,7 @@ for the same JSON as the schema."""
 
 from __future__ import annotations
 
+import dataclasses as dc
 import math
 import re
 import types
@@ -59,12 +60,13 @@ def _coder_api(physx: bool) -> CodeAPI:
 
 def _requests(task: str, world: WorldFacts) -> list[LLMRequest]:
     """Every request of every variant for `task`: planner modes, prioritizer, coder modes
-    and the coder's retry, with one measurement and one failed block in the context."""
+    and the coder's retry, with one measurement and one failed block in the context. Each
+    request's context["functions"] holds its variant's coder functions."""
     instance = TASKS[task].instance(0)
     observation = _observation(task)
     first = observation.objects[-1].name
     knowledge = (KnowledgeEntry(first, "mass", 0.37, "kg", True),)
-    failed = StepRecord(1, "explore", first, "get_mass", "t", "get_mass([0, 0])", False,
+    failed = StepRecord(1, "explore", "", "", "t", "goto_pose([0.3, 0.0])", False,
                         "ValueError: position must have 3 numbers", "", (), (), 10.0)
     ctx = AgentContext(instance.prompt, observation, knowledge, (failed,))
     requests = []
@@ -73,6 +75,7 @@ def _requests(task: str, world: WorldFacts) -> list[LLMRequest]:
         book = PromptBook(world=world)
         api = _coder_api(variant.physx_api)
         candidates: list[Candidate] = []
+        first_of_variant = len(requests)
         if variant.decider != "coder":
             mode = {"planner": "planner", "joint_planner": "joint_planner",
                     "enumerator": "enumerator"}[variant.decider]
@@ -87,6 +90,9 @@ def _requests(task: str, world: WorldFacts) -> list[LLMRequest]:
                                        candidates[0]))
         requests.append(book.coder(ctx, api.describe(), api.names(), "final", reason="r"))
         requests.append(book.coder(ctx, api.describe(), api.names(), "task", failed=failed))
+        for i in range(first_of_variant, len(requests)):
+            requests[i] = dc.replace(requests[i], context=requests[i].context | {
+                "functions": api.names()})
     return requests
 
 
@@ -101,9 +107,9 @@ def _text(request: LLMRequest) -> str:
 
 def test_no_prompt_names_a_robot_function_the_coder_lacks(rendered):
     _, requests = rendered
-    coder_names = set(_coder_api(True).names())
     robot_calls = {n for n in dir(RobotAPI) if not n.startswith("_") and "_" in n}
     for request in requests:
+        coder_names = set(request.context["functions"])
         text = _text(request)
         lacking = sorted(n for n in robot_calls - coder_names if re.search(rf"\b{n}\b", text))
         assert not lacking, f"the {request.role} prompt names {lacking}"
@@ -112,7 +118,7 @@ def test_no_prompt_names_a_robot_function_the_coder_lacks(rendered):
     coders = [r for r in requests if r.role == "coder"]
     for manoeuvre in MANOEUVRES:  # the coder is told how to compose each manoeuvre
         assert all(f"- {manoeuvre}(" in r.system for r in coders)
-    assert set(EXPLORATIONS_ROBOT_S) <= coder_names | set(MANOEUVRES)
+    assert set(EXPLORATIONS_ROBOT_S) <= set(_coder_api(True).names()) | set(MANOEUVRES)
     planners = [r for r in requests if r.role == "planner"]
     for action, seconds in EXPLORATIONS_ROBOT_S.items():
         assert all(f'action "{action}"' in r.system and f"about {seconds:g} s" in r.system
@@ -163,6 +169,7 @@ def test_the_sandbox_rules_in_the_coder_prompt_are_the_policy(rendered):
         for name, reason in policy.FORBIDDEN_ATTRIBUTES.items():
             assert re.search(rf"  [^\n]*\b{name}\b[^\n]*: {re.escape(reason)}\n", system), name
         assert policy.PRIVATE_REASON in system
+        assert "each finger reaches 0.0765 m" in system and "opens to 0.100 m" in system
         assert "Statements refused: global, nonlocal, yield (generator functions), async " \
                "def / await, match." in system
 
@@ -181,6 +188,7 @@ def test_the_robot_facts_come_from_the_fitted_gripper_and_the_camera(world):
     assert world.gripper_stroke_m == pytest.approx(0.100)
     assert world.finger_length_m == pytest.approx(0.0765)  # the finger SDF: z -0.0765 .. 0
     assert "opens to 0.100 m" in world.coder_text()
+    assert "each finger reaches 0.0765 m back from the fingertip" in world.coder_text()
     assert "x 0.08 to 0.70, y -0.50 to 0.50, z 0.005 to 0.60" in world.coder_text()
     # The default camera stands behind the arm looking forward: the image's up is +x.
     assert world.image_right.startswith("-y") and world.image_up.startswith("+x")
