@@ -208,3 +208,15 @@ def test_the_image_axes_are_told_to_every_role(rendered):
     for request in requests:
         assert "rightwards is world -y (to the arm's right) and upwards is world +x" \
                in request.prompt
+
+
+def test_the_rule_on_what_to_explore_is_stated_once_in_the_same_words(rendered):
+    _, requests = rendered
+    rule = PromptBook().render("pruning")
+    judges = [r for r in requests if r.role == "prioritizer"
+              or r.context.get("mode") in ("planner", "joint_planner")]
+    assert judges
+    for request in judges:
+        assert request.system.count(rule) == 1, request.context.get("mode")
+        assert "list every exploration" not in request.system
+        assert "rank it last" not in request.system
