@@ -1,4 +1,5 @@
-"""The robot's and the camera's facts the prompts state, read from the running robot stack.
+"""The robot's and the camera's facts the prompts state: read from the robot model, the
+skills config and the camera's pose.
 
 Design notes: docs/agent_prompts.md.
 """
