@@ -1,4 +1,4 @@
-"""The agents' answer schemas, the prioritizer's reorder-only rule and the repair path."""
+"""The agents' answer schemas, the prioritizer's order of candidate indices and the repair path."""
 
 from __future__ import annotations
 
@@ -19,49 +19,61 @@ from physcap_drake.agent.structured_call import AgentAnswerError, ask_structured
 
 def _candidate(name: str, action: str = "get_mass") -> Candidate:
     return Candidate(name=name, action=action, description=f"Weigh the {name}.",
-                     parameters={"name": "str"}, expected_info="its mass",
-                     estimated_cost="medium")
+                     expected_info="its mass", estimated_robot_s=10.0)
 
 
 CANDIDATES = [_candidate("red can"), _candidate("blue can"), _candidate("green can")]
+KEYS = [(c.name, c.action) for c in CANDIDATES]
 
 
-def _answer(order: list[Candidate], scored: list[str] | None = None) -> PrioritizerAnswer:
-    names = scored if scored is not None else [c.name for c in CANDIDATES]
+def _answer(order: list[int], scored: list[tuple[str, str]] | None = None) -> PrioritizerAnswer:
+    keys = scored if scored is not None else KEYS
     return PrioritizerAnswer(
-        scored_candidates=[{"name": n, "priority_score": 5, "reason": "r"} for n in names],
-        prioritized_candidates=order)
+        scored_candidates=[{"name": n, "action": a, "priority_score": 5, "reason": "r"}
+                           for n, a in keys],
+        order=order)
 
 
-def test_a_pure_reordering_is_accepted():
-    order = [CANDIDATES[2], CANDIDATES[0], CANDIDATES[1]]
-    assert check_reordering(CANDIDATES, _answer(order)) == order
+def test_an_order_of_indices_orders_the_candidates():
+    assert check_reordering(CANDIDATES, _answer([2, 0, 1])) == [CANDIDATES[2], CANDIDATES[0],
+                                                                 CANDIDATES[1]]
 
 
 @pytest.mark.parametrize(("order", "message"), [
-    ([CANDIDATES[0], CANDIDATES[1]], "dropped candidates ['green can']"),
-    ([*CANDIDATES, _candidate("black can")], "added candidates ['black can']"),
-    ([CANDIDATES[0], CANDIDATES[0], CANDIDATES[1], CANDIDATES[2]], "repeated candidates"),
-    ([CANDIDATES[0], CANDIDATES[1], _candidate("green can", "get_stiffness")],
-     "edited the fields of ['green can']"),
+    ([0, 1], "order leaves out candidates [2]"),
+    ([0, 1, 2, 3], "indices [3] that no candidate has"),
+    ([0, 0, 1, 2], "order repeats candidates [0]"),
+    ([-1, 0, 1, 2], "indices [-1]"),
 ])
-def test_the_prioritizer_may_not_add_drop_repeat_or_edit(order, message):
-    with pytest.raises(ValueError, match="may only reorder") as error:
+def test_the_order_must_name_each_candidate_once(order, message):
+    with pytest.raises(ValueError, match="does not fit the candidates") as error:
         check_reordering(CANDIDATES, _answer(order))
     assert message in str(error.value)
 
 
-def test_every_candidate_needs_a_score():
-    with pytest.raises(ValueError, match="scores must cover exactly"):
-        check_reordering(CANDIDATES, _answer(list(CANDIDATES), ["red can", "blue can"]))
+def test_scores_are_keyed_by_object_and_action():
+    with pytest.raises(ValueError, match="score each \\(name, action\\) once"):
+        check_reordering(CANDIDATES, _answer([0, 1, 2], KEYS[:2]))
+    wrong_action = [*KEYS[:2], ("green can", "get_stiffness")]
+    with pytest.raises(ValueError, match="score each"):
+        check_reordering(CANDIDATES, _answer([0, 1, 2], wrong_action))
+    # two actions on one object are two candidates, told apart by the action
+    two = [_candidate("red can"), _candidate("red can", "get_stiffness")]
+    answer = PrioritizerAnswer(scored_candidates=[
+        {"name": "red can", "action": "get_stiffness", "priority_score": 9, "reason": "r"},
+        {"name": "red can", "action": "get_mass", "priority_score": 1, "reason": "r"}],
+        order=[1, 0])
+    assert check_reordering(two, answer) == [two[1], two[0]]
 
 
 def test_an_insufficient_plan_must_propose_explorations():
     with pytest.raises(ValueError, match="propose at least one exploration"):
         PlannerAnswer(sufficient=False, reason="unknown masses")
-    with pytest.raises(ValueError, match="must be unique"):
+    with pytest.raises(ValueError, match="proposed once"):
         PlannerAnswer(sufficient=False, reason="r",
                       exploration_candidates=[CANDIDATES[0], CANDIDATES[0]])
+    PlannerAnswer(sufficient=False, reason="r", exploration_candidates=[
+        CANDIDATES[0], _candidate("red can", "get_stiffness")])
 
 
 CODE = {"thought": "weigh it", "code": "home_pose()"}
@@ -127,10 +139,10 @@ def test_after_two_repairs_the_agent_fails_with_the_reason():
 
 
 def test_a_failed_check_counts_as_malformed():
-    bad = _answer([CANDIDATES[0]]).model_dump_json()
-    good = _answer(list(CANDIDATES)).model_dump_json()
+    bad = _answer([0]).model_dump_json()
+    good = _answer([0, 1, 2]).model_dump_json()
     model = ScriptedModel(bad, good)
     _, ordered = ask_structured(model, REQUEST, PrioritizerAnswer, repairs=2,
                                 check=lambda a: check_reordering(CANDIDATES, a))
     assert [c.name for c in ordered] == ["red can", "blue can", "green can"]
-    assert "dropped candidates" in model.requests[1].prompt
+    assert "leaves out candidates [1, 2]" in model.requests[1].prompt

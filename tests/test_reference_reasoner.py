@@ -79,20 +79,21 @@ def test_exactly_one_lets_the_planner_conclude_by_exclusion():
 def test_the_prioritizer_puts_sealed_cans_last_and_keeps_every_candidate():
     candidates = _ask("planner")["exploration_candidates"]
     answer = _ask("prioritizer", candidates=candidates)
-    order = [c["name"] for c in answer["prioritized_candidates"]]
+    order = [candidates[i]["name"] for i in answer["order"]]
     assert set(order[:2]) == {"red can", "green can"}
     assert set(order[2:]) == {"blue can", "black can"}
     scores = {s["name"]: s["priority_score"] for s in answer["scored_candidates"]}
     assert scores["red can"] > 5 > scores["blue can"]
-    first = next(c for c in candidates if c["name"] == order[0])
-    assert answer["prioritized_candidates"][0] == first  # fields untouched
+    assert sorted(answer["order"]) == list(range(len(candidates)))
+    assert {(s["name"], s["action"]) for s in answer["scored_candidates"]} == {
+        (c["name"], c["action"]) for c in candidates}
 
 
 def _first_choice(mode: str, seed: int, in_view=CANS) -> str:
     if mode == "prioritizer":
         candidates = _ask("planner", in_view=in_view)["exploration_candidates"]
         answer = _ask("prioritizer", seed=seed, in_view=in_view, candidates=candidates)
-        return answer["prioritized_candidates"][0]["name"]
+        return candidates[answer["order"][0]]["name"]
     return _ask("joint_planner", seed=seed, in_view=in_view)["exploration_candidates"][0]["name"]
 
 

@@ -15,9 +15,9 @@ from physcap_drake.commands.progress import Heartbeat, ProgressReport
 
 CANDIDATES = [
     {"name": "red can", "action": "get_mass", "description": "Weigh it.",
-     "parameters": {"name": "str"}, "expected_info": "its mass", "estimated_cost": "medium"},
+     "expected_info": "its mass", "estimated_robot_s": 10},
     {"name": "blue can", "action": "get_mass", "description": "Weigh it.",
-     "parameters": {"name": "str"}, "expected_info": "its mass", "estimated_cost": "low"},
+     "expected_info": "its mass", "estimated_robot_s": 10},
 ]
 
 
@@ -28,9 +28,11 @@ def _transcript() -> Transcript:
                              "required_properties": ["mass"]}],
         "exploration_candidates": CANDIDATES}).model_dump()
     order = PrioritizerAnswer.model_validate({
-        "scored_candidates": [{"name": "red can", "priority_score": 9, "reason": "a straw"},
-                              {"name": "blue can", "priority_score": 1, "reason": "sealed"}],
-        "prioritized_candidates": CANDIDATES}).model_dump()
+        "scored_candidates": [{"name": "red can", "action": "get_mass", "priority_score": 9,
+                               "reason": "a straw"},
+                              {"name": "blue can", "action": "get_mass", "priority_score": 1,
+                               "reason": "sealed"}],
+        "order": [1, 0]}).model_dump() | {"candidates": CANDIDATES[::-1]}
     transcript = Transcript()
     transcript.add("observation", 0, 0.0, "objects in view:\n- 'red can': red can")
     transcript.add("planner", 0, 0.0, "{ raw json }", plan)
@@ -51,9 +53,10 @@ def test_markdown_tells_the_story_like_the_paper():
                                      SUMMARY)
     assert text.startswith("# identify_empty_can, seed 0\n\n**Instruction:** Find the empty can.")
     assert "{ raw json }" not in text  # the planner's answer is a table, not its JSON
-    assert "| red can | get_mass(name: str) | its mass | medium |" in text
+    assert "| red can | get_mass | its mass | 10 s |" in text
     assert '{"name": "str"}' not in text
-    assert "| 1 | red can | 9.0 | a straw |" in text and "| 2 | blue can | 1.0 | sealed |" in text
+    assert "| 1 | red can (get_mass) | 9.0 | a straw |" in text
+    assert "| 2 | blue can (get_mass) | 1.0 | sealed |" in text
     assert "**Thought:** Weigh the red can.\n\n```python\n# Code block 0\n" in text
     assert "**Measured** (robot time 10.9 s): red can: mass = 0.016 kg" in text
     outcome = text.split("## Outcome")[1]
@@ -67,8 +70,8 @@ def test_console_text_is_compact():
     planner = _transcript().entries[1]
     lines = entry_text(planner).splitlines()
     assert lines == ["more information is needed: the mass is hidden",
-                     "  - get_mass(name: str) on 'red can': its mass (cost medium)",
-                     "  - get_mass(name: str) on 'blue can': its mass (cost low)"]
+                     "  - get_mass on 'red can': its mass (about 10 s of robot time)",
+                     "  - get_mass on 'blue can': its mass (about 10 s of robot time)"]
 
 
 class FakeClock:

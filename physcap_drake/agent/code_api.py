@@ -6,6 +6,7 @@ Design notes: docs/design/agent.md.
 from __future__ import annotations
 
 import inspect
+import re
 from collections.abc import Callable
 
 import numpy as np
@@ -25,7 +26,14 @@ from physcap_drake.robot_api import RobotAPI
 #: The functions of every variant, and those only variants with the PhysX modules get.
 MOTION_FUNCTIONS = ("get_object_pose", "goto_pose", "open_gripper", "close_gripper",
                     "home_pose", "free_spot", "place_in", "lift_and_look")
-PHYSX_FUNCTIONS = ("get_mass", "get_weight", "get_stiffness")
+PHYSX_FUNCTIONS = ("get_mass", "get_stiffness")
+#: The explorations the planner may propose: each is a function of PHYSX_FUNCTIONS or a
+#: manoeuvre of MANOEUVRES, with the robot time it takes (s; the functions' docstrings
+#: state the same figure).
+EXPLORATIONS_ROBOT_S = {"get_mass": 10.0, "get_stiffness": 20.0, "lift_and_look": 15.0}
+#: Explorations that are no single function: how the coder composes each (the prompts say).
+#: None now: lift_and_look is a robot function of its own.
+MANOEUVRES: tuple[str, ...] = ()
 
 #: Longest object name or description a call may carry (characters).
 MAX_NAME_CHARS = 120
@@ -99,9 +107,17 @@ class CodeAPI:
             parameters = [p for p in signature.parameters.values() if p.name != "self"]
             shown = signature.replace(parameters=parameters, return_annotation=inspect.
                                       Signature.empty)
-            parts.append(f"def {name}{shown}:\n    \"\"\"{inspect.cleandoc(target.__doc__ or '')}"
-                         .replace("\n", "\n    ") + "\n    \"\"\"")
-        return "\n\n".join(parts)
+            doc = inspect.cleandoc(target.__doc__ or "").replace("\n", "\n    ")
+            parts.append(f"def {name}{shown}:\n    \"\"\"{doc}\n    \"\"\"")
+        return in_metres("\n\n".join(parts))
+
+
+def in_metres(text: str) -> str:
+    """`text` with lengths in millimetres or centimetres written in metres (the prompts speak
+    in metres only)."""
+    scale = {"mm": 1e-3, "cm": 1e-2}
+    return re.sub(r"(\d+(?:\.\d+)?) ?(mm|cm)\b",
+                  lambda m: f"{float(m.group(1)) * scale[m.group(2)]:.3f} m", text)
 
 
 def spec_of(name: str, function: Callable) -> FunctionSpec:

@@ -38,6 +38,7 @@ from physcap_drake.agent.schemas import (
     JointPlannerAnswer,
     PlannerAnswer,
     PrioritizerAnswer,
+    PrioritizerRecord,
     check_reordering,
 )
 from physcap_drake.agent.structured_call import AgentAnswerError, ask_structured, unfence_code
@@ -499,8 +500,9 @@ class AgentLoop:
             repairs=self.variant.repair_attempts,
             check=lambda a: check_reordering(candidates, a))
         self._note(mind, "prioritizer", "\n".join(
-            f"{s.priority_score:4.1f}  {s.name}: {s.reason}" for s in answer.scored_candidates),
-            answer.model_dump())
+            f"{s.priority_score:4.1f}  {s.name} ({s.action}): {s.reason}"
+            for s in answer.scored_candidates),
+            PrioritizerRecord(**answer.model_dump(), candidates=candidates).model_dump())
         return ordered
 
     def _write_code(self, context: AgentContext, decision: Decision, mind: AgentMind,

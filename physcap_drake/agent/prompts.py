@@ -15,9 +15,12 @@ import cv2
 import numpy as np
 from pydantic import BaseModel
 
+from physcap_drake.agent.closer_view import CloserView, closer_view
+from physcap_drake.agent.code_api import EXPLORATIONS_ROBOT_S
+from physcap_drake.agent.coder_contract import sandbox_rules_text
 from physcap_drake.agent.history import StepRecord, history_text
 from physcap_drake.agent.llm.base import LLMRequest
-from physcap_drake.agent.observation import Observation
+from physcap_drake.agent.observation import ObjectInView, Observation
 from physcap_drake.agent.schemas import (
     Candidate,
     CoderAnswer,
@@ -25,6 +28,7 @@ from physcap_drake.agent.schemas import (
     PlannerAnswer,
     PrioritizerAnswer,
 )
+from physcap_drake.agent.world_facts import WorldFacts
 from physcap_drake.knowledge import KnowledgeEntry
 from physcap_drake.resources import agents_dir
 
@@ -70,11 +74,14 @@ def json_schema(model: type[BaseModel]) -> dict:
 
 class PromptBook:
     """The templates of one prompt folder, and the requests built from them (with the camera
-    image, or for a text-only model without it: see the design notes)."""
+    image, or for a text-only model without it: see the design notes). `world`: the
+    robot's and camera's facts the prompts state (none without a robot, e.g. in tests)."""
 
-    def __init__(self, folder: Path | None = None, images: bool = True):
+    def __init__(self, folder: Path | None = None, images: bool = True,
+                 world: WorldFacts | None = None):
         self.folder = folder or agents_dir() / "prompts"
         self.images = images
+        self.world = world
         self._cache: dict[str, Template] = {}
 
     def render(self, template: str, **values: str) -> str:
@@ -89,10 +96,13 @@ class PromptBook:
             raise KeyError(f"prompt template {template}.md needs a value for "
                            f"${error.args[0]}") from None
 
-    def _context_text(self, ctx: AgentContext) -> str:
+    def _context_text(self, ctx: AgentContext, view: CloserView | None) -> str:
         scene = "" if self.images else "\n" + self.render(
             "scene_text", description=scene_description(ctx.observation)) + "\n"
-        return self.render("context", task=ctx.task, objects=ctx.observation.as_text(),
+        notes = [self.world.image_text() if self.world else "",
+                 view.describe() if view else ""]
+        return self.render("context", task=ctx.task, objects=objects_text(ctx.observation),
+                           image_notes="".join(f"{n}\n" for n in notes if n),
                            scene=scene, knowledge=ctx.knowledge_text(),
                            history=history_text(list(ctx.history)))
 
@@ -104,24 +114,29 @@ class PromptBook:
 
     def _request(self, role: str, system: str, ctx: AgentContext, extra_text: str,
                  schema: type[BaseModel], mode: str, **extra_context) -> LLMRequest:
-        prompt = self._context_text(ctx) + (f"\n\n{extra_text}" if extra_text else "")
+        view = closer_view(ctx.observation) if self.images else None
+        prompt = self._context_text(ctx, view) + (f"\n\n{extra_text}" if extra_text else "")
         context = ctx.as_context() | {"mode": mode} | extra_context
+        images = (ctx.observation.jpeg, view.jpeg) if view else (ctx.observation.jpeg,)
         return LLMRequest(role=role, system=system, prompt=prompt,
-                          images=(ctx.observation.jpeg,) if self.images else (),
+                          images=images if self.images else (),
                           json_schema=json_schema(schema), context=context)
 
     def planner(self, ctx: AgentContext, mode: str) -> LLMRequest:
         """mode: "planner" (PlannerAnswer), "joint_planner" (JointPlannerAnswer) or
         "enumerator" (PlannerAnswer listing every candidate)."""
         schema = JointPlannerAnswer if mode == "joint_planner" else PlannerAnswer
-        system = self.render(mode, abilities=self.render("abilities"),
+        abilities = self.render("abilities", **{f"{action}_s": f"{seconds:g}" for action, seconds
+                                                in EXPLORATIONS_ROBOT_S.items()})
+        system = self.render(mode, abilities=abilities, pruning=self.render("pruning"),
                              schema=schema_text(schema), **self._seeing())
         return self._request("planner", system, ctx, "", schema, mode)
 
     def prioritizer(self, ctx: AgentContext, candidates: list[Candidate]) -> LLMRequest:
-        listing = json.dumps([c.model_dump() for c in candidates], indent=1)
+        listing = json.dumps([{"index": i} | c.model_dump() for i, c in enumerate(candidates)],
+                             indent=1)
         system = self.render("prioritizer", schema=schema_text(PrioritizerAnswer),
-                             **self._seeing())
+                             pruning=self.render("pruning"), **self._seeing())
         return self._request("prioritizer", system, ctx, f"# Candidates\n{listing}",
                              PrioritizerAnswer, "prioritizer",
                              candidates=[c.model_dump() for c in candidates])
@@ -142,7 +157,8 @@ class PromptBook:
         else:
             mode_text = self.render("coder_task")
         system = self.render("coder", api=api_text, mode=mode_text,
-                             schema=schema_text(CoderAnswer))
+                             facts=self.world.coder_text() if self.world else "",
+                             rules=sandbox_rules_text(), schema=schema_text(CoderAnswer))
         extra = {"functions": functions, "reason": reason}
         if candidate is not None:
             extra["candidate"] = candidate.model_dump()
@@ -155,6 +171,20 @@ class PromptBook:
                 code=failed.code)
             extra["failed_block"] = {"index": failed.index, "error": failed.error}
         return self._request("coder", system, ctx, retry_text, CoderAnswer, mode, **extra)
+
+
+def objects_text(observation: Observation) -> str:
+    """The objects in view, one line each, heights in metres."""
+    if not observation.objects:
+        return "(the perception module finds no objects)"
+    return "\n".join(f"- {_object_line(o)}" for o in observation.objects)
+
+
+def _object_line(obj: ObjectInView) -> str:
+    size = f"{obj.size} " if obj.size else ""
+    straw = ", with a straw (opened)" if obj.straw else ""
+    return (f"'{obj.name}': {size}{obj.color} {obj.category}{straw}, its top "
+            f"{obj.height_m:.3f} m above the table")
 
 
 def scene_description(observation: Observation) -> str:

@@ -1,15 +1,13 @@
 """The answers the agents must give, as pydantic models (their JSON Schemas go to the models).
 
 Planner: is the information sufficient, and if not, which explorations could reveal it.
-Prioritizer: a score and a reason per candidate, and the candidates reordered (only
-reordered: `check_reordering` rejects added, dropped, renamed or edited candidates).
+Prioritizer: a score and a reason per candidate, keyed by (object, action), and the order
+of the candidates' indices (`check_reordering` rejects an order or scores that miss some).
 Joint planner (physcap_joint): the planner's answer with its candidates already in order.
 Coder: a thought and the Python code of one code block.
 """
 
 from __future__ import annotations
-
-from typing import Literal
 
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
@@ -31,13 +29,16 @@ class Candidate(_Strict):
     """One exploration: one action on one object that may reveal missing information."""
 
     name: str = Field(description="The object to explore, as the perception module names it.")
-    action: str = Field(description="The robot function or manoeuvre, e.g. get_mass, "
-                                    "get_stiffness, lift_and_look.")
+    action: str = Field(description="One of the robot's abilities listed above, by its name "
+                                    "(e.g. get_mass).")
     description: str = Field(description="What the robot does, in one sentence.")
-    parameters: dict[str, str] = Field(default_factory=dict,
-                                       description="Parameter names and their types.")
     expected_info: str = Field(description="What the exploration reveals.")
-    estimated_cost: Literal["low", "medium", "high"]
+    estimated_robot_s: float = Field(ge=0, description="Robot time it takes, s (the "
+                                                       "abilities list gives each one's).")
+
+    def key(self) -> tuple[str, str]:
+        """(object, action): what identifies a candidate."""
+        return self.name, self.action
 
 
 class PlannerAnswer(_Strict):
@@ -54,22 +55,33 @@ class PlannerAnswer(_Strict):
         if not self.sufficient and not self.exploration_candidates:
             raise ValueError("'sufficient' is false but 'exploration_candidates' is empty: "
                              "propose at least one exploration")
-        _require_unique([c.name for c in self.exploration_candidates])
+        _require_unique([c.key() for c in self.exploration_candidates])
         return self
 
 
 class CandidateScore(_Strict):
-    name: str = Field(description="The candidate's name, unchanged.")
+    """The score of one candidate, keyed by its (object, action)."""
+
+    name: str = Field(description="The candidate's object name, unchanged.")
+    action: str = Field(description="The candidate's action, unchanged.")
     priority_score: float = Field(ge=0, le=10, description="0 (implausible) to 10 (explore "
                                                            "first).")
     reason: str
 
 
 class PrioritizerAnswer(_Strict):
-    """Scores for every candidate, and all candidates in the order to explore them."""
+    """A score for every candidate, and the order to explore them in (candidate indices)."""
 
     scored_candidates: list[CandidateScore]
-    prioritized_candidates: list[Candidate]
+    order: list[int] = Field(description="The candidates' indices as numbered in the list "
+                                         "received, in the order to explore them; each once.")
+
+
+class PrioritizerRecord(PrioritizerAnswer):
+    """What the transcript keeps of a prioritizer's turn: its answer and the candidates it
+    ranked (the order's indices count in them)."""
+
+    candidates: list[Candidate]
 
 
 class JointPlannerAnswer(PlannerAnswer):
@@ -88,37 +100,34 @@ class CoderAnswer(_Strict):
                                                            "this block has run.")
 
 
-def _require_unique(names: list[str]) -> None:
-    repeated = sorted({n for n in names if names.count(n) > 1})
+def _require_unique(keys: list[tuple[str, str]]) -> None:
+    repeated = sorted({k for k in keys if keys.count(k) > 1})
     if repeated:
-        raise ValueError(f"candidate names must be unique; repeated: {repeated}")
+        raise ValueError(f"each (name, action) may be proposed once; repeated: {repeated}")
 
 
 def check_reordering(original: list[Candidate], answer: PrioritizerAnswer) -> list[Candidate]:
-    """The prioritizer's order, after checking it only reorders `original`: the same
-    candidates, each once, none edited, and a score for each. Raises ValueError otherwise,
-    naming what differs (the message goes back to the model in a repair attempt)."""
-    by_name = {c.name: c for c in original}
-    ordered = answer.prioritized_candidates
-    names = [c.name for c in ordered]
+    """The candidates in the prioritizer's order, after checking the order names each index
+    of `original` once and the scores cover exactly its (name, action) pairs. Raises
+    ValueError otherwise, naming what differs (the message goes back to the model)."""
     problems = []
-    added = [n for n in names if n not in by_name]
-    dropped = [n for n in by_name if n not in names]
-    repeated = sorted({n for n in names if names.count(n) > 1})
-    if added:
-        problems.append(f"added candidates {added}")
-    if dropped:
-        problems.append(f"dropped candidates {dropped}")
+    indices = range(len(original))
+    unknown = [i for i in answer.order if i not in indices]
+    missing = [i for i in indices if i not in answer.order]
+    repeated = sorted({i for i in answer.order if answer.order.count(i) > 1})
+    if unknown:
+        problems.append(f"order names indices {unknown} that no candidate has (0 to "
+                        f"{len(original) - 1})")
+    if missing:
+        problems.append(f"order leaves out candidates {missing}")
     if repeated:
-        problems.append(f"repeated candidates {repeated}")
-    edited = [c.name for c in ordered if c.name in by_name and c != by_name[c.name]]
-    if edited:
-        problems.append(f"edited the fields of {edited} (only the order may change)")
-    scored = {s.name for s in answer.scored_candidates}
-    if scored != set(by_name):
-        problems.append(f"scores must cover exactly the candidates {sorted(by_name)}; got "
-                        f"{sorted(scored)}")
+        problems.append(f"order repeats candidates {repeated}")
+    keys = [c.key() for c in original]
+    scored = [(s.name, s.action) for s in answer.scored_candidates]
+    if sorted(scored) != sorted(keys):
+        problems.append(f"scored_candidates must score each (name, action) once: "
+                        f"{sorted(keys)}; got {sorted(scored)}")
     if problems:
-        raise ValueError("the prioritizer may only reorder the candidates: "
+        raise ValueError("the prioritizer's answer does not fit the candidates: "
                          + "; ".join(problems))
-    return list(ordered)
+    return [original[i] for i in answer.order]

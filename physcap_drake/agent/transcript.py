@@ -158,19 +158,23 @@ def _planner_blocks(plan: dict) -> list[str]:
     if candidates:
         blocks.append(_table(("candidate", "action", "reveals", "cost"), [
             (c["name"], call_signature(c), c.get("expected_info", ""),
-             c.get("estimated_cost", "")) for c in candidates]))
+             _robot_seconds(c)) for c in candidates]))
     if plan.get("ordering_reason"):
         blocks.append(f"Order: {plan['ordering_reason']}")
     return blocks
 
 
 def _ranking(answer: dict) -> list[tuple[str, str, str, str]]:
-    """The prioritizer's candidates in its order: (rank, name, score, reason)."""
-    scores = {s["name"]: s for s in answer["scored_candidates"]}
-    order = [c["name"] for c in answer.get("prioritized_candidates", [])] or list(scores)
-    return [(str(rank), name, f"{scores[name]['priority_score']:.1f}",
-             scores[name].get("reason", "")) for rank, name in enumerate(order, start=1)
-            if name in scores]
+    """The prioritizer's candidates in its order: (rank, candidate, score, reason). The
+    order's indices count in `candidates` (the list it was given, kept with its answer)."""
+    scores = {(s["name"], s.get("action", "")): s for s in answer["scored_candidates"]}
+    candidates = [(c["name"], c.get("action", "")) for c in answer.get("candidates", [])]
+    order = [candidates[i] for i in answer.get("order", []) if 0 <= i < len(candidates)]
+    return [(str(rank), f"{name} ({action})" if action else name,
+             f"{scores[name, action]['priority_score']:.1f}",
+             scores[name, action].get("reason", ""))
+            for rank, (name, action) in enumerate(order or list(scores), start=1)
+            if (name, action) in scores]
 
 
 def _priority_table(answer: dict) -> str:
@@ -178,10 +182,13 @@ def _priority_table(answer: dict) -> str:
 
 
 def call_signature(candidate: dict) -> str:
-    """A candidate's action as a call, e.g. "get_mass(name: str)"."""
-    parameters = candidate.get("parameters") or {}
-    return f"{candidate.get('action', '')}(" + ", ".join(
-        f"{name}: {kind}" for name, kind in parameters.items()) + ")"
+    """A candidate's action, e.g. "get_mass"."""
+    return str(candidate.get("action", ""))
+
+
+def _robot_seconds(candidate: dict) -> str:
+    seconds = candidate.get("estimated_robot_s")
+    return f"{seconds:g} s" if isinstance(seconds, int | float) else "?"
 
 
 def _table(header: tuple[str, ...], rows: list[tuple[str, ...]]) -> str:
@@ -208,7 +215,7 @@ def _entry_text(entry: TranscriptEntry) -> str:
     if entry.kind == "planner" and "sufficient" in data:
         lines = [_verdict(data)]
         lines += [f"  - {call_signature(c)} on '{c['name']}': {c.get('expected_info', '')} "
-                  f"(cost {c.get('estimated_cost', '?')})"
+                  f"(about {_robot_seconds(c)} of robot time)"
                   for c in data.get("exploration_candidates") or []]
         if data.get("ordering_reason"):
             lines.append(f"  order: {data['ordering_reason']}")

@@ -16,9 +16,11 @@ from physcap_drake.agent.llm import LLMError, ModelSettings, check_client, make_
 from physcap_drake.agent.llm.base import CallRecord, LLMClient, takes_images
 from physcap_drake.agent.llm.pointer_ask import pointer_ask
 from physcap_drake.agent.loop import AgentLoop, AgentMind, EpisodeOutcome
+from physcap_drake.agent.prompts import PromptBook
 from physcap_drake.agent.sandbox import SandboxLimits
 from physcap_drake.agent.transcript import Transcript, TranscriptEntry
 from physcap_drake.agent.variant import load_variant
+from physcap_drake.agent.world_facts import WorldFacts
 from physcap_drake.app.episode import Episode, make_episode
 from physcap_drake.clock import Clock
 from physcap_drake.perception.judge import Verdict
@@ -196,7 +198,10 @@ def run_agent_episode(task: str, seed: int, *, agent: str = "physcap",
                      check=None if episode.judge == "operator" else episode.check,
                      seed=seed, limits=limits,
                      robot_time_limit=robot_time_limit, transcript=transcript,
-                     on_phase=on_phase)
+                     on_phase=on_phase, prompts=PromptBook(
+                         images=takes_images(client), world=WorldFacts.build(
+                             episode.robot.model, episode.scenario.skills.workspace,
+                             episode.api.locator.camera.X_WC if episode.api.locator else None)))
     observe = recording.on_observe if recording is not None else None
     try:
         if on_start is not None:

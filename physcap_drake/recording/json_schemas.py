@@ -11,7 +11,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from physcap_drake.agent.schemas import PlannerAnswer, PrioritizerAnswer
+from physcap_drake.agent.schemas import PlannerAnswer, PrioritizerRecord
 from physcap_drake.recording import topics
 
 
@@ -120,7 +120,7 @@ def agent_schemas() -> dict[str, tuple[str, dict[str, Any]]]:
         topics.AGENT_PLANNER: ("physcap.PlannerAnswer",
                                _entry_schema(PlannerAnswer.model_json_schema())),
         topics.AGENT_PRIORITIZER: ("physcap.PrioritizerAnswer",
-                                   _entry_schema(PrioritizerAnswer.model_json_schema())),
+                                   _entry_schema(PrioritizerRecord.model_json_schema())),
         topics.AGENT_CODE: ("physcap.CodeBlock", _entry_schema(_CODE_BLOCK)),
         topics.AGENT_OUTPUT: ("physcap.CodeOutput", _entry_schema(_CODE_OUTPUT)),
         topics.AGENT_ERROR: ("physcap.AgentError", _entry_schema(_AGENT_ERROR)),

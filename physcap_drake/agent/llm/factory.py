@@ -14,6 +14,7 @@ from physcap_drake.agent.llm.anthropic_backend import AnthropicClient
 from physcap_drake.agent.llm.base import LLMClient
 from physcap_drake.agent.llm.compatible import OpenAICompatibleClient
 from physcap_drake.agent.llm.deadline import DeadlineClient
+from physcap_drake.agent.llm.files_backend import FilesClient
 from physcap_drake.agent.llm.gemini import GeminiClient
 from physcap_drake.agent.llm.openai_backend import OpenAIClient
 from physcap_drake.agent.llm.recording import RecordingClient
@@ -28,6 +29,7 @@ VALID_SPECS = (
     "openai",
     "openai-compatible:<base_url>",
     "replay:<path.jsonl>",
+    "files:<folder>",
 )
 RETRY_OPTIONS = ("attempts", "base_delay_s", "max_delay_s", "sleep")
 RECORDING_OPTIONS = ("on_record",)
@@ -47,7 +49,8 @@ def make_llm(spec: str | ModelSettings, model: str | None = None, **options: Any
     `model` overrides the backend's default model; the offline backends (reference,
     replay) ignore it. `options` go where they belong:
       attempts, base_delay_s, max_delay_s, sleep -> RetryingClient (remote backends only);
-      timeout_s -> the backend and the DeadlineClient (remote backends only);
+      timeout_s -> the backend and the DeadlineClient (remote backends), or how long the
+      files backend waits for one answer file;
       on_record -> RecordingClient;
       images=False -> a text-only model: requests carry no image (any backend);
       seed -> the reference reasoner (ignored by the others, so callers may always pass it);
@@ -76,6 +79,11 @@ def make_llm(spec: str | ModelSettings, model: str | None = None, **options: Any
             raise ValueError("the replay spec needs a file: replay:<path.jsonl>")
         _reject_options(kind, options, ())
         inner = ReplayClient.from_jsonl(argument)
+    elif kind == "files":
+        if not argument:
+            raise ValueError("the files spec needs a folder: files:<folder>")
+        _reject_options(kind, options, ("timeout_s",))
+        inner = FilesClient(argument, **options)
     elif kind in _REMOTE and not argument:
         inner = _remote_stack(_REMOTE[kind], kind, model, options, retry_options)
     elif kind == "openai-compatible":

@@ -12,6 +12,7 @@ from string import Template
 
 import numpy as np
 
+from physcap_drake.agent.code_api import EXPLORATIONS_ROBOT_S
 from physcap_drake.agent.llm.base import LLMRequest, LLMResponse
 from physcap_drake.agent.reference.naming import ObjectNotInView, current_name
 from physcap_drake.agent.reference.priors import IMPLAUSIBLE, plausibility
@@ -31,7 +32,6 @@ LIFT_PRINTED = re.compile(r"ACTION: lift the (.+?) and look under it")
 #: Lifted covers are gripped this much above their located grasp point, m (gripping higher
 #: up an upside-down cup, where it is narrower, tipped more cups over in trials).
 CUP_GRIP_RAISE = 0.0
-COSTS = {"get_mass": "medium", "get_stiffness": "high", "lift_and_look": "medium"}
 
 
 class ReferenceReasoner:
@@ -156,9 +156,8 @@ class ReferenceReasoner:
                  "lift_and_look": f"Lift the {obj['name']} and set it down on the "
                                   f"{goal.destination} to see what it covers."}
         return {"name": obj["name"], "action": goal.action, "description": verbs[goal.action],
-                "parameters": {"name": "str"},
                 "expected_info": f"the {obj['name']}'s {_property_name(goal)}",
-                "estimated_cost": COSTS[goal.action]}
+                "estimated_robot_s": EXPLORATIONS_ROBOT_S[goal.action]}
 
     # --- prioritizer ---------------------------------------------------------------------
 
@@ -174,12 +173,11 @@ class ReferenceReasoner:
             else:
                 value, reason = plausibility(obj, goal, in_view)
                 score = round(10.0 * value, 1)
-            scored.append({"name": candidate["name"], "priority_score": score,
-                           "reason": reason})
+            scored.append({"name": candidate["name"], "action": candidate["action"],
+                           "priority_score": score, "reason": reason})
         order = sorted(range(len(scored)), key=lambda i: (-scored[i]["priority_score"],
                                                           self._tie_rank(scored[i]["name"])))
-        return {"scored_candidates": scored,
-                "prioritized_candidates": [context["candidates"][i] for i in order]}
+        return {"scored_candidates": scored, "order": order}
 
     def _tie_rank(self, name: str) -> float:
         """A random rank in [0, 1) drawn per (seed, object name): orders equally likely
