@@ -126,9 +126,9 @@ class RobotAPI:
         return answers[name].copy()
 
     def free_spot(self, container: str, name: str) -> np.ndarray:
-        """Where in `container` (a tray or basket in view, e.g. "wooden tray") the object
-        `name` fits, clear of the walls and of what already stands in it: [x, y] (metres,
-        world frame). Raises ValueError if a name fits no object in view, SkillRefused if
+        """Where in `container` (a container in view, named as the objects list names it)
+        the object `name` fits, clear of the walls and of what already stands in it: [x, y]
+        (metres, world frame). Raises ValueError if a name fits no object in view, SkillRefused if
         there is no room.
         """
         return self._spot(self._located(container), self._located(name))
@@ -319,7 +319,7 @@ class RobotAPI:
     def lift_and_look(self, position, name: str, destination: str | None = None) -> list[str]:
         """Lift the object `name` straight up 15 cm from `position` = [x, y, z] (its grasp
         point, from get_object_pose), set it down upright at a free spot of `destination` (a
-        tray or basket in view; see free_spot), go home and look with the camera where it
+        container in view; see free_spot), go home and look with the camera where it
         stood; without a destination, look with it held 15 cm aside, then set it back where
         it was. Takes about 15 s.
 
@@ -359,7 +359,7 @@ class RobotAPI:
     @robot_call
     def place_in(self, container: str, name: str) -> np.ndarray:
         """Pick up the object `name` with a top-down grasp and set it down upright at a free
-        spot of `container` (a tray or basket in view; see free_spot), open, retreat and go
+        spot of `container` (a container in view; see free_spot), open, retreat and go
         home. Takes about 15 s.
 
         Returns where it was released, [x, y, z] (metres, world frame). Raises SkillRefused,
