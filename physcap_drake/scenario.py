@@ -25,6 +25,10 @@ from pydrake.visualization import VisualizationConfig
 from physcap_drake.config_checks import ConfigChecker
 from physcap_drake.control.skills_config import SkillsConfig
 from physcap_drake.physx.physx_config import PhysxConfig
+from physcap_drake.physx.probe_calibration import (
+    apply_probe_calibration,
+    load_probe_calibration,
+)
 from physcap_drake.resources import make_package_map
 from physcap_drake.scenario_errors import ScenarioError, file_label, locate_yaml_error
 from physcap_drake.station.can_config import PiperCan
@@ -161,7 +165,10 @@ def _load(label: str, **source) -> Scenario:
                             problem=str(error)) from error
     if "filename" in source:
         _resolve_camera_files(scenario, Path(source["filename"]).parent)
+        _resolve_probe_calibration(scenario, Path(source["filename"]).parent)
     check_scenario(scenario, label)
+    if isinstance(scenario.station, PiperCan):
+        scenario.station.apply_emulated_mismatch()
     return scenario
 
 
@@ -174,6 +181,18 @@ def _resolve_camera_files(scenario: Scenario, folder: Path) -> None:
                 value = getattr(camera, key)
                 if value and not Path(value).is_absolute():
                     setattr(camera, key, str(folder / value))
+
+
+def _resolve_probe_calibration(scenario: Scenario, folder: Path) -> None:
+    """Makes `physx.calibration_file` relative to the scenario file's folder and, if the
+    file exists, puts its fitted values into the probes' configuration."""
+    name = scenario.physx.calibration_file
+    if not name:
+        return
+    path = Path(name) if Path(name).is_absolute() else folder / name
+    scenario.physx.calibration_file = str(path)
+    if path.is_file():
+        apply_probe_calibration(scenario.physx, load_probe_calibration(path))
 
 
 def check_scenario(scenario: Scenario, filename: str = "<scenario>") -> None:

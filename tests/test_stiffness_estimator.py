@@ -341,7 +341,8 @@ def test_closing_on_nothing_fails_with_level_zero():
     result = probe(SyntheticGripper(width=0.0, slope=100.0), start_opening=0.02, squeezes=3)
     assert result.level == 0
     assert all(math.isnan(d) for d in result.deformations_mm)
-    assert result.failures == tuple(f"squeeze {k}: no contact found: the effort stayed below 0.03 until the fingers closed fully" for k in (1, 2, 3))
+    assert result.failures == tuple(f"squeeze {k}: no contact found: the effort stayed below "
+                                    "0.03 until the fingers closed fully" for k in (1, 2, 3))
 
 
 def test_deformation_is_interpolated_at_the_target_effort():

@@ -123,11 +123,13 @@ class StiffnessEstimator(LeafSystem):
 
     Each squeeze: (1) close in `contact_step` steps until the normalized effort reaches
     `contact_effort`; (2) undo that step and reopen to `backoff` past the measured fingers
-    (the command may lie well inside a rigid object): a real contact loses at least `backoff_drop` of its effort rise, friction in the drive does not (then closing
+    (the command may lie well inside a rigid object): a real contact loses at least
+    `backoff_drop` of its effort rise, friction in the drive does not (then closing
     resumes); the opening where the effort rose is d0; (3) close in `squeeze_step` steps
     recording (d_i, f̂_i) until f̂ reaches `target_effort`, and take Δd = |d0 − d(f̂*)|
-    (mm, interpolated) less the gripper's own `gripper_offset_mm` (at least 0); if the first reading back at the contact command shows no effort,
-    the rise was a passing spike and the search goes on;
+    (mm, interpolated) less the gripper's own `gripper_offset_mm` (at least 0); if the
+    first reading back at the contact command shows no effort, the rise was a passing
+    spike and the search goes on;
     (4) reopen to d0 + `release` (at most to the opening it started from). A squeeze fails,
     its reason in `failures`, when the fingers close fully (no contact found, none passed
     the back-off test, or the effort never reached the target) or its effort falls back
