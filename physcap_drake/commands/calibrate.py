@@ -31,6 +31,30 @@ app = typer.Typer(help="Validate and calibrate the physical probes and the camer
                   no_args_is_help=True)
 app.command("camera")(calibrate_camera)
 
+
+@app.command("board")
+def board(paper: Annotated[str, typer.Option(
+              "--paper", help="A3: the table board (calibrate camera --method table); A4: "
+              "the hand-eye board the gripper clamps (--method gripper).")] = "A3",
+          out: Annotated[Path | None, typer.Option(
+              "--out", help="The PDF to write (default: charuco_<paper>.pdf).")] = None,
+          ) -> None:
+    """Write a calibration board to print at 1:1 (PDF, one landscape page).
+
+    The page has margins, crop marks, a 100 mm scale bar and the board's parameters. Print
+    at 100 % ("actual size"), measure the scale bar and a square, and give the square to
+    `calibrate camera --square-mm`."""
+    from physcap_drake.perception.printed_boards import BOARDS, write_board_pdf  # noqa: PLC0415
+
+    if paper not in BOARDS:
+        fail(f"--paper {paper!r}: expected one of {', '.join(BOARDS)}")
+    path = out or Path(f"charuco_{paper}.pdf")
+    printed = BOARDS[paper]
+    write_board_pdf(printed, path)
+    spec = printed.spec
+    console.print(f"wrote {path}: the {printed.name} board, {spec.squares[0]} x "
+                  f"{spec.squares[1]} squares of {1000 * spec.square:g} mm on {paper}")
+
 #: --write saves thresholds only if they classify this share of the held-out trials right.
 WRITE_ACCURACY = 0.95
 #: Trials one worker process runs before a fresh one takes its place (see `_run_all`).

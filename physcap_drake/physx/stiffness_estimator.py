@@ -28,8 +28,8 @@ MAX_RELEASE_TICKS = 20
 #: Notes kept of rejected contacts (friction, passing spikes); more are only counted, so the
 #: result stays short whatever the drive does.
 MAX_REJECTION_NOTES = 3
-#: A squeeze whose effort, once above this many times `contact_effort`, falls back below
-#: `contact_effort` lost the object (it slipped or tipped out of the fingers).
+#: A squeeze that closed fully with its effort back below `contact_effort` after it had
+#: risen to this many times that lost the object (it slipped or tipped out of the fingers).
 SLIP_FACTOR = 3.0
 #: Slack when comparing event times, s.
 TIME_EPSILON = 1e-6
@@ -132,9 +132,8 @@ class StiffnessEstimator(LeafSystem):
     spike and the search goes on;
     (4) reopen to d0 + `release` (at most to the opening it started from). A squeeze fails,
     its reason in `failures`, when the fingers close fully (no contact found, none passed
-    the back-off test, or the effort never reached the target) or its effort falls back
-    below `contact_effort` (the object slipped). Every step is held `dwell` s before the
-    gripper is read.
+    the back-off test, the effort never reached the target, or it fell back: the object
+    slipped). Every step is held `dwell` s before the gripper is read.
 
     `command_latency` (s) is the station's: a command shows in the feedback that much later
     (about 0.1 s over CAN, none on the simulated station). Closing steps go on every `dwell`
@@ -261,7 +260,10 @@ class StiffnessEstimator(LeafSystem):
         """Why a squeeze whose fingers closed fully failed."""
         c = self._config
         if s.phase is Phase.SQUEEZE:
-            top = max(f for _, f in s.samples)
+            top, last = max(f for _, f in s.samples), s.samples[-1][1]
+            if last < c.contact_effort <= top / SLIP_FACTOR:
+                return (f"the object slipped: the effort fell from {top:.2f} to {last:.2f} "
+                        f"after contact at {1000 * s.d0:.1f} mm, and the fingers closed fully")
             return (f"effort never reached {c.target_effort:.2f}: at most {top:.2f} after "
                     f"contact at {1000 * s.d0:.1f} mm, and the fingers closed fully")
         if s.squeeze_rejections:
@@ -304,11 +306,6 @@ class StiffnessEstimator(LeafSystem):
                                                d0=math.nan, samples=()),
                                   c.contact_step, now)
         samples = s.samples + ((d, f),)
-        top = max(effort for _, effort in s.samples)
-        if f < c.contact_effort <= top / SLIP_FACTOR:
-            return self._finish_squeeze(s, math.nan, (
-                f"the object slipped: the effort fell from {top:.2f} to {f:.2f} at "
-                f"{1000 * d:.1f} mm (contact at {1000 * s.d0:.1f} mm)"))
         if f >= c.target_effort:
             deformation = deformation_at_effort(s.d0, list(samples), c.target_effort)
             return self._finish_squeeze(s, max(deformation - c.gripper_offset_mm, 0.0))
