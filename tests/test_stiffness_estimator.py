@@ -317,6 +317,22 @@ def test_the_back_off_reopens_past_the_fingers_not_past_the_command():
     assert readings[-1][0] == pytest.approx(before_opening + config.backoff, abs=2e-4)
 
 
+def test_the_gripper_offset_is_subtracted_from_each_squeeze_never_below_zero():
+    def squeezes(offset_mm: float, slope: float) -> tuple[float, ...]:
+        diagram, clock = squeeze_rig(SyntheticGripper(width=0.06, slope=slope), 0.07,
+                                     StiffnessProbeConfig(squeezes=2,
+                                                          gripper_offset_mm=offset_mm))
+        clock.run_for(0.1)
+        diagram.GetInputPort(SQUEEZE_PORT).FixValue(clock.mutable_context, SqueezeRequest(1))
+        result = diagram.GetOutputPort(RESULT_PORT)
+        assert clock.run_until(lambda root: result.Eval(root).finished, timeout=60.0)
+        return result.Eval(clock.context).result.deformations_mm
+
+    plain = squeezes(0.0, 100.0)
+    assert squeezes(0.8, 100.0) == pytest.approx(np.subtract(plain, 0.8), abs=1e-9)
+    assert squeezes(3.0, 400.0) == (0.0, 0.0)  # a gripper softer than the object: 0
+
+
 def test_each_failed_squeeze_says_why():
     never = probe(SyntheticGripper(width=0.06, slope=100.0, effort_cap=0.3), 0.07, squeezes=1)
     assert never.level == 0 and math.isnan(never.deformations_mm[0])
