@@ -48,13 +48,13 @@ def test_an_emulated_twin_is_drawn_unlike_its_model_as_calibrate_mismatch_draws(
 
 
 @pytest.mark.parametrize(("text", "key"), [
-    (twin_text("[gains]"), "station.emulated_mismatch.groups"),
-    (twin_text(emulate="false"), "station.emulate"),
+    (twin_text("[gains]"), "'station.emulated_mismatch.groups'"),
+    (twin_text(emulate="false"), "'station.emulated_mismatch': expected no groups unless"),
 ])
 def test_a_bad_emulated_mismatch_is_refused_naming_the_field(text, key):
     with pytest.raises(ScenarioError) as error:
         load_scenario_text(text)
-    assert key.split(".")[1] in str(error.value)
+    assert key in str(error.value)
 
 
 def test_a_rig_scenario_applies_the_probe_calibration_file_it_names(tmp_path):
@@ -98,9 +98,10 @@ def test_rig_calibration_is_refused_without_a_terminal_or_a_calibration_file(tmp
 
 @pytest.mark.emulated_hardware
 def test_the_gains_fitted_on_an_emulated_twin_are_its_drawn_gains(tmp_path):
-    # Only the torque sensors' gains drawn: the fit recovers them on the loaded joints.
+    # Only the torque sensors' gains drawn (seed 12: J2 and J3 both about 4 % low): one
+    # weighing, with the twin's torque noise, recovers them on the loaded joints.
     scenario_file = tmp_path / "rig.yaml"
-    scenario_file.write_text(twin_text("[torque_gain]", seed=5,
+    scenario_file.write_text(twin_text("[torque_gain]", seed=12,
                                        calibration_file="rig_probes.yaml"))
     out = tmp_path / "fit.json"
     result = CliRunner().invoke(app, ["calibrate", "mass", "--scenario", str(scenario_file),
@@ -109,7 +110,7 @@ def test_the_gains_fitted_on_an_emulated_twin_are_its_drawn_gains(tmp_path):
     assert result.exit_code == 0, result.output
     fitted = json.loads(out.read_text())["torque_gain"]
     assert fitted == load_probe_calibration(tmp_path / "rig_probes.yaml").torque_gain
-    true = draw(5, ("torque_gain",))["torque_gain"]
+    true = draw(12, ("torque_gain",))["torque_gain"]
     for joint in (1, 2):  # J2, J3 carry the weight at the probe's pose
-        assert fitted[joint] == pytest.approx(true[joint], abs=0.01)
-        assert not math.isclose(true[joint], 1.0, abs_tol=0.01)  # a gain worth fitting
+        assert fitted[joint] == pytest.approx(true[joint], abs=0.02)
+        assert not math.isclose(true[joint], 1.0, abs_tol=0.04)  # a gain worth fitting

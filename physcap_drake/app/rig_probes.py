@@ -86,6 +86,24 @@ def _run(scenario: Scenario, action):
         close_station(robot.station)
 
 
+def _prepared(scenario: Scenario, twin_model, place,
+              grasp_height: float) -> tuple[Path, Scenario, np.ndarray]:
+    """The calibration file, the scenario (an emulated twin's with the object `twin_model()`
+    standing at `place`) and the grasp point (base frame, m)."""
+    path = calibration_path(scenario)
+    if scenario.station.emulate:
+        scenario = _with_object(scenario, twin_model(), place)
+    return path, scenario, np.array([place[0], place[1], grasp_height])
+
+
+def _probe(measure, what: str) -> None:
+    """Runs the probe call `measure()`; a skill error becomes a RigCalibrationError."""
+    try:
+        measure()
+    except SkillError as error:
+        raise RigCalibrationError(f"the {what} stopped: {error}") from error
+
+
 def _existing(path: Path) -> ProbeCalibration:
     return load_probe_calibration(path) if path.is_file() else ProbeCalibration()
 
@@ -104,16 +122,11 @@ def fit_gain_on_rig(scenario: Scenario, grams: float, place=DEFAULT_PLACE,
     """Weighs the `grams` weight standing at `place` with get_mass and writes the torque
     gains fitted to it into the scenario's probe calibration file. Raises
     RigCalibrationError if the weighing or the fit failed (nothing is written)."""
-    path = calibration_path(scenario)
-    if scenario.station.emulate:
-        scenario = _with_object(scenario, twin_weight_model(grams), place)
-    point = np.array([place[0], place[1], grasp_height])
+    path, scenario, point = _prepared(scenario, lambda: twin_weight_model(grams), place,
+                                      grasp_height)
 
     def weigh(api: RobotAPI, robot) -> GainOnRig:
-        try:
-            api.get_mass(point)
-        except SkillError as error:
-            raise RigCalibrationError(f"the weighing stopped: {error}") from error
+        _probe(lambda: api.get_mass(point), "weighing")
         measured = api.last_mass
         if not measured.ok:
             raise RigCalibrationError(f"the weighing failed: {measured.reason}")
@@ -147,17 +160,11 @@ def measure_gripper_offset(scenario: Scenario, place=DEFAULT_PLACE,
     """Squeezes the rigid block standing at `place` (the probe's offset set to 0) and writes
     the median deformation of its squeezes as the gripper offset into the scenario's probe
     calibration file. Raises RigCalibrationError if fewer than half the squeezes finished."""
-    path = calibration_path(scenario)
-    if scenario.station.emulate:
-        scenario = _with_object(scenario, TWIN_BLOCK, place)
+    path, scenario, point = _prepared(scenario, lambda: TWIN_BLOCK, place, grasp_height)
     scenario.physx.stiffness.gripper_offset_mm = 0.0
-    point = np.array([place[0], place[1], grasp_height])
 
     def squeeze(api: RobotAPI, robot) -> OffsetOnRig:
-        try:
-            api.get_stiffness(point)
-        except SkillError as error:
-            raise RigCalibrationError(f"the squeezes stopped: {error}") from error
+        _probe(lambda: api.get_stiffness(point), "squeezes")
         result = api.last_stiffness.result
         done = [d for d in result.deformations_mm if np.isfinite(d)]
         if 2 * len(done) <= len(result.deformations_mm):
