@@ -23,6 +23,7 @@ from physcap_drake.commands import (
     demo,
     emulate,
     evaluate,
+    look,
     recover,
     replay,
     run,
@@ -60,6 +61,7 @@ app.command("eval")(needs_sandbox(evaluate.evaluate))
 app.command("compare")(compare.compare)
 app.command("replay")(replay.replay)
 app.command("recover")(recover.recover)
+app.command("look")(look.look)
 app.command("emulate-piper", short_help="Emulate a PiPER arm on a CAN bus.")(
     emulate.emulate_piper)
 app.add_typer(demo.app, name="demo")

@@ -25,6 +25,10 @@ from pydrake.visualization import VisualizationConfig
 from physcap_drake.config_checks import ConfigChecker
 from physcap_drake.control.skills_config import SkillsConfig
 from physcap_drake.physx.physx_config import PhysxConfig
+from physcap_drake.physx.probe_calibration import (
+    apply_probe_calibration,
+    load_probe_calibration,
+)
 from physcap_drake.resources import make_package_map
 from physcap_drake.scenario_errors import ScenarioError, file_label, locate_yaml_error
 from physcap_drake.scenario_layers import read_layers
@@ -157,6 +161,7 @@ def load_scenario(filename: str | Path, scenario_text: str = "") -> Scenario:
     if scenario_text:
         scenario = _read(TEXT_LABEL, defaults=scenario, data=scenario_text)
     check_scenario(scenario, label if not scenario_text else f"{label} with {TEXT_LABEL}")
+    _apply_emulated_mismatch(scenario)
     return scenario
 
 
@@ -164,12 +169,20 @@ def load_scenario_text(text: str, *, label: str = "<string>") -> Scenario:
     """Loads and checks a scenario given as YAML text (for tests and generated scenarios)."""
     scenario = _read(label, data=text)
     check_scenario(scenario, label)
+    _apply_emulated_mismatch(scenario)
     return scenario
+
+
+def _apply_emulated_mismatch(scenario: Scenario) -> None:
+    """Draws an emulated arm unlike its model where the station asks (`emulated_mismatch`)."""
+    if isinstance(scenario.station, PiperCan):
+        scenario.station.apply_emulated_mismatch()
 
 
 def _read_file(label: str, path: Path, defaults: Scenario | None) -> Scenario:
     scenario = _read(label, defaults=defaults, filename=str(path))
     _resolve_camera_files(scenario, path.parent)
+    _resolve_probe_calibration(scenario, path.parent)
     return scenario
 
 
@@ -199,6 +212,18 @@ def _resolve_camera_files(scenario: Scenario, folder: Path) -> None:
                 value = getattr(camera, key)
                 if value and not Path(value).is_absolute():
                     setattr(camera, key, str(folder / value))
+
+
+def _resolve_probe_calibration(scenario: Scenario, folder: Path) -> None:
+    """Makes `physx.calibration_file` relative to the scenario file's folder and, if the
+    file exists, puts its fitted values into the probes' configuration."""
+    name = scenario.physx.calibration_file
+    if not name:
+        return
+    path = Path(name) if Path(name).is_absolute() else folder / name
+    scenario.physx.calibration_file = str(path)
+    if path.is_file():
+        apply_probe_calibration(scenario.physx, load_probe_calibration(path))
 
 
 def check_scenario(scenario: Scenario, filename: str = "<scenario>") -> None:

@@ -106,7 +106,7 @@ def test_the_rig_flow_pairs_each_image_with_the_pose_reported_for_it(monkeypatch
     prompts, poses, current = [], list(POSES[:6]), {}
     views = {tuple(q): synthetic_view(q) for q in poses}
     monkeypatch.setattr(charuco, "detect_corners",
-                        lambda image: (views[image].ids, views[image].pixels))
+                        lambda image, board: (views[image].ids, views[image].pixels))
 
     def ready(index):
         prompts.append(index)

@@ -3,11 +3,14 @@ recordings played back through rs.pipeline, and clear errors for cameras that ar
 
 from __future__ import annotations
 
+import logging
+
 import numpy as np
 import pytest
 from typer.testing import CliRunner
 
 from physcap_drake.cli import app
+from physcap_drake.config_checks import ConfigChecker
 from physcap_drake.resources import stations_dir
 from physcap_drake.scenario import load_scenario, load_scenario_text
 from physcap_drake.scenario_errors import ScenarioError
@@ -20,7 +23,12 @@ from physcap_drake.station.realsense.calibration_file import (
 )
 from physcap_drake.station.realsense.camera_system import RealSenseCamera
 from physcap_drake.station.realsense.config import RealSense
-from physcap_drake.station.realsense.pipeline_camera import CameraUnavailable, PipelineRealSense
+from physcap_drake.station.realsense.pipeline_camera import (
+    CameraUnavailable,
+    PipelineRealSense,
+    recording_note,
+    usb_problem,
+)
 from physcap_drake.station.realsense.software_camera import SoftwareRealSense
 
 pytestmark = pytest.mark.emulated_hardware
@@ -214,3 +222,32 @@ def test_scenarios_name_each_camera_source():
     with pytest.raises(ScenarioError) as error:
         load_scenario_text(ROBOT + "cameras: [!RealSense {fps: 25, emulate: true}]\n")
     assert error.value.key_path == "cameras[0].fps"
+
+
+def test_a_recording_says_its_rate_when_it_starts(tmp_path, caplog):
+    caplog.set_level(logging.WARNING)
+    station = MakeStation(_emulated_scenario(record_to=str(tmp_path / "f.db3")))
+    close_station(station)
+    rate = (3 + 2) * W * H * 30 / 1e6  # rgb8 + z16 at the colour resolution, 30 Hz
+    assert f"at about {rate:.0f} MB/s" in caplog.text and str(tmp_path / "f.db3") in caplog.text
+    # A D435's 848 x 480 depth beside 1280 x 720 colour at 30 Hz: 107 MB/s, 6.4 GB a minute.
+    live = RealSense(width=1280, height=720, depth_width=848, depth_height=480,
+                     record_to="f.db3")
+    assert live.depth_size() == (848, 480)
+    assert live.record_rate_mb_s() == pytest.approx((3 * 1280 * 720 + 2 * 848 * 480) * 30e-6)
+    assert "6.4 GB a minute" in recording_note(live)
+
+
+def test_a_usb_2_link_is_named_and_usb_3_is_not():
+    assert "USB 2.1" in usb_problem("2.1") and "USB 3" in usb_problem("2.1")
+    assert usb_problem("3.2") == "" and usb_problem("") == ""
+
+
+@pytest.mark.parametrize("camera", [
+    RealSense(depth_width=848),
+    RealSense(depth_width=848, depth_height=480, emulate=True),
+])
+def test_depth_at_its_own_resolution_is_checked(camera):
+    with pytest.raises(ScenarioError, match="depth_width"):
+        camera.check(ConfigChecker("rig.yaml"))
+    RealSense(depth_width=848, depth_height=480).check(ConfigChecker("rig.yaml"))  # fine

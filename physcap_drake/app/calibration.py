@@ -177,7 +177,8 @@ def run_stiffness_trial(specimen: str, trial: int, seed: int = 0, noise: bool = 
                               trial_seed(seed, trial), drawn)
     measurement = api.last_stiffness
     return StiffnessTrial(specimen, measurement.level, measurement.result.deformations_mm,
-                          measurement.robot_time_s, "", trial_seed(seed, trial), drawn)
+                          measurement.robot_time_s, "; ".join(measurement.result.failures),
+                          trial_seed(seed, trial), drawn)
 
 
 def summarize_mass(trials: list[MassTrial]) -> list[dict]:

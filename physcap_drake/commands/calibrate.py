@@ -16,6 +16,7 @@ from rich.table import Table
 from physcap_drake.app import calibration as cal
 from physcap_drake.app import mismatch
 from physcap_drake.commands.calibrate_camera import calibrate_camera
+from physcap_drake.commands.calibrate_rig import fit_gain_on_rig, gripper_offset_on_rig
 from physcap_drake.commands.common import console, fail, save_json, trial_progress
 from physcap_drake.physx.stiffness_levels import (
     StiffnessThresholds,
@@ -29,6 +30,30 @@ from physcap_drake.scenario import load_scenario
 app = typer.Typer(help="Validate and calibrate the physical probes and the camera.",
                   no_args_is_help=True)
 app.command("camera")(calibrate_camera)
+
+
+@app.command("board")
+def board(paper: Annotated[str, typer.Option(
+              "--paper", help="A3: the table board (calibrate camera --method table); A4: "
+              "the hand-eye board the gripper clamps (--method gripper).")] = "A3",
+          out: Annotated[Path | None, typer.Option(
+              "--out", help="The PDF to write (default: charuco_<paper>.pdf).")] = None,
+          ) -> None:
+    """Write a calibration board to print at 1:1 (PDF, one landscape page).
+
+    The page has margins, crop marks, a 100 mm scale bar and the board's parameters. Print
+    at 100 % ("actual size"), measure the scale bar and a square, and give the square to
+    `calibrate camera --square-mm`."""
+    from physcap_drake.perception.printed_boards import BOARDS, write_board_pdf  # noqa: PLC0415
+
+    if paper not in BOARDS:
+        fail(f"--paper {paper!r}: expected one of {', '.join(BOARDS)}")
+    path = out or Path(f"charuco_{paper}.pdf")
+    printed = BOARDS[paper]
+    write_board_pdf(printed, path)
+    spec = printed.spec
+    console.print(f"wrote {path}: the {printed.name} board, {spec.squares[0]} x "
+                  f"{spec.squares[1]} squares of {1000 * spec.square:g} mm on {paper}")
 
 #: --write saves thresholds only if they classify this share of the held-out trials right.
 WRITE_ACCURACY = 0.95
@@ -46,6 +71,14 @@ Mismatch = Annotated[bool, typer.Option(
     "--mismatch", help="Try the probe on arms that are not its model: per trial, link "
     "masses and centres of mass, torque-sensor gain and offset, joint friction, finger "
     "compliance and specimen moduli are drawn from stated ranges (app/mismatch.py).")]
+RigScenario = Annotated[Path | None, typer.Option(
+    "--scenario", help="Fit on this rig's arm (station: !PiperCan, real or an emulated "
+    "twin) instead of validating in simulation; writes the file its physx.calibration_file "
+    "names.")]
+Yes = Annotated[bool, typer.Option("--yes", help="On a rig: the object is in place and "
+                                   "the arm may move (no questions asked).")]
+At = Annotated[str | None, typer.Option("--at", help="On a rig: X,Y of the object's centre "
+                                        "on the table, m, the arm's base frame.")]
 MismatchOnly = Annotated[str | None, typer.Option(
     "--mismatch-only", help="Draw only these groups (comma-separated: "
     + ", ".join(mismatch.GROUPS) + "); implies --mismatch.")]
@@ -102,14 +135,25 @@ def mass(trials: Trials = 20, seed: Seed = 0, workers: Workers = 2, noise: Noise
              "--fit-gain", help="First weigh the 500 g gain weight on each trial's arm and "
              "fit the torque sensors' gains to it; then weigh the reference masses with "
              "those gains.")] = False,
-         json_path: JsonOut = None, plot: PlotOut = None) -> None:
+         json_path: JsonOut = None, plot: PlotOut = None,
+         scenario: RigScenario = None,
+         weight_g: Annotated[float | None, typer.Option(
+             "--weight-g", help="On a rig (with --fit-gain): the weight's mass, g.")] = None,
+         at: At = None, yes: Yes = False) -> None:
     """Validate get_mass on five reference masses.
 
     Weighs each mass (13 g to 963 g) --trials times at perturbed places and prints the
     mean, standard deviation and error per mass, and the robot time per measurement.
     Without --fit-gain get_mass fits nothing from data; with it, the gains come from the gain
     weight alone, so every reference trial is a held-out one either way.
+    With --scenario RIG --fit-gain --weight-g W: weighs a W g weight on the rig's arm and
+    writes the fitted torque gains to the rig's probe calibration file.
     """
+    if scenario is not None:
+        if not fit_gain:
+            fail("--scenario fits the torque gains on a rig: add --fit-gain --weight-g W")
+        fit_gain_on_rig(scenario, weight_g, at, yes, json_path)
+        return
     groups = _groups(mismatch_on, mismatch_only)
     fits = _fit_gains(trials, seed, noise, groups, workers) if fit_gain else {}
     jobs = [(grams, trial, seed, noise, groups, fits[trial].gain if fit_gain else None)
@@ -220,6 +264,11 @@ def stiffness(trials: Annotated[int, typer.Option(
               avocados: Annotated[bool, typer.Option(
                   "--avocados/--no-avocados", help="Also probe the three avocados (on the "
                   "held-out seeds).")] = True,
+              scenario: RigScenario = None,
+              rigid: Annotated[bool, typer.Option(
+                  "--rigid", help="On a rig: squeeze a rigid block and write the gripper's "
+                  "own deformation as the offset the probe subtracts.")] = False,
+              at: At = None, yes: Yes = False,
               ) -> None:
     """Validate and calibrate get_stiffness on five specimens.
 
@@ -227,8 +276,14 @@ def stiffness(trials: Annotated[int, typer.Option(
     as many others, on disjoint seeds (both printed); prints the deformation per specimen,
     the confusion matrices, the thresholds in use scored on the same held-out trials and,
     with --avocados, the levels of ripe and unripe avocados. --write saves only thresholds
-    that passed the held-out check.
+    that passed the held-out check. With --scenario RIG --rigid: measures the rig's
+    gripper on a rigid block and writes its offset to the rig's probe calibration file.
     """
+    if scenario is not None:
+        if not rigid:
+            fail("--scenario measures a rig's gripper: add --rigid (and a rigid block)")
+        gripper_offset_on_rig(scenario, at, yes, json_path)
+        return
     groups = _groups(mismatch_on, mismatch_only)
     fit_trials, heldout_trials = cal.split_trials(trials)
     specimens = [f"stiffness_level{level}" for level in cal.STIFFNESS_LEVELS]

@@ -29,6 +29,7 @@ from physcap_drake.perception.hand_eye_calibration import (
     calibrate_hand_eye_in_simulation,
     calibrate_hand_eye_live,
 )
+from physcap_drake.perception.printed_boards import HAND_EYE_A4, TABLE_A3, measured_board
 from physcap_drake.resources import stations_dir
 from physcap_drake.station.can_operator import (
     StartupError,
@@ -76,6 +77,10 @@ def calibrate_camera(
                          "calibration: FILE).")] = Path("camera_calibration.yaml"),
     json_path: Annotated[Path | None, typer.Option("--json", help="Write the figures "
                                                    "here.")] = None,
+    square_mm: Annotated[float | None, typer.Option(
+        "--square-mm", help="On a rig: the side of a square measured on the printed board, "
+                            "mm (refused if more than 5 % off the nominal: check the print "
+                            "scale).")] = None,
 ) -> None:
     """Find the camera's pose from a ChArUco board.
 
@@ -90,9 +95,16 @@ def calibrate_camera(
         fail(f"{scenario}: no camera named {camera!r}")
     placements = [_placement(p) for p in board_at] if board_at else list(PLACEMENTS)
     live = isinstance(entry, RealSense) and not entry.emulate
+    printed = HAND_EYE_A4 if method == "gripper" else TABLE_A3
+    if square_mm is not None and not live:
+        fail("--square-mm is the printed board's; in simulation the board is the model's")
+    try:
+        board = measured_board(printed, square_mm)
+    except ValueError as error:
+        fail(str(error))
     try:
         if method == "gripper" and live:
-            run = _hand_eye_on_rig(loaded, entry, views)
+            run = _hand_eye_on_rig(loaded, entry, views, board)
         elif method == "gripper":
             with trial_progress("arm poses", len(POSES)) as advance:
                 run = calibrate_hand_eye_in_simulation(loaded, camera,
@@ -103,7 +115,7 @@ def calibrate_camera(
                              f"x {place[0]:.3f} m, y {place[1]:.3f} m, turned {place[2]:g}°, "
                              "then press Enter", default="", show_default=False)
 
-            run = calibrate_live(entry, placements, ready)
+            run = calibrate_live(entry, placements, ready, board)
         else:
             with trial_progress("board views", len(placements)) as advance:
                 run = calibrate_in_simulation(loaded, camera, placements,
@@ -138,7 +150,7 @@ def calibrate_camera(
         save_json(json_path, figures)
 
 
-def _hand_eye_on_rig(scenario, entry: RealSense, views: int):
+def _hand_eye_on_rig(scenario, entry: RealSense, views: int, board):
     """Hand-eye calibration of a live (or recorded) RealSense with the scenario's arm: the
     operator poses the arm holding the board for each view; the joint angles come from the
     arm's feedback, read only once it holds still."""
@@ -156,6 +168,6 @@ def _hand_eye_on_rig(scenario, entry: RealSense, views: int):
             return calibrate_hand_eye_live(
                 geometry, views, name=entry.name, serial=source.serial, ready=ready,
                 joint_angles=lambda: steady_joint_angles(link),
-                colour_image=lambda: source.next_frame().rgb)
+                colour_image=lambda: source.next_frame().rgb, board=board)
     finally:
         source.close()

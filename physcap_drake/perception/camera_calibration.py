@@ -38,6 +38,7 @@ class BoardView:
     X_WB: RigidTransform
     ids: np.ndarray
     pixels: np.ndarray
+    board: charuco.BoardSpec = charuco.MODEL_BOARD
 
 
 @dc.dataclass(frozen=True)
@@ -71,16 +72,17 @@ def board_pose(x: float, y: float, yaw_deg: float) -> RigidTransform:
                           [x, y, BOARD_THICKNESS])
 
 
-def view_of(rgb: np.ndarray, X_WB: RigidTransform) -> BoardView:
-    """The corners the colour image `rgb` shows of the board at X_WB."""
-    ids, pixels = charuco.detect_corners(rgb)
-    return BoardView(X_WB, ids, pixels)
+def view_of(rgb: np.ndarray, X_WB: RigidTransform,
+            board: charuco.BoardSpec = charuco.MODEL_BOARD) -> BoardView:
+    """The corners the colour image `rgb` shows of the board `board` at X_WB."""
+    ids, pixels = charuco.detect_corners(rgb, board)
+    return BoardView(X_WB, ids, pixels, board)
 
 
 def solve(views: Sequence[BoardView], camera: CameraGeometry) -> charuco.PoseFit:
     """The camera pose from all views (see the design notes). Raises BoardNotSeen."""
-    corners = charuco.corner_points()
-    world = [view.X_WB.multiply(corners[view.ids].T).T for view in views if len(view.ids)]
+    world = [view.X_WB.multiply(charuco.corner_points(view.board)[view.ids].T).T
+             for view in views if len(view.ids)]
     pixels = [view.pixels for view in views if len(view.ids)]
     if not world:
         raise charuco.BoardNotSeen("the board was not seen in any view")
@@ -135,10 +137,11 @@ def calibrate_in_simulation(scenario, camera_name: str = "camera",
 
 
 def calibrate_live(entry, placements: Sequence[tuple[float, float, float]],
-                   ready: Callable[[int, tuple[float, float, float]], None]) -> CalibrationRun:
-    """Calibrates a live RealSense (`entry`, a `!RealSense` scenario entry): for each
-    placement `ready(i, placement)` returns once the board lies there, and a frame is taken.
-    Raises CameraUnavailable if the camera cannot be opened."""
+                   ready: Callable[[int, tuple[float, float, float]], None],
+                   board: charuco.BoardSpec = charuco.MODEL_BOARD) -> CalibrationRun:
+    """Calibrates a live RealSense (`entry`, a `!RealSense` scenario entry) with the
+    printed `board`: for each placement `ready(i, placement)` returns once the board lies
+    there, and a frame is taken. Raises CameraUnavailable if the camera cannot be opened."""
     from physcap_drake.station.realsense.pipeline_camera import PipelineRealSense
 
     source = PipelineRealSense(dc.replace(entry, calibration=""))
@@ -146,7 +149,7 @@ def calibrate_live(entry, placements: Sequence[tuple[float, float, float]],
         views = []
         for index, placement in enumerate(placements):
             ready(index, placement)
-            views.append(view_of(source.next_frame().rgb, board_pose(*placement)))
+            views.append(view_of(source.next_frame().rgb, board_pose(*placement), board))
         fx, fy, cx, cy = source.intrinsics
         serial = source.serial
     finally:

@@ -28,31 +28,56 @@ REFINEMENT = cv2.aruco.CORNER_REFINE_CONTOUR
 MIN_CORNERS = 6
 
 
-def board() -> cv2.aruco.CharucoBoard:
-    return cv2.aruco.CharucoBoard(SQUARES, SQUARE, MARKER,
+@dc.dataclass(frozen=True)
+class BoardSpec:
+    """A ChArUco board's layout: squares along the long and the short side, the side of a
+    square and of a marker (m); the dictionary is DICTIONARY."""
+
+    squares: tuple[int, int] = SQUARES
+    square: float = SQUARE
+    marker: float = MARKER
+
+    @property
+    def size(self) -> tuple[float, float]:
+        """The board's long and short side, m."""
+        return self.squares[0] * self.square, self.squares[1] * self.square
+
+    def with_square(self, square: float) -> BoardSpec:
+        """The same board printed at another scale: squares of `square` m."""
+        return BoardSpec(self.squares, square, self.marker * square / self.square)
+
+
+#: The board of the simulated scenes (models/calibration/charuco_board).
+MODEL_BOARD = BoardSpec()
+
+
+def board(spec: BoardSpec = MODEL_BOARD) -> cv2.aruco.CharucoBoard:
+    return cv2.aruco.CharucoBoard(spec.squares, spec.square, spec.marker,
                                   cv2.aruco.getPredefinedDictionary(DICTIONARY))
 
 
-def board_image(pixels_per_metre: float) -> np.ndarray:
+def board_image(pixels_per_metre: float, spec: BoardSpec = MODEL_BOARD) -> np.ndarray:
     """The board as a printable grey image (rows × columns, uint8), no margin."""
-    size = (round(SIZE[0] * pixels_per_metre), round(SIZE[1] * pixels_per_metre))
-    return board().generateImage(size, marginSize=0, borderBits=1)
+    size = (round(spec.size[0] * pixels_per_metre), round(spec.size[1] * pixels_per_metre))
+    return board(spec).generateImage(size, marginSize=0, borderBits=1)
 
 
-def corner_points() -> np.ndarray:
+def corner_points(spec: BoardSpec = MODEL_BOARD) -> np.ndarray:
     """The inner corners in the board frame B (N × 3, m), in OpenCV's numbering."""
-    corners = board().getChessboardCorners().astype(np.float64)  # from the top-left, y down
-    return np.column_stack([corners[:, 0] - SIZE[0] / 2, SIZE[1] / 2 - corners[:, 1],
+    corners = board(spec).getChessboardCorners().astype(np.float64)  # top-left, y down
+    width, height = spec.size
+    return np.column_stack([corners[:, 0] - width / 2, height / 2 - corners[:, 1],
                             np.zeros(len(corners))])
 
 
-def detect_corners(rgb: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def detect_corners(rgb: np.ndarray,
+                   spec: BoardSpec = MODEL_BOARD) -> tuple[np.ndarray, np.ndarray]:
     """The board corners found in `rgb` (H × W × 3 or 4, uint8): their ids (N) and pixels
     (N × 2, sub-pixel). Empty arrays if the board is not seen."""
     gray = cv2.cvtColor(np.ascontiguousarray(rgb[:, :, :3]), cv2.COLOR_RGB2GRAY)
     markers = cv2.aruco.DetectorParameters()
     markers.cornerRefinementMethod = REFINEMENT
-    detector = cv2.aruco.CharucoDetector(board(), detectorParams=markers)
+    detector = cv2.aruco.CharucoDetector(board(spec), detectorParams=markers)
     corners, ids, _, _ = detector.detectBoard(gray)
     if ids is None or len(ids) == 0:
         return np.zeros(0, dtype=int), np.zeros((0, 2))

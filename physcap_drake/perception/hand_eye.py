@@ -38,6 +38,7 @@ class HandView:
     X_WG: RigidTransform
     ids: np.ndarray
     pixels: np.ndarray
+    board: charuco.BoardSpec = charuco.MODEL_BOARD
 
 
 @dc.dataclass(frozen=True)
@@ -59,7 +60,7 @@ def _camera_matrix(intrinsics: tuple[float, float, float, float]) -> np.ndarray:
 
 def board_in_camera(view: HandView, intrinsics) -> RigidTransform:
     """X_CB of one view from its corners alone (PnP)."""
-    points = charuco.corner_points()[view.ids]
+    points = charuco.corner_points(view.board)[view.ids]
     ok, rvec, tvec = cv2.solvePnP(points, view.pixels, _camera_matrix(intrinsics), None,
                                   flags=cv2.SOLVEPNP_ITERATIVE)
     if not ok:
@@ -117,9 +118,9 @@ def _residuals(params: np.ndarray, X_WC: RigidTransform, X_GB: RigidTransform,
                views: Sequence[HandView], K: np.ndarray) -> np.ndarray:
     X_CW = _perturbed(X_WC, params[:6]).inverse()
     mount = _perturbed(X_GB, params[6:])
-    corners = charuco.corner_points()
     errors = []
     for view in views:
+        corners = charuco.corner_points(view.board)
         p_C = (X_CW @ view.X_WG @ mount).multiply(corners[view.ids].T)
         uv = (K @ p_C)[:2] / p_C[2]
         errors.append((uv.T - view.pixels).ravel())

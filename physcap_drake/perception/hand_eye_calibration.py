@@ -74,11 +74,13 @@ def flange_pose(q: Sequence[float]) -> RigidTransform:
     return RigidTransform(piper_dh.forward_kinematics(np.asarray(q, dtype=float)))
 
 
-def view_at(q: Sequence[float], rgb: np.ndarray) -> hand_eye.HandView:
-    """One view: the joint angles the arm reported and the corners `rgb` shows."""
-    ids, pixels = charuco.detect_corners(rgb)
+def view_at(q: Sequence[float], rgb: np.ndarray,
+            board: charuco.BoardSpec = charuco.MODEL_BOARD) -> hand_eye.HandView:
+    """One view: the joint angles the arm reported and the corners `rgb` shows of
+    `board`."""
+    ids, pixels = charuco.detect_corners(rgb, board)
     q = np.asarray(q, dtype=float)
-    return hand_eye.HandView(q, flange_pose(q), ids, pixels)
+    return hand_eye.HandView(q, flange_pose(q), ids, pixels, board)
 
 
 def _run(views: list[hand_eye.HandView], camera: CameraGeometry, *, name: str, serial: str,
@@ -123,12 +125,13 @@ def calibrate_hand_eye_in_simulation(scenario, camera_name: str = "camera",
 def calibrate_hand_eye_live(camera: CameraGeometry, views: int, *, name: str, serial: str,
                             ready: Callable[[int], None],
                             joint_angles: Callable[[], np.ndarray],
-                            colour_image: Callable[[], np.ndarray]) -> HandEyeRun:
+                            colour_image: Callable[[], np.ndarray],
+                            board: charuco.BoardSpec = charuco.MODEL_BOARD) -> HandEyeRun:
     """Calibrates a rig's camera (`camera`: its intrinsics; its pose is what is found) over
     `views` views: `ready(i)` returns once the operator has posed the arm for view i, then
     `joint_angles()` (rad, from the arm's feedback) and `colour_image()` are read."""
     taken = []
     for index in range(views):
         ready(index)
-        taken.append(view_at(joint_angles(), colour_image()))
+        taken.append(view_at(joint_angles(), colour_image(), board))
     return _run(taken, camera, name=name, serial=serial)

@@ -71,6 +71,10 @@ class StiffnessProbeConfig:
     # Calibrated deformation thresholds (a YAML file in models/, see
     # models/calibration/stiffness_levels.yaml).
     thresholds_file: str = "package://physcap_models/calibration/stiffness_levels.yaml"
+    # The gripper's own deformation on a rigid block, mm, subtracted from each squeeze's
+    # (never below 0): 0 for the simulated gripper; a real one's is measured with
+    # `physcap calibrate stiffness --scenario RIG --rigid` (physx.calibration_file).
+    gripper_offset_mm: float = 0.0
 
     def check(self, at: ConfigChecker) -> None:
         for key in ("contact_step", "squeeze_step", "backoff", "release"):
@@ -83,6 +87,7 @@ class StiffnessProbeConfig:
                   maximum=1.0, open_minimum=True)
         at.number("force_limit", self.force_limit, minimum=0.0, open_minimum=True)
         at.number("squeezes", self.squeezes, minimum=1, maximum=25)
+        at.number("gripper_offset_mm", self.gripper_offset_mm, minimum=0.0, maximum=5.0)
 
 
 @dc.dataclass
@@ -91,6 +96,10 @@ class PhysxConfig:
 
     mass: MassProbeConfig = dc.field(default_factory=MassProbeConfig)
     stiffness: StiffnessProbeConfig = dc.field(default_factory=StiffnessProbeConfig)
+    # A probe calibration file fitted on this arm (physx/probe_calibration.py), relative to
+    # the scenario file: its torque gains and gripper offset replace the values above when
+    # it exists. `physcap calibrate mass|stiffness --scenario` writes it. Empty: none.
+    calibration_file: str = ""
 
     def check(self, at: ConfigChecker) -> None:
         self.mass.check(at.child("mass"))

@@ -28,6 +28,9 @@ MAX_RELEASE_TICKS = 20
 #: Notes kept of rejected contacts (friction, passing spikes); more are only counted, so the
 #: result stays short whatever the drive does.
 MAX_REJECTION_NOTES = 3
+#: A squeeze that closed fully with its effort back below `contact_effort` after it had
+#: risen to this many times that lost the object (it slipped or tipped out of the fingers).
+SLIP_FACTOR = 3.0
 #: Slack when comparing event times, s.
 TIME_EPSILON = 1e-6
 #: The estimator's ports besides the gripper's signals.
@@ -64,8 +67,9 @@ class ProbeState(Immutable):
     contact: (opening m, effort) where the effort rose, and contact_command the command (m)
     that reading showed. d0: the accepted contact opening, m.
     samples: (opening m, effort) pairs of the running squeeze. deformations_mm: one per
-    finished squeeze (NaN for a failed one). notes: why squeezes failed or contacts were
-    rejected (at most MAX_REJECTION_NOTES of the latter; `rejections` counts them all).
+    finished squeeze (NaN for a failed one). failures: why each failed squeeze failed.
+    notes: those reasons and the contacts rejected (at most MAX_REJECTION_NOTES of the
+    latter; `rejections` counts them all, `squeeze_rejections` those of the running squeeze).
     issued: the latest commands as (time s, opening m), to tell which one a reading shows.
     read_after: the feedback is not read before this time (s): a step the next decision
     depends on is held until it shows.
@@ -84,6 +88,8 @@ class ProbeState(Immutable):
     start_opening: float = math.inf
     contact_command: float = math.nan
     rejections: int = 0
+    squeeze_rejections: int = 0
+    failures: tuple[str, ...] = ()
     issued: tuple[tuple[float, float], ...] = ()
     read_after: float = -math.inf
 
@@ -91,12 +97,14 @@ class ProbeState(Immutable):
 @dc.dataclass(frozen=True)
 class StiffnessResult(Immutable):
     """The outcome of a probe: one deformation (mm) and level per squeeze, the vote (`level`,
-    0 if most squeezes failed)."""
+    0 if most squeezes failed), `failures` the reason of each failed squeeze (or of a probe
+    stopped early), `notes` those and the contacts rejected."""
 
     level: int
     deformations_mm: tuple[float, ...]
     levels: tuple[int, ...]
     notes: tuple[str, ...]
+    failures: tuple[str, ...] = ()
 
 
 @dc.dataclass(frozen=True)
@@ -114,15 +122,18 @@ class StiffnessEstimator(LeafSystem):
     classifies its stiffness.
 
     Each squeeze: (1) close in `contact_step` steps until the normalized effort reaches
-    `contact_effort`; (2) undo that step and reopen `backoff` more: a real contact loses at
-    least `backoff_drop` of its effort rise, friction in the drive does not (then closing
+    `contact_effort`; (2) undo that step and reopen to `backoff` past the measured fingers
+    (the command may lie well inside a rigid object): a real contact loses at least
+    `backoff_drop` of its effort rise, friction in the drive does not (then closing
     resumes); the opening where the effort rose is d0; (3) close in `squeeze_step` steps
     recording (d_i, f̂_i) until f̂ reaches `target_effort`, and take Δd = |d0 − d(f̂*)|
-    (mm, interpolated); if the first reading back at the contact command shows no effort,
-    the rise was a passing spike and the search goes on;
-    (4) reopen to d0 + `release` (at most to the opening it started from). Closing fully
-    without reaching the effort fails the squeeze. Every step is held `dwell` s before the
-    gripper is read.
+    (mm, interpolated) less the gripper's own `gripper_offset_mm` (at least 0); if the
+    first reading back at the contact command shows no effort, the rise was a passing
+    spike and the search goes on;
+    (4) reopen to d0 + `release` (at most to the opening it started from). A squeeze fails,
+    its reason in `failures`, when the fingers close fully (no contact found, none passed
+    the back-off test, the effort never reached the target, or it fell back: the object
+    slipped). Every step is held `dwell` s before the gripper is read.
 
     `command_latency` (s) is the station's: a command shows in the feedback that much later
     (about 0.1 s over CAN, none on the simulated station). Closing steps go on every `dwell`
@@ -183,7 +194,7 @@ class StiffnessEstimator(LeafSystem):
         left_out = state.rejections - MAX_REJECTION_NOTES
         notes = state.notes + ((f"{left_out} more contacts rejected",) if left_out > 0 else ())
         return StiffnessResult(majority_level(list(levels)), state.deformations_mm, levels,
-                               notes)
+                               notes, state.failures)
 
     # The probe's steps ------------------------------------------------------------------------
 
@@ -234,24 +245,43 @@ class StiffnessEstimator(LeafSystem):
 
     def _reject(self, s: ProbeState, note: str, **changes) -> ProbeState:
         notes = s.notes + ((note,) if s.rejections < MAX_REJECTION_NOTES else ())
-        return dc.replace(s, notes=notes, rejections=s.rejections + 1, **changes)
+        return dc.replace(s, notes=notes, rejections=s.rejections + 1,
+                          squeeze_rejections=s.squeeze_rejections + 1, **changes)
 
     def _close_by(self, s: ProbeState, step: float, now: float, **changes) -> ProbeState:
         command = s.command - step
         if command < 0.0:
             if s.issued and now - s.issued[-1][0] < self._latency - TIME_EPSILON:
                 return dc.replace(s, **changes)  # the last step does not show yet
-            return self._finish_squeeze(s, math.nan, "the fingers closed without reaching "
-                                        "the target effort")
+            return self._finish_squeeze(s, math.nan, self._why_closed(s))
         return dc.replace(s, command=command, **changes)
+
+    def _why_closed(self, s: ProbeState) -> str:
+        """Why a squeeze whose fingers closed fully failed."""
+        c = self._config
+        if s.phase is Phase.SQUEEZE:
+            top, last = max(f for _, f in s.samples), s.samples[-1][1]
+            if last < c.contact_effort <= top / SLIP_FACTOR:
+                return (f"the object slipped: the effort fell from {top:.2f} to {last:.2f} "
+                        f"after contact at {1000 * s.d0:.1f} mm, and the fingers closed fully")
+            return (f"effort never reached {c.target_effort:.2f}: at most {top:.2f} after "
+                    f"contact at {1000 * s.d0:.1f} mm, and the fingers closed fully")
+        if s.squeeze_rejections:
+            return (f"no contact passed the back-off test ({s.squeeze_rejections} rejected, "
+                    "see the notes) before the fingers closed fully")
+        return (f"no contact found: the effort stayed below {c.contact_effort:.2f} until "
+                "the fingers closed fully")
 
     def _seek_contact(self, s: ProbeState, d: float, f: float, now: float) -> ProbeState:
         c = self._config
-        if f >= c.contact_effort:  # undo the step shown and open `backoff` further
+        if f >= c.contact_effort:
+            # Undo the step shown and open `backoff` past the fingers: a soft servo leaves
+            # the command well inside a rigid object, and reopening from the command alone
+            # would never free the contact.
             shown = self._shown_command(s, now)
             return self._hold(s, now, phase=Phase.BACK_OFF, contact=(d, f),
                               contact_command=shown,
-                              command=shown + c.contact_step + c.backoff)
+                              command=max(shown + c.contact_step, d) + c.backoff)
         return self._close_by(s, c.contact_step, now, free_effort=f)
 
     def _back_off(self, s: ProbeState, d: float, f: float, now: float) -> ProbeState:
@@ -278,16 +308,17 @@ class StiffnessEstimator(LeafSystem):
                                   c.contact_step, now)
         samples = s.samples + ((d, f),)
         if f >= c.target_effort:
-            return self._finish_squeeze(s, deformation_at_effort(s.d0, list(samples),
-                                                                 c.target_effort))
+            deformation = deformation_at_effort(s.d0, list(samples), c.target_effort)
+            return self._finish_squeeze(s, max(deformation - c.gripper_offset_mm, 0.0))
         return self._close_by(dc.replace(s, samples=samples), c.squeeze_step, now)
 
     def _finish_squeeze(self, s: ProbeState, deformation_mm: float, note: str = "") -> ProbeState:
         reopen = min((s.d0 if math.isfinite(s.d0) else s.command) + self._config.release,
                      s.start_opening)
-        notes = s.notes + ((f"squeeze {len(s.deformations_mm) + 1}: {note}",) if note else ())
+        failure = (f"squeeze {len(s.deformations_mm) + 1}: {note}",) if note else ()
         return dc.replace(s, phase=Phase.RELEASE, command=reopen, samples=(),
-                          deformations_mm=s.deformations_mm + (deformation_mm,), notes=notes)
+                          deformations_mm=s.deformations_mm + (deformation_mm,),
+                          notes=s.notes + failure, failures=s.failures + failure)
 
     def _release(self, s: ProbeState, d: float, f: float, now: float) -> ProbeState:
         still_opening = abs(d - s.command) > RELEASED_TOLERANCE or f >= self._config.contact_effort
@@ -296,7 +327,7 @@ class StiffnessEstimator(LeafSystem):
         if len(s.deformations_mm) >= self._config.squeezes:
             return dc.replace(s, phase=Phase.DONE)
         return dc.replace(s, phase=Phase.SEEK_CONTACT, contact=None, d0=math.nan,
-                          release_ticks=0)
+                          release_ticks=0, squeeze_rejections=0)
 
     # Outputs ------------------------------------------------------------------------------------
 

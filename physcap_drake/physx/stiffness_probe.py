@@ -125,8 +125,9 @@ class StiffnessProbe(ProbeSequence):
             if not done:
                 return None
             # The wait ran out before the squeezes ended: stop the estimator.
-            result = dc.replace(report.result, level=0, notes=report.result.notes + (
-                f"the probe did not finish within {TIMEOUT:.0f} s",))
+            late = f"the probe did not finish within {TIMEOUT:.0f} s"
+            result = dc.replace(report.result, level=0, notes=report.result.notes + (late,),
+                                failures=report.result.failures + (late,))
             return Step(dc.replace(m, stage=Stage.RELEASE, result=result, squeeze=SqueezeRequest(
                 m.squeeze.sequence + 1, stop=True)), self._open)
         if not done:

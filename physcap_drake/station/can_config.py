@@ -13,6 +13,7 @@ import dataclasses as dc
 from physcap_drake.can.bring_up import INTERFACES
 from physcap_drake.can.playback import DELAY as PLAYBACK_DELAY
 from physcap_drake.config_checks import ConfigChecker
+from physcap_drake.station.arm_mismatch import GROUPS, apply, draw
 from physcap_drake.station.sim_config import SimPiper
 
 
@@ -46,6 +47,21 @@ RIG_SPEED_PERCENT, RIG_JOINT_SPEED, RIG_JOINT_ACCELERATION, RIG_COLLISION_LEVEL 
 MAX_JOINT_SPEED = 3.0
 #: What an emulated twin (emulate: true) keeps: full speed, collision protection as it is.
 EMULATED_SPEED_PERCENT = 100
+
+
+@dc.dataclass
+class EmulatedMismatch:
+    """Deviations of an emulated arm from its model (station/arm_mismatch.py draws them)."""
+
+    # Groups to draw, of station.arm_mismatch.GROUPS; empty: the arm is its model.
+    groups: list[str] = dc.field(default_factory=list)
+    # Seed of the draws.
+    seed: int = 0
+
+    def check(self, at: ConfigChecker) -> None:
+        for group in self.groups:
+            at.choice("groups", group, list(GROUPS))
+        at.number("seed", self.seed, minimum=0)
 
 
 @dc.dataclass
@@ -110,6 +126,10 @@ class PiperCan:
     # step slower than real time never delays the emulator's feedback (can/paced_world.py);
     # false: step it in the firmware's cycle (a slow step then delays the feedback).
     pace_world: bool = True
+    # Draw the emulated arm unlike its model (a rehearsal of calibrating a real arm): the
+    # deviation groups of `physcap calibrate --mismatch-only` (e.g. [links, torque_gain]),
+    # drawn from `seed`, applied to `emulated` when the scenario is loaded. Empty: none.
+    emulated_mismatch: EmulatedMismatch = dc.field(default_factory=EmulatedMismatch)
     # The simulated arm behind the emulator (its models are the scenario's directives).
     emulated: SimPiper = dc.field(default_factory=SimPiper)
     # Faults on the emulated bus.
@@ -205,6 +225,17 @@ class PiperCan:
             at.fail("faults", "no faults unless emulate is true (faults are injected on the "
                     "emulated bus only)", "faults set on a real bus")
         self.faults.check(at.child("faults"))
+        self.emulated_mismatch.check(at.child("emulated_mismatch"))
+        if self.emulated_mismatch.groups and not self.emulate:
+            at.fail("emulated_mismatch", "no groups unless emulate is true (a real arm is "
+                    "what it is)", f"got {self.emulated_mismatch.groups}")
+
+    def apply_emulated_mismatch(self) -> None:
+        """Puts the drawn `emulated_mismatch` into `emulated` (setting, not scaling: applying
+        twice changes nothing)."""
+        if self.emulated_mismatch.groups:
+            drawn = draw(self.emulated_mismatch.seed, tuple(self.emulated_mismatch.groups))
+            apply(self.emulated, drawn)
 
 
 def rig_skills(skills, station):

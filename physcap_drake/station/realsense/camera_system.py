@@ -6,6 +6,7 @@ Design notes: docs/design/station.md.
 from __future__ import annotations
 
 import atexit
+import logging
 
 import numpy as np
 from pydrake.common.value import AbstractValue
@@ -21,9 +22,11 @@ from physcap_drake.station.realsense.calibration_file import (
 )
 from physcap_drake.station.realsense.config import RealSense
 from physcap_drake.station.realsense.frames import RgbdFrame
-from physcap_drake.station.realsense.pipeline_camera import PipelineRealSense
+from physcap_drake.station.realsense.pipeline_camera import PipelineRealSense, recording_note
 from physcap_drake.station.realsense.software_camera import SoftwareRealSense
 from physcap_drake.weak_method import weak_method
+
+log = logging.getLogger(__name__)
 
 RENDERED_RGB, RENDERED_DEPTH = "rendered.rgb", "rendered.depth"
 #: Random stream of the depth faults (apart from the station's other noise streams).
@@ -138,6 +141,8 @@ class EmulatedRealSenseCamera(RgbdCameraSystem):
                          {self.time_ticket(), self.all_input_ports_ticket()})
         self.entry, self._seed = entry, seed
         self._focal_x = fx
+        if entry.record_to:
+            log.warning(recording_note(entry))
         self.device = SoftwareRealSense(  # a device handle, not state
             entry.width, entry.height, fx, fy, cx, cy, fps=entry.fps,
             depth_unit=entry.emulation.depth_unit, record_to=entry.record_to)

@@ -59,6 +59,10 @@ class RealSense:
     width: int = 640
     height: int = 480
     fps: int = 30
+    # A live device's depth stream at its own resolution, px (a D435's best is 848 x 480),
+    # aligned to colour by librealsense; 0 x 0: the colour resolution.
+    depth_width: int = 0
+    depth_height: int = 0
     # Play this librealsense recording (.db3) back instead of streaming from a device.
     # (Relative file names here are relative to the scenario file's folder.)
     recording: str = ""
@@ -77,6 +81,13 @@ class RealSense:
         at.number("width", self.width, minimum=0, open_minimum=True)
         at.number("height", self.height, minimum=0, open_minimum=True)
         at.choice("fps", self.fps, FRAME_RATES)
+        if (self.depth_width == 0) != (self.depth_height == 0) or min(
+                self.depth_width, self.depth_height) < 0:
+            at.fail("depth_width", "depth_width and depth_height both 0 (the colour's) or "
+                    "both positive", f"got {self.depth_width} x {self.depth_height}")
+        if self.depth_width and self.emulate:
+            at.fail("depth_width", "0 for an emulated camera (its depth resolution is "
+                    "emulation.depth_step's)", f"got {self.depth_width}")
         if self.recording and self.emulate:
             at.fail("recording", "no recording for an emulated camera (emulate: true)",
                     f"got {self.recording!r}")
@@ -102,6 +113,18 @@ class RealSense:
             from physcap_drake.station.realsense.calibration_file import check_calibration
 
             check_calibration(self, at)
+
+    def depth_size(self) -> tuple[int, int]:
+        """The depth stream's resolution as the device streams it, px (an emulated
+        camera's software device streams it at the colour resolution, aligned)."""
+        if self.depth_width:
+            return self.depth_width, self.depth_height
+        return self.width, self.height
+
+    def record_rate_mb_s(self) -> float:
+        """What `record_to` writes, MB/s: rgb8 colour and z16 depth frames, uncompressed."""
+        depth_w, depth_h = self.depth_size()
+        return (3 * self.width * self.height + 2 * depth_w * depth_h) * self.fps / 1e6
 
     def pose(self) -> RigidTransform:
         """X_WC: the colour camera's optical frame in the world (from the calibration file

@@ -5,6 +5,7 @@ Design notes: docs/design/station.md.
 
 from __future__ import annotations
 
+import logging
 from pathlib import Path
 
 from physcap_drake.station.realsense.calibration_file import (
@@ -25,10 +26,29 @@ from physcap_drake.station.realsense.librealsense import librealsense
 #: How long to wait for a frameset before the camera counts as stalled, ms.
 FRAME_TIMEOUT_MS = 5000
 
+log = logging.getLogger(__name__)
+
 
 class CameraUnavailable(ConnectionError):
     """The camera named in the scenario cannot be opened (not connected, busy, or the
     recording cannot be played)."""
+
+
+def usb_problem(usb_type: str) -> str:
+    """What to say about a device on the USB link `usb_type` (librealsense's
+    usb_type_descriptor, e.g. "3.2", "2.1"): "" for USB 3."""
+    if usb_type.startswith("2"):
+        return (f"it is connected over USB {usb_type}, and a D400 streams colour and depth "
+                "together only over USB 3: plug it into a USB 3 port (blue, or marked SS) "
+                "with a USB 3 cable, or choose a lower resolution and frame rate")
+    return ""
+
+
+def recording_note(entry: RealSense) -> str:
+    """What `record_to` costs, said when a recording starts."""
+    rate = entry.record_rate_mb_s()
+    return (f"camera '{entry.name}': recording to {entry.record_to} at about {rate:.0f} MB/s "
+            f"({60 * rate / 1000:.1f} GB a minute)")
 
 
 def connected_serials() -> list[str]:
@@ -36,6 +56,15 @@ def connected_serials() -> list[str]:
     rs = librealsense()
     return [device.get_info(rs.camera_info.serial_number)
             for device in rs.context().query_devices()]
+
+
+def _usb_type(rs, serial: str) -> str:
+    """The USB link of the connected device `serial` ("" if it does not say)."""
+    for device in rs.context().query_devices():
+        if device.get_info(rs.camera_info.serial_number) == serial and device.supports(
+                rs.camera_info.usb_type_descriptor):
+            return device.get_info(rs.camera_info.usb_type_descriptor)
+    return ""
 
 
 class PipelineRealSense:
@@ -60,21 +89,24 @@ class PipelineRealSense:
                         "serial is empty and there is not exactly one RealSense connected")
                 raise CameraUnavailable(f"camera '{entry.name}': {what} (connected: {found})")
             config.enable_device(wanted)
-            config.enable_stream(rs.stream.depth, entry.width, entry.height, rs.format.z16,
+            depth_width, depth_height = entry.depth_size()
+            config.enable_stream(rs.stream.depth, depth_width, depth_height, rs.format.z16,
                                  entry.fps)
             config.enable_stream(rs.stream.color, entry.width, entry.height, rs.format.rgb8,
                                  entry.fps)
         if entry.record_to:
             config.enable_record_to_file(entry.record_to)
+            log.warning(recording_note(entry))
         self._pipeline = rs.pipeline()
         try:
             profile = self._pipeline.start(config)
         except RuntimeError as error:
             source = (f"recording {entry.recording!r}" if entry.recording
                       else f"device {entry.serial!r}")
+            usb = "" if entry.recording else usb_problem(_usb_type(rs, wanted))
             raise CameraUnavailable(f"camera '{entry.name}': cannot stream from {source} at "
-                                    f"{entry.width} x {entry.height}, {entry.fps} Hz: "
-                                    f"{error}") from None
+                                    f"{entry.width} x {entry.height}, {entry.fps} Hz"
+                                    + (f"; {usb}" if usb else "") + f": {error}") from None
         device = profile.get_device()
         if entry.recording:
             device.as_playback().set_real_time(False)
