@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import json
 import math
+import tempfile
+from pathlib import Path
 
 import pytest
 from typer.testing import CliRunner
@@ -16,7 +18,7 @@ from physcap_drake.physx.probe_calibration import (
     save_probe_calibration,
 )
 from physcap_drake.resources import stations_dir
-from physcap_drake.scenario import ScenarioError, load_scenario, load_scenario_text
+from physcap_drake.scenario import ScenarioError, load_scenario
 from physcap_drake.station.arm_mismatch import TORQUE_GAIN, draw
 
 TWIN = stations_dir() / "identify_empty_can_rig_emulated.yaml"
@@ -24,15 +26,24 @@ TWIN = stations_dir() / "identify_empty_can_rig_emulated.yaml"
 
 def twin_text(groups: str = "[torque_gain]", seed: int = 3, emulate: str = "true",
               calibration_file: str = "") -> str:
-    text = TWIN.read_text().replace(
-        "  emulate: true\n",
-        f"  emulate: {emulate}\n  emulated_mismatch: {{groups: {groups}, seed: {seed}}}\n", 1)
+    """An overlay of the twin with an emulated mismatch (and a probe calibration file)."""
+    text = (f"base: {TWIN}\n"
+            f"station: !PiperCan {{emulate: {emulate}, "
+            f"emulated_mismatch: {{groups: {groups}, seed: {seed}}}}}\n")
     return text + (f"physx:\n  calibration_file: {calibration_file}\n"
                    if calibration_file else "")
 
 
+def load_twin_text(text: str):
+    """Loads an overlay of the twin (a base is a file's, so from a file of its own)."""
+    with tempfile.TemporaryDirectory() as folder:
+        path = Path(folder) / "twin.yaml"
+        path.write_text(text)
+        return load_scenario(path)
+
+
 def test_an_emulated_twin_is_drawn_unlike_its_model_as_calibrate_mismatch_draws():
-    scenario = load_scenario_text(twin_text("[links, torque_gain]", seed=3))
+    scenario = load_twin_text(twin_text("[links, torque_gain]", seed=3))
     drawn = draw(3, ("links", "torque_gain"))
     emulated = scenario.station.emulated
     assert emulated.torque_noise.gain == drawn["torque_gain"]
@@ -40,7 +51,7 @@ def test_an_emulated_twin_is_drawn_unlike_its_model_as_calibrate_mismatch_draws(
     assert emulated.as_built.links["link3"].mass_scale == drawn["links"]["link3"]["mass_scale"]
     assert load_scenario(TWIN).station.emulated.torque_noise.gain != drawn["torque_gain"]
     # Another seed, another arm; applying twice changes nothing.
-    other = load_scenario_text(twin_text(seed=4)).station
+    other = load_twin_text(twin_text(seed=4)).station
     assert other.emulated.torque_noise.gain != emulated.torque_noise.gain
     gains = list(other.emulated.torque_noise.gain)
     other.apply_emulated_mismatch()
@@ -53,7 +64,7 @@ def test_an_emulated_twin_is_drawn_unlike_its_model_as_calibrate_mismatch_draws(
 ])
 def test_a_bad_emulated_mismatch_is_refused_naming_the_field(text, key):
     with pytest.raises(ScenarioError) as error:
-        load_scenario_text(text)
+        load_twin_text(text)
     assert key in str(error.value)
 
 
