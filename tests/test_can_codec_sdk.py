@@ -22,7 +22,11 @@ from piper_sdk.piper_msgs.msg_v2 import transmit as sdk_tx  # noqa: E402
 from piper_sdk.protocol.protocol_v2.piper_protocol_v2 import C_PiperParserV2  # noqa: E402
 
 PARSER = C_PiperParserV2()
-MDEG, DDEG, UM = codec.MILLIDEGREE, codec.DECIDEGREE, codec.MICROMETRE
+# The vendor's scales (piper.md), written out: a wrong scale in the codec must not cancel out.
+MDEG = math.pi / 180.0 * 0.001  # rad per 0.001 degree
+DDEG = math.pi / 180.0 * 0.1  # rad per 0.1 degree
+UM = 0.001 * 0.001  # m per 0.001 mm
+END_POSE_SCALES = (UM,) * 3 + (MDEG,) * 3  # X, Y, Z in 0.001 mm; RX, RY, RZ in 0.001 degree
 I32_MAX, I32_MIN, I16_MAX, I16_MIN, U16_MAX = 2**31 - 1, -(2**31), 2**15 - 1, -(2**15), 2**16 - 1
 
 
@@ -60,7 +64,7 @@ FEEDBACK_CASES = {
     "0x2A1 status, largest": _status(codec.ArmStatus(7, 15, 5, 7, 1, 255, 0xFFFF)),
     **{f"0x{i:03X} end pose, {label}": (
         codec.encode_end_pose(codec.END_POSE_FEEDBACK, codec.EndPose(
-            *(c * s for c, s in zip(raw, codec.END_POSE_SCALES, strict=True))))[n],
+            *(c * s for c, s in zip(raw, END_POSE_SCALES, strict=True))))[n],
         lambda m, n=n: [(m.arm_end_pose.X_axis, m.arm_end_pose.Y_axis),
                         (m.arm_end_pose.Z_axis, m.arm_end_pose.RX_axis),
                         (m.arm_end_pose.RY_axis, m.arm_end_pose.RZ_axis)][n],
@@ -191,11 +195,11 @@ COMMAND_CASES = {
         for values in ((0, 0, 0, 0x00, 0, 0), (1, 5, 100, 0xAD, 254, 3), (7, 1, 50, 0xFF, 255, 1))},
     **{f"0x{0x152 + n:03X} end pose target, {label}": (
         codec.encode_end_pose(codec.END_POSE_COMMAND, codec.EndPose(
-            *(c * s for c, s in zip(raw, codec.END_POSE_SCALES, strict=True))))[n],
+            *(c * s for c, s in zip(raw, END_POSE_SCALES, strict=True))))[n],
         sdk_encode(f"PiperMsgMotionCtrlCartesian_{n + 1}", "arm_motion_ctrl_cartesian",
                    sdk_tx.ArmMsgMotionCtrlCartesian(*raw)),
         lambda d, n=n: codec.decode_end_pose_pair(n, d),
-        tuple(c * s for c, s in zip(raw[2 * n:2 * n + 2], codec.END_POSE_SCALES[2 * n:],
+        tuple(c * s for c, s in zip(raw[2 * n:2 * n + 2], END_POSE_SCALES[2 * n:],
                                     strict=False)))
         for label, raw in (("max", (I32_MAX,) * 6), ("min", (I32_MIN,) * 6),
                            ("demo", (150000, -50000, 150000, -179900, 0, -179900)))
