@@ -12,7 +12,7 @@ from pydrake.math import RigidTransform, RotationMatrix
 from pydrake.multibody.plant import MultibodyPlant
 from pydrake.multibody.tree import SpatialInertia
 
-from physcap_drake.tasks.placement import check_in_tray
+from physcap_drake.tasks.placement import check_in_tray, move_to_tray
 
 RADIUS = 0.033  # m, a soda can
 HALF_X, HALF_Y, FLOOR = 0.144, 0.104, 0.008  # the tray's inside, m (0.30 × 0.22 m, 6 mm walls)
@@ -102,3 +102,37 @@ def test_the_floor_thickness_moves_the_band(scene):
 def test_the_reason_names_the_label_and_container(scene):
     check = judge(scene, [0.2, 0.0, FLOOR], label="red cup", container="bowl")
     assert check.reason.startswith("the red cup is not inside the bowl")
+
+
+class RecordingAPI:
+    """Stands in for the RobotAPI: records the calls move_to_tray makes, in order."""
+
+    def __init__(self):
+        self.calls = []
+
+    def goto_pose(self, position, quaternion_wxyz=None, z_approach=0.0):
+        self.calls.append(("goto", tuple(np.round(position, 9)), z_approach))
+
+    def open_gripper(self):
+        self.calls.append(("open",))
+
+    def close_gripper(self):
+        self.calls.append(("close",))
+
+    def home_pose(self):
+        self.calls.append(("home",))
+
+
+def test_move_to_tray_grasps_lifts_places_and_retreats():
+    # Approach 0.12 m from above, lift 0.15 m, set down 5 mm above the floor (8 mm thick).
+    api, targets = RecordingAPI(), []
+    move_to_tray(api, [0.3, 0.1, 0.05], 0.05, [0.4, -0.2, 0.0], on_goto=targets.append)
+    place = (0.4, -0.2, 0.063)  # 8 + 5 + 50 mm above the tray's bottom
+    assert api.calls == [
+        ("open",), ("goto", (0.3, 0.1, 0.05), 0.12), ("close",),
+        ("goto", (0.3, 0.1, 0.2), 0.0), ("goto", place, 0.12), ("open",),
+        ("goto", (0.4, -0.2, 0.183), 0.0), ("home",)]
+    assert [tuple(np.round(t, 9)) for t in targets] == [c[1] for c in api.calls if c[0] == "goto"]
+    thick = RecordingAPI()
+    move_to_tray(thick, [0.3, 0.1, 0.05], 0.05, [0.4, -0.2, 0.0], floor=0.02)
+    assert thick.calls[4] == ("goto", (0.4, -0.2, 0.075), 0.12)
