@@ -81,3 +81,16 @@ def test_allowed_modules_and_attributes_pass():
 
 def test_the_import_hook_is_the_restricted_one():
     assert make_builtins(print)["__import__"] is not __import__
+
+
+@pytest.mark.parametrize("name", ["_x", "__builtins__", "__class__", "__loader__"])
+def test_private_names_are_rejected_but_a_lone_underscore_is_not(name):
+    assert "may not be used" in rejected(f"y = {name}") and "private" in rejected(f"y = {name}")
+    check_code("for _ in range(3):\n    pass")
+
+
+@pytest.mark.parametrize("attribute", ["f_globals", "gi_frame", "co_code", "tb_next",
+                                       "cr_await", "ag_frame"])
+def test_frame_and_code_attributes_are_rejected_with_their_reason(attribute):
+    assert ("attributes of frames, code objects, tracebacks and generators may not be used"
+            in rejected(f"y = [1].{attribute}"))
