@@ -16,6 +16,8 @@ from physcap_drake.can.link import PiperLink, StartupError
 from physcap_drake.station.can_config import PiperCan
 
 can_rig = rig.can_rig  # the fixture (see tests/can_rig.py)
+#: The link streams in real time on a real thread: bounds tolerate a loaded machine.
+pytestmark = pytest.mark.realtime
 
 
 def settled(rig, target) -> bool:
@@ -105,7 +107,8 @@ def test_no_arm_on_the_bus_fails_start_up_naming_what_did_not_answer():
     with pytest.raises(StartupError, match=rf"virtual:{channel}.*firmware version \(0x4AF\)"
                                            r".*startup_timeout = 0.2"):
         PiperLink(can.Bus(interface="virtual", channel=channel), config).start()
-    assert time.monotonic() - started < 1.0
+    # It waited its 0.2 s, and gave up then (seconds to spare for a loaded machine).
+    assert 0.2 <= time.monotonic() - started < 5.0
 
 
 def test_motors_that_never_enable_fail_start_up_naming_the_joints():
