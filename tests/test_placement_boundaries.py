@@ -5,6 +5,7 @@
 from __future__ import annotations
 
 import math
+import re
 
 import numpy as np
 import pytest
@@ -52,7 +53,7 @@ def test_centred_upright_on_the_floor_succeeds(scene):
 def test_tilt_just_under_ten_degrees_is_upright_just_over_is_tipped(scene, axis):
     assert judge(scene, [0.0, 0.0, FLOOR], 9.9, axis).success
     tipped = judge(scene, [0.0, 0.0, FLOOR], 10.1, axis)
-    assert not tipped.success and tipped.reason == "the soda can is tipped over (10°)"
+    assert tipped.success is False and tipped.reason == "the soda can is tipped over (10°)"
     assert not judge(scene, [0.0, 0.0, FLOOR], 90.0, axis).success
 
 
@@ -67,10 +68,15 @@ def test_a_tipped_object_counts_when_uprightness_is_not_asked(scene):
 def test_the_object_must_clear_each_wall_by_its_radius(scene, index, half, sign):
     inside, over = np.array([0.0, 0.0, FLOOR]), np.array([0.0, 0.0, FLOOR])
     inside[index] = sign * (half - RADIUS - EPS)  # just inside the wall
-    over[index] = sign * (half - RADIUS + EPS)  # its side over the wall, its centre well in
+    over[index] = sign * (half - RADIUS + 1.23e-3)  # its side over the wall, centre well in
     assert judge(scene, inside).success
     check = judge(scene, over)
-    assert not check.success and check.reason.startswith("the soda can is not inside the tray")
+    assert check.success is False
+    shown = re.fullmatch(r"the soda can is not inside the tray \(offset \[ *(\S+) +(\S+) *\] m "
+                         r"from its centre\)", check.reason)
+    assert shown, check.reason
+    np.testing.assert_allclose([float(shown[1]), float(shown[2])], over[:2], atol=5e-4)
+    assert all(len(value.partition(".")[2]) <= 3 for value in shown.groups())  # mm
 
 
 def test_a_corner_is_judged_on_both_axes(scene):
@@ -91,7 +97,27 @@ def test_the_object_must_rest_within_the_floor_band(scene, height, resting):
     check = judge(scene, [0.0, 0.0, height])
     assert check.success is resting
     if not resting:
-        assert check.reason.startswith("the soda can is not resting on the tray floor")
+        assert check.reason == ("the soda can is not resting on the tray floor (bottom "
+                                f"{height:.3f} m above its frame)")
+
+
+def exactly(scene, position, **options):
+    """The check with the tray at the world's origin and the can at `position` (m): offsets
+    then come out exactly as given (binary fractions), to test the limits themselves."""
+    plant, context, can, tray = scene
+    plant.SetFreeBodyPose(context, tray, RigidTransform())
+    plant.SetFreeBodyPose(context, can, RigidTransform(np.asarray(position, dtype=float)))
+    return check_in_tray(plant, context, can, tray, **options)
+
+
+def test_touching_a_wall_or_the_edge_of_the_floor_band_still_counts(scene):
+    half = np.array([0.25, 0.125])
+    assert exactly(scene, [0.125, 0.0, 0.0], radius=0.125, inner_half=half, floor=0.0).success
+    assert exactly(scene, [0.0, -0.0625, 0.0], radius=0.0625, inner_half=half,
+                   floor=0.0).success
+    assert exactly(scene, [0.0, 0.0, 0.01], radius=0.0625, inner_half=half, floor=0.0).success
+    assert exactly(scene, [0.0, 0.0, -0.005], radius=0.0625, inner_half=half,
+                   floor=0.0).success
 
 
 def test_the_floor_thickness_moves_the_band(scene):
