@@ -204,3 +204,25 @@ def test_the_firmware_version_once_its_reply_is_complete(feed, clock):
     for frame in codec.encode_firmware_reply("H-V1.2-1 S-V1.8-2"):
         send(feed, clock, frame)
     assert feed.firmware() == "S-V1.8-2"
+
+
+def test_before_any_frame_nothing_is_known_and_the_feedback_is_stale(feed, clock):
+    snap = feed.snapshot()
+    assert np.isnan(snap.q).all() and np.isnan(snap.end_pose).all()
+    assert math.isnan(snap.gripper_opening) and snap.status is None
+    assert (snap.v.tolist(), snap.current.tolist()) == ([0.0] * 6, [0.0] * 6)
+    assert snap.enabled.tolist() == [False] * 6 and snap.driver_status.tolist() == [0] * 6
+    assert (snap.gripper_effort, snap.gripper_status) == (0.0, 0)
+    assert not feed.complete() and not feed.enabled_since(-1e9).any()
+    assert feed.firmware() is None and feed.garbled_count == 0 and list(feed.acks) == []
+    assert feed.parameters.limits == {} and feed.parameters.accelerations == {}
+    assert feed.parameters.end_limits is None and feed.parameters.crash_levels is None
+    assert feed.parameters.gripper is None
+    health = feed.health(clock.now)
+    assert health.stale and health.reason == "no feedback for inf ms" and health.fault == ""
+
+
+def test_only_the_latest_64_acknowledgements_are_kept(feed, clock):
+    for index in range(70):
+        send(feed, clock, codec.encode_instruction_ack(codec.InstructionAck(index % 256)))
+    assert [ack.index for _, ack in feed.acks] == list(range(6, 70))
