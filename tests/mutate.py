@@ -41,6 +41,14 @@ MODULES: dict[str, tuple[tuple[str, ...], tuple[str, ...]]] = {
                                    "test_shipped_calibration.py")),
     "eval/statistics.py": (("eval/statistics.py",), ("test_eval_statistics.py",)),
 }
+SHOW = """
+import sys
+from mutmut.mutation.diff_apply import get_diff_for_mutant
+for state, _, name in (argument.partition(":") for argument in sys.argv[1:]):
+    module = name.split(".x")[0] if ".x" in name else name.rsplit(".", 1)[0]
+    print(f"--- {state}: {name}")
+    print(get_diff_for_mutant(name, path=module.replace(".", "/") + ".py"), flush=True)
+"""
 DEFAULT = ("can/codec", "can/feedback.py", "tasks/placement.py", "agent/sandbox/policy.py",
            "control/skill_executor.py")
 
@@ -76,10 +84,10 @@ def mutate(module: str) -> tuple[int, int, list[str]]:
         killed = sum(state in ("killed", "timeout", "segfault") for state in states.values())
         survivors = [name for name, state in states.items()
                      if state not in ("killed", "timeout", "segfault")]
-        for name in survivors:
-            print(f"--- {states[name]}: {name}")
-            print(subprocess.run([*mutmut, "show", name], cwd=tree, capture_output=True,
-                                 text=True, check=False).stdout)
+        if survivors:  # their diffs, in one process (`mutmut show` starts one per mutant)
+            subprocess.run([sys.executable, "-c", SHOW, *(f"{states[name]}:{name}"
+                                                          for name in survivors)],
+                           cwd=tree, check=False)
     return killed, len(states), survivors
 
 
