@@ -20,7 +20,8 @@ CODEC = ["tests/test_can_codec.py", "tests/test_can_codec_sdk.py", "tests/test_c
 MASS = ["tests/test_mass_estimator.py", "tests/test_torque_gain.py",
         "tests/test_mass_hand_worked.py"]
 PLACEMENT = ["tests/test_tasks.py", "tests/test_placement_boundaries.py"]
-WATCHDOG = ["tests/test_can_faults.py", "tests/test_watchdog_boundaries.py"]
+WATCHDOG = ["tests/test_can_faults.py", "tests/test_watchdog_boundaries.py",
+            "tests/test_feedback_listener_frames.py"]
 EXECUTOR = ["tests/test_skill_executor.py", "tests/test_executor_gripper_boundaries.py"]
 SANDBOX = ["tests/test_sandbox_checks.py", "tests/test_sandbox_forbidden_names.py"]
 STIFFNESS = ["tests/test_stiffness_estimator.py", "tests/test_calibration_heldout.py",

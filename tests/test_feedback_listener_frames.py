@@ -11,6 +11,7 @@ import math
 import can
 import numpy as np
 import pytest
+from fake_time import FakeTime
 
 from physcap_drake.can import codec
 from physcap_drake.can import feedback as feedback_module
@@ -19,20 +20,9 @@ from physcap_drake.can.feedback import FeedbackListener
 STROKE = 0.07  # m
 
 
-class Clock:
-    def __init__(self):
-        self.now = 50.0
-
-    def monotonic(self) -> float:
-        return self.now
-
-    def time(self) -> float:
-        return self.now + 1.7e9
-
-
 @pytest.fixture
 def clock(monkeypatch):
-    fake = Clock()
+    fake = FakeTime(50.0)
     monkeypatch.setattr(feedback_module, "time", fake)
     return fake
 

@@ -8,6 +8,7 @@ import math
 
 import can
 import pytest
+from fake_time import FakeTime
 
 from physcap_drake.can import codec
 from physcap_drake.can import feedback as feedback_module
@@ -24,22 +25,9 @@ CYCLES = 16  # the listener's window; the first may be partial, so 15 count: 195
 COUNTED = 15 * len(OTHERS)
 
 
-class Clock:
-    """Stands in for the `time` module the listener reads: monotonic and wall seconds."""
-
-    def __init__(self):
-        self.now = 1000.0
-
-    def monotonic(self) -> float:
-        return self.now
-
-    def time(self) -> float:
-        return self.now + 1.7e9
-
-
 @pytest.fixture
 def clock(monkeypatch):
-    fake = Clock()
+    fake = FakeTime(1000.0)
     monkeypatch.setattr(feedback_module, "time", fake)
     return fake
 
@@ -48,7 +36,7 @@ def listener() -> FeedbackListener:
     return FeedbackListener(stroke=0.07, feedback_timeout=TIMEOUT, max_loss=MAX_LOSS)
 
 
-def frame(identifier: int, clock: Clock, sent_ago: float = 0.0) -> can.Message:
+def frame(identifier: int, clock: FakeTime, sent_ago: float = 0.0) -> can.Message:
     """A valid frame of `identifier`, stamped `sent_ago` s before it arrives."""
     data = {STATUS: codec.encode_arm_status(codec.ArmStatus(1, 0, 1, 0, 0, 0, 0))[1],
             0x2A8: codec.encode_gripper_feedback(codec.GripperFeedback(0.03, 0.1, 0x40))[1]
@@ -57,7 +45,7 @@ def frame(identifier: int, clock: Clock, sent_ago: float = 0.0) -> can.Message:
                        timestamp=clock.time() - sent_ago)
 
 
-def run_cycles(feed: FeedbackListener, clock: Clock, lost: int, cycles: int = CYCLES) -> None:
+def run_cycles(feed: FeedbackListener, clock: FakeTime, lost: int, cycles: int = CYCLES) -> None:
     """`cycles` feedback cycles 5 ms apart with `lost` non-status frames left out in all,
     spread over the cycles after the first; the closing status frame comes last."""
     dropped = {(1 + k % (cycles - 1), k // (cycles - 1)) for k in range(lost)}
