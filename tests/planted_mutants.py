@@ -16,16 +16,17 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 COPIED = ("physcap_drake", "tests", "models", "stations", "agents", "pyproject.toml")
 
-CODEC = ["tests/test_can_codec.py", "tests/test_can_codec_sdk.py", "tests/test_codec_vendor_si.py"]
-MASS = ["tests/test_mass_estimator.py", "tests/test_torque_gain.py",
-        "tests/test_mass_hand_worked.py"]
-PLACEMENT = ["tests/test_tasks.py", "tests/test_placement_boundaries.py"]
-WATCHDOG = ["tests/test_can_faults.py", "tests/test_watchdog_boundaries.py",
-            "tests/test_feedback_listener_frames.py"]
-EXECUTOR = ["tests/test_skill_executor.py", "tests/test_executor_gripper_boundaries.py"]
-SANDBOX = ["tests/test_sandbox_checks.py", "tests/test_sandbox_forbidden_names.py"]
-STIFFNESS = ["tests/test_stiffness_estimator.py", "tests/test_calibration_heldout.py",
-             "tests/test_shipped_calibration.py"]
+# The area's tests, the new ones first (pytest -x stops at the first failure).
+CODEC = ["tests/test_codec_vendor_si.py", "tests/test_can_codec.py", "tests/test_can_codec_sdk.py"]
+MASS = ["tests/test_mass_hand_worked.py", "tests/test_mass_estimator.py",
+        "tests/test_torque_gain.py"]
+PLACEMENT = ["tests/test_placement_boundaries.py", "tests/test_tasks.py"]
+WATCHDOG = ["tests/test_watchdog_boundaries.py", "tests/test_feedback_listener_frames.py",
+            "tests/test_can_faults.py"]
+EXECUTOR = ["tests/test_executor_gripper_boundaries.py", "tests/test_skill_executor.py"]
+SANDBOX = ["tests/test_sandbox_forbidden_names.py", "tests/test_sandbox_checks.py"]
+STIFFNESS = ["tests/test_shipped_calibration.py", "tests/test_stiffness_estimator.py",
+             "tests/test_calibration_heldout.py"]
 
 #: name: (file, text, replacement, the area's tests). The first 10 are the issue's table.
 MUTANTS = {
