@@ -14,7 +14,13 @@ from fake_executor import build_with_request_path
 from pydrake.systems.framework import DiagramBuilder, LeafSystem
 
 from physcap_drake.control.planning_model import PlanningModel
-from physcap_drake.control.requests import MoveGripper, MoveToJoints, RobotRequest, SkillState
+from physcap_drake.control.requests import (
+    MoveGripper,
+    MoveToJoints,
+    RobotRequest,
+    SkillState,
+    Wait,
+)
 from physcap_drake.control.skill_executor import SkillExecutor
 from physcap_drake.control.skill_planner import SkillPlanner
 from physcap_drake.resources import stations_dir
@@ -146,3 +152,37 @@ def test_a_gripper_reports_where_it_ended_in_words():
     blocked = run(OPEN, delay=np.inf)
     assert blocked.message == ("open_gripper to 80 mm: blocked at 50.0 mm, short of the "
                                "commanded opening")
+
+
+def test_a_negative_latency_is_refused_and_the_grasp_force_starts_as_given():
+    from test_skill_executor import Rig
+
+    with pytest.raises(ValueError, match=r"^command_latency must be >= 0 s, got -0.1$"):
+        SkillExecutor(None, initial_force=15.0, command_latency=-0.1)
+    rig = Rig()
+    rig.clock.run_for(0.05)
+    context = rig.executor.GetMyContextFromRoot(rig.clock.context)
+    assert rig.executor.GetOutputPort(ports.GRIPPER_FORCE_LIMIT).Eval(context)[0] == 15.0
+
+
+@pytest.mark.parametrize("duration", [0.12, 0.3])
+def test_a_wait_lasts_its_duration_on_the_event_grid(duration):
+    from test_skill_executor import Rig
+
+    rig = Rig()
+    rig.clock.run_for(SENT)
+    request = RobotRequest("test", 1, Wait(duration))
+    rig.send(request)
+    done = rig.finish(request)
+    assert done.finished_at - done.started_at == pytest.approx(duration, abs=1e-6)
+
+
+def test_fingers_stopped_by_what_they_close_on_hold_it():
+    from test_skill_executor import Rig
+
+    rig = Rig(object_width=0.03)
+    rig.clock.run_for(SENT)
+    close = RobotRequest("test", 1, MoveGripper(0.0, 10.0, "close_gripper"))
+    rig.send(close)
+    assert rig.finish(close).message == ("close_gripper to 0 mm: stopped at 30.0 mm "
+                                         "(holding something)")
