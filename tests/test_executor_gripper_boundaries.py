@@ -186,3 +186,31 @@ def test_fingers_stopped_by_what_they_close_on_hold_it():
     rig.send(close)
     assert rig.finish(close).message == ("close_gripper to 0 mm: stopped at 30.0 mm "
                                          "(holding something)")
+
+
+def test_the_status_before_any_request_and_while_one_runs():
+    from test_skill_executor import REACHABLE, Rig
+
+    rig = Rig()
+    rig.clock.run_for(SENT)
+    assert rig.status.joint_target == (0.0,) * 6  # holding where the arm was measured
+    request = RobotRequest("test", 1, MoveToJoints(REACHABLE))
+    rig.send(request)
+    rig.clock.run_until(lambda root: rig.status.answers(request), timeout=1.0)
+    running = rig.status
+    assert (running.state, running.message) == (SkillState.RUNNING, "")
+    assert running.finished_at == running.started_at and SENT <= running.started_at
+
+
+def test_a_refused_request_is_answered_once_with_its_times():
+    from test_skill_executor import Rig
+
+    rig = Rig()
+    rig.clock.run_for(SENT)
+    request = RobotRequest("test", 1, MoveToJoints([0.0, 3.5, -1.0, 0.0, 0.0, 0.0]))
+    rig.send(request)
+    refused = rig.finish(request)
+    assert refused.state is SkillState.REFUSED and refused.label == "move to joints"
+    assert SENT <= refused.started_at == refused.finished_at <= SENT + PERIOD
+    rig.clock.run_for(10 * PERIOD)  # the same request still on the port: not taken again
+    assert rig.status == refused
