@@ -139,8 +139,8 @@ def test_a_garbled_frame_keeps_the_last_good_values_and_warns_once(feed, clock, 
     send(feed, clock, (0x2A5, bytes(7)))
     np.testing.assert_allclose(feed.snapshot().q[:2], [0.2, 0.3], atol=1e-5)
     assert feed.garbled_count == 2
-    warnings = [r for r in caplog.records if "garbled feedback frame rejected" in r.message]
-    assert len(warnings) == 1 and "J1 at 9 rad, beyond its limits" in warnings[0].message
+    warnings = [r.getMessage() for r in caplog.records if r.levelno == logging.WARNING]
+    assert warnings == ["garbled feedback frame rejected (J1 at 9 rad, beyond its limits)"]
 
 
 @pytest.mark.parametrize("frame, fault", [
@@ -216,3 +216,48 @@ def test_only_the_latest_64_acknowledgements_are_kept(feed, clock):
     for index in range(70):
         send(feed, clock, codec.encode_instruction_ack(codec.InstructionAck(index % 256)))
     assert [ack.index for _, ack in feed.acks] == list(range(6, 70))
+
+
+def test_an_end_pose_beyond_reach_is_garbled_with_its_values(feed, clock):
+    send(feed, clock, codec.encode_end_pose(codec.END_POSE_FEEDBACK,
+                                            codec.EndPose(1.5, 0, 0, 0, 0, 0))[0])
+    assert "garbled feedback (0x2A2: end pose values (1.5, 0.0) beyond reach)" in \
+        feed.health(clock.now).reason
+
+
+def test_a_fault_is_logged_with_what_it_stops(feed, clock, caplog):
+    caplog.set_level(logging.ERROR, logger="physcap_drake.can")
+    send(feed, clock, low_speed(4, 0x40 | 0x10))
+    assert [r.getMessage() for r in caplog.records if r.levelno == logging.ERROR] == [
+        "the arm reports: J5 collision protection tripped: motion commands stopped"]
+
+
+def test_the_reasons_are_shown_in_milliseconds_and_together(feed, clock):
+    send(feed, clock, codec.encode_joint_pair(0x2A5, 0.0, 0.0))
+    assert feed.health(clock.now + 0.8).reason == "no feedback for 800 ms"
+    send(feed, clock, (0x2A5, bytes(3)))
+    assert feed.health(clock.now + 0.01).reason == (
+        "garbled feedback (0x2A5: joint angles: expected 8 data bytes, got 3)")
+    assert feed.health(clock.now + 0.06).reason == "no feedback for 60 ms"
+    identifier, data = codec.encode_joint_pair(0x2A6, 0.0, 0.0)
+    feed.on_message_received(can.Message(arbitration_id=identifier, data=data,
+                                         timestamp=clock.time() - 0.8))
+    late = feed.health(clock.now + 0.01)
+    assert late.reason == ("feedback arrives 800 ms late; garbled feedback (0x2A5: joint angles: "
+                           "expected 8 data bytes, got 3)")
+
+
+def test_the_first_frame_decides_whether_timestamps_are_on_the_host_clock(feed, clock, caplog):
+    caplog.set_level(logging.WARNING, logger="physcap_drake.can")
+    send(feed, clock, codec.encode_joint_pair(0x2A5, 0.0, 0.0))  # on the host clock
+    identifier, data = codec.encode_joint_pair(0x2A6, 0.0, 0.0)
+    feed.on_message_received(can.Message(arbitration_id=identifier, data=data,
+                                         timestamp=clock.time() - 20.0))
+    assert feed.health(clock.now).reason == "feedback arrives 20000 ms late"
+    other = FeedbackListener(stroke=STROKE, feedback_timeout=0.05, max_loss=0.05)
+    other.on_message_received(can.Message(arbitration_id=identifier, data=data,
+                                          timestamp=clock.time() - 20.0))
+    assert not other.health(clock.now).stale
+    assert [r.getMessage() for r in caplog.records if r.levelno == logging.WARNING] == [
+        "the CAN interface's timestamps are not on the host clock (20 s apart): the watchdog "
+        "cannot see delayed frames"]
