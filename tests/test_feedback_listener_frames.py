@@ -71,6 +71,7 @@ def test_feedback_frames_fill_the_snapshot(feed, clock):
         pytest.approx(0.035), pytest.approx(0.4), 0xC0)
     assert snap.enabled.tolist() == [True, True, False, True, True, True]
     assert snap.driver_status.tolist() == [0x40, 0x40, 0x00, 0x40, 0x40, 0x40]
+    assert snap.driver_status.dtype.kind == "i"  # status bits, read with >> and &
     np.testing.assert_allclose(snap.end_pose, [0.056, -0.1, 0.213, 0.1, 1.48, -0.2], atol=1e-5)
     assert snap.status.ctrl_mode == 1 and snap.status.arm_status == 0
     assert not feed.health(clock.now).stale and feed.health(clock.now).fault == ""
@@ -86,7 +87,21 @@ def test_enabled_since_counts_only_reports_at_or_after_the_time(feed, clock):
     assert not feed.enabled_since(clock.now + 1e-6).any()
 
 
+@pytest.mark.parametrize("frame, why", [
+    (codec.encode_high_speed(1, codec.HighSpeedFeedback(-20.1, 0.0, 0.0)),
+     "0x252: J2 speed -20.1 rad/s, current 0 A"),
+    (codec.encode_gripper_feedback(codec.GripperFeedback(0.0801, 0.0, 0)),
+     "0x2A8: gripper opening 0.0801 m"),
+    (status(arm_status=16), "0x2A1: status with control mode 1, arm status 16"),
+    (low_speed(3, voltage=60.1), "0x264: J4 driver at 60.1 V, 40 / 35 °C"),
+])
+def test_a_garbled_frame_is_named_with_its_values(feed, clock, frame, why):
+    send(feed, clock, frame)
+    assert feed.health(clock.now).reason.endswith(f"garbled feedback ({why})")
+
+
 @pytest.mark.parametrize("frame, good", [
+    (low_speed(3, voltage=0.0), True),
     # J1 may read up to 150° + 0.5 rad (3.118 rad), J2 from −0.5 rad (its range starts at 0).
     (codec.encode_joint_pair(0x2A5, 3.10, 0.0), True),
     (codec.encode_joint_pair(0x2A5, 3.14, 0.0), False),
