@@ -70,3 +70,30 @@ def test_limits_are_decidegrees_and_milliradians_per_second():
     _, data = codec.encode_acceleration_limit(3, 4.5)
     assert ints(data, ">BH5x") == (3, 450)
     assert codec.decode_acceleration_limit(struct.pack(">BH5x", 3, 123))[1] == pytest.approx(1.23)
+
+
+def test_all_six_joints_go_in_three_frames_of_millidegrees():
+    frames = codec.encode_joints((0x155, 0x156, 0x157), [math.radians(d) for d in
+                                                         (10, -20, 30, -40, 50, -60)])
+    assert [(i, ints(d, ">ii")) for i, d in frames] == [
+        (0x155, (10_000, -20_000)), (0x156, (30_000, -40_000)), (0x157, (50_000, -60_000))]
+
+
+def test_the_firmware_request_and_the_instruction_ack():
+    assert codec.encode_firmware_request() == (0x4AF, bytes([1, 0, 0, 0, 0, 0, 0, 0]))
+    assert codec.decode_instruction_ack(bytes([0x75, 1, 0, 0, 0, 0, 0, 0])) == \
+        codec.InstructionAck(0x75, True)
+    assert codec.decode_instruction_ack(bytes([0x71, 0, 0, 0, 0, 0, 0, 0])) == \
+        codec.InstructionAck(0x71, False)
+    with pytest.raises(codec.FrameError):
+        codec.decode_instruction_ack(bytes(7))
+
+
+@pytest.mark.parametrize("mode, payload", [(0, [1, 0, 0]), (1, [1, 1, 1]), (2, [1, 0, 1])])
+def test_leader_home_modes(mode, payload):
+    data = bytes(payload + [0] * 5)
+    assert codec.encode_leader_home(mode) == (0x191, data)
+    assert codec.decode_leader_home(data) == mode
+    assert codec.decode_leader_home(bytes([1, 1, 0, 0, 0, 0, 0, 0])) is None
+    with pytest.raises(ValueError, match="0x191 mode"):
+        codec.encode_leader_home(3)
