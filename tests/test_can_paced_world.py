@@ -144,7 +144,7 @@ def test_the_emulator_reports_its_paced_worlds_figures():
         host.close()
     timing = emulator.timing()
     # The firmware's figures and the world's, which fell behind.
-    assert timing.firmware.steps > 50 and timing.firmware.max_lateness >= 0.0
+    assert timing.firmware.steps > 50
     assert timing.world is not None and timing.world.lateness.late > 0
     assert not world._thread.is_alive()  # stopping the emulator stopped the world
 
