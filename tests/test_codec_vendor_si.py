@@ -97,3 +97,24 @@ def test_leader_home_modes(mode, payload):
     assert codec.decode_leader_home(bytes([1, 1, 0, 0, 0, 0, 0, 0])) is None
     with pytest.raises(ValueError, match="0x191 mode"):
         codec.encode_leader_home(3)
+
+
+@pytest.mark.parametrize("firmware, scale", [
+    ("S-V1.8-2", (4.0, 4.0, 4.0, 1.0, 1.0, 1.0)),  # J1-J3 read a quarter up to S-V1.8-2
+    ("S-V1.8-3", (1.0,) * 6), ("S-V1.6-5", (4.0, 4.0, 4.0, 1.0, 1.0, 1.0))])
+def test_joint_torque_is_current_times_the_vendors_constants(firmware, scale):
+    # 1 A is 1.18125 N·m on J1-J3 and 0.95844 N·m on J4-J6 (piper_sdk's cal_effort).
+    constants = (1.18125, 1.18125, 1.18125, 0.95844, 0.95844, 0.95844)
+    assert codec.torque_scale(firmware) == scale
+    for joint in range(6):
+        assert codec.joint_torque(joint, 2.0, firmware) == pytest.approx(
+            2.0 * constants[joint] * scale[joint], rel=1e-12)
+
+
+@pytest.mark.parametrize("frames, version", [
+    ([b"S-V1.8-2"], "S-V1.8-2"),  # the version first, and exactly 8 characters
+    ([b"H-V1.2-1", b" S-V1.8-", b"5 extra\0"], "S-V1.8-5")])
+def test_the_firmware_version_is_found_wherever_it_starts(frames, version):
+    assert codec.decode_firmware(frames) == version
+    with pytest.raises(codec.FrameError, match="no firmware version in the 0x4AF reply"):
+        codec.decode_firmware([b"H-V1.2-1"])
