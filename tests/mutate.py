@@ -22,7 +22,8 @@ COPIED = ("physcap_drake", "tests", "models", "stations", "agents", "pyproject.t
 #: module: (files mutated, relative to physcap_drake/; the tests that judge them)
 MODULES: dict[str, tuple[tuple[str, ...], tuple[str, ...]]] = {
     "can/codec": (("can/codec/*.py",),
-                  ("test_can_codec.py", "test_can_codec_sdk.py", "test_codec_vendor_si.py")),
+                  ("test_can_codec.py", "test_can_codec_sdk.py", "test_codec_vendor_si.py",
+                   "test_codec_enumerations.py")),
     "can/feedback.py": (("can/feedback.py",), ("test_watchdog_boundaries.py",
                                                "test_feedback_listener_frames.py")),
     "tasks/placement.py": (("tasks/placement.py",),

@@ -17,7 +17,8 @@ ROOT = Path(__file__).resolve().parents[1]
 COPIED = ("physcap_drake", "tests", "models", "stations", "agents", "pyproject.toml")
 
 # The area's tests, the new ones first (pytest -x stops at the first failure).
-CODEC = ["tests/test_codec_vendor_si.py", "tests/test_can_codec.py", "tests/test_can_codec_sdk.py"]
+CODEC = ["tests/test_codec_vendor_si.py", "tests/test_codec_enumerations.py",
+         "tests/test_can_codec.py", "tests/test_can_codec_sdk.py"]
 MASS = ["tests/test_mass_hand_worked.py", "tests/test_mass_estimator.py",
         "tests/test_torque_gain.py"]
 PLACEMENT = ["tests/test_placement_boundaries.py", "tests/test_tasks.py"]
