@@ -12,7 +12,7 @@ from hypothesis import strategies as st
 from physcap_drake.can import codec
 
 ANGLE = st.floats(-math.pi, math.pi)
-MILLIDEG = codec.MILLIDEGREE
+MILLIDEG = math.pi / 180_000.0  # rad per count: the vendor's 0.001 degree
 
 
 @given(ANGLE, ANGLE, st.sampled_from(codec.JOINT_FEEDBACK + codec.JOINT_COMMAND))
@@ -83,8 +83,8 @@ def test_gripper_command_round_trips(opening, effort, code):
 def test_joint_limits_round_trip(motor, high, low, speed):
     limits = codec.decode_joint_limits(codec.encode_joint_limits(
         codec.JointLimits(motor, high, low, speed))[1])
-    assert limits.motor == motor and abs(limits.max_angle - high) <= codec.DECIDEGREE / 2 + 1e-9
-    assert abs(limits.min_angle - low) <= codec.DECIDEGREE / 2 + 1e-9
+    assert limits.motor == motor and abs(limits.max_angle - high) <= math.radians(0.1) / 2 + 1e-9
+    assert abs(limits.min_angle - low) <= math.radians(0.1) / 2 + 1e-9
     assert abs(limits.max_speed - speed) <= 5e-4 + 1e-9
 
 

@@ -18,6 +18,8 @@ from physcap_drake.station.can_config import PiperCan
 pytestmark = [pytest.mark.emulated_hardware, pytest.mark.xdist_group("realtime")]
 
 can_rig = rig.can_rig  # the fixture (see tests/can_rig.py)
+#: The link streams in real time on a real thread: bounds tolerate a loaded machine.
+pytestmark = pytest.mark.realtime
 
 
 def settled(rig, target) -> bool:
@@ -112,7 +114,8 @@ def test_no_arm_on_the_bus_fails_start_up_naming_what_did_not_answer():
     with pytest.raises(StartupError, match=rf"no frames from the arm on virtual:{channel}"
                                            r".*startup_timeout = 0.2 s: power the arm on"):
         PiperLink(can.Bus(interface="virtual", channel=channel), config).start()
-    assert time.monotonic() - started < 1.0
+    # It waited its 0.2 s, and gave up then (seconds to spare for a loaded machine).
+    assert 0.2 <= time.monotonic() - started < 5.0
 
 
 def test_motors_that_never_enable_fail_start_up_naming_the_joints():

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from physcap_drake.can.arm_state import DEFAULT_MAX_SPEED
-from physcap_drake.can.emulator import PiperEmulator
+from physcap_drake.can.emulator import PiperEmulator, wait_until
 from physcap_drake.can.lateness import LagTracker
 from physcap_drake.can.motion import KinematicMotion, MotionCommand
 from physcap_drake.can.paced_world import (
@@ -22,6 +22,8 @@ from physcap_drake.can.paced_world import (
 from physcap_drake.can.socket_bus import SocketBus, socket_pair
 
 pytestmark = [pytest.mark.emulated_hardware, pytest.mark.xdist_group("realtime")]
+#: The tests that pace real threads by the wall clock (their bounds tolerate a loaded machine).
+realtime = pytest.mark.realtime
 
 PERIOD = 0.005
 
@@ -58,6 +60,7 @@ def run_firmware(world: PacedWorld, seconds: float) -> list[float]:
     return took
 
 
+@realtime
 def test_a_slow_world_does_not_hold_back_the_caller_and_catches_up_in_longer_steps():
     slow = SlowWorld(cost=3 * PERIOD)  # three times slower than real time per period
     world = PacedWorld(slow, PERIOD)
@@ -67,7 +70,9 @@ def test_a_slow_world_does_not_hold_back_the_caller_and_catches_up_in_longer_ste
         world.stop()
     # Stepping in the caller would cost 15 ms a call; the first call steps once itself.
     # (The world then keeps only 1 / (1 + REST) of real time: it rests between steps.)
-    assert max(took[1:]) < slow.cost
+    # A loaded machine may hold up a few calls that long, not most (stepping in the caller
+    # would hold up every one).
+    assert np.mean(np.array(took[1:]) >= slow.cost) < 0.2
     timing = world.timing()
     assert timing.lateness.late > 0 and timing.lateness.max_lateness >= PERIOD
     # Behind, the world covers several periods per step (at most MAX_STEP_PERIODS), so its
@@ -77,6 +82,7 @@ def test_a_slow_world_does_not_hold_back_the_caller_and_catches_up_in_longer_ste
     assert kept - MAX_LAG - PERIOD <= timing.world_time <= kept + PERIOD
 
 
+@realtime
 def test_a_world_that_keeps_up_steps_one_period_at_a_time_in_real_time():
     fast = SlowWorld(cost=0.0)
     world = PacedWorld(fast, PERIOD)
@@ -91,6 +97,7 @@ def test_a_world_that_keeps_up_steps_one_period_at_a_time_in_real_time():
     assert np.mean(np.isclose(fast.steps, PERIOD)) > 0.5
 
 
+@realtime
 def test_a_stalled_world_lets_the_excess_go_and_reports_the_spell_with_its_time():
     stalled = SlowWorld(cost=0.0, stall=0.3, stall_at=20)
     world = PacedWorld(stalled, PERIOD, max_lag=0.1)
@@ -124,18 +131,20 @@ def test_lag_tracker_counts_late_steps_and_closes_spells():
     assert lateness.covering(1.5, 1.9) is None
 
 
+@realtime
 def test_the_emulator_reports_its_paced_worlds_figures():
     host, arm = socket_pair()
     world = PacedWorld(SlowWorld(cost=2 * PERIOD), PERIOD)
     emulator = PiperEmulator(SocketBus(arm, "arm"), motion=world).start()
     try:
-        time.sleep(0.5)
+        # 50 firmware cycles: a quarter second at 200 Hz, longer on a loaded machine.
+        assert wait_until(lambda: emulator.timing().firmware.steps > 50, timeout=10.0)
     finally:
         emulator.stop()
         emulator.bus.shutdown()
         host.close()
     timing = emulator.timing()
-    # The firmware kept its 200 Hz (give or take a loaded machine); the world fell behind.
+    # The firmware's figures and the world's, which fell behind.
     assert timing.firmware.steps > 50
     assert timing.world is not None and timing.world.lateness.late > 0
     assert not world._thread.is_alive()  # stopping the emulator stopped the world
@@ -175,6 +184,7 @@ class Recording(SlowWorld):
         return super().step(command, dt)
 
 
+@realtime
 def test_a_world_that_is_behind_follows_the_references_it_missed_in_order():
     """The firmware's reference turns a corner (joint 1 out to 0.3 rad, then joint 2 out to
     0.3 rad, each at 1.5 rad/s); a world four times slower than real time is given every

@@ -81,9 +81,10 @@ def test_the_can_station_reads_what_the_sim_station_reads(can_station):
     np.testing.assert_allclose(got[ports.ARM_POSITION_MEASURED],
                                expected[ports.ARM_POSITION_MEASURED], atol=2e-3)
     # Holding torques (J2, J3 carry the arm's weight: several N·m) through motor currents,
-    # ×4 scaled on J1-J3 for firmware S-V1.8-2; both include the sensor noise (≈0.05 N·m).
-    np.testing.assert_allclose(got[ports.ARM_TORQUE_MEASURED],
-                               expected[ports.ARM_TORQUE_MEASURED], atol=0.25)
+    # ×4 scaled on J1-J3 for firmware S-V1.8-2. Both readings carry the sensor noise (std
+    # 0.05 N·m on J1-J3, 0.01 on J4-J6): their difference, √2 times that, within 3.5 and 4 std.
+    torque_error = np.abs(got[ports.ARM_TORQUE_MEASURED] - expected[ports.ARM_TORQUE_MEASURED])
+    assert np.all(torque_error <= [0.25, 0.25, 0.25, 0.06, 0.06, 0.06]), torque_error
     assert abs(expected[ports.ARM_TORQUE_MEASURED][2]) > 2.0
     assert got[ports.GRIPPER_POSITION_MEASURED][0] == pytest.approx(0.06, abs=1e-4)
     assert 0.0 <= got[ports.GRIPPER_EFFORT_MEASURED][0] <= 1.0

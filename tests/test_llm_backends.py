@@ -11,6 +11,7 @@ import base64
 import json
 import sys
 from collections.abc import Callable
+from types import SimpleNamespace
 from typing import Any
 
 import httpx
@@ -470,15 +471,27 @@ def test_backoff_doubles_and_is_capped():
         RetryingClient(ScriptedClient(), attempts=0)
 
 
-def test_retrying_client_passes_name_and_model_and_reports_whole_latency():
-    inner = ScriptedClient(TransientLLMError("busy"))
-    client = RetryingClient(inner, sleep=lambda s: None)
+def test_retrying_client_passes_name_and_model_and_reports_whole_latency(monkeypatch):
+    """With the clock injected: each attempt takes 0.1 s, the wait before the retry 1 s."""
+    from physcap_drake.agent.llm import retry
+
+    now = [100.0]
+
+    class Timed(ScriptedClient):
+        def complete(self, request):
+            now[0] += 0.1
+            return super().complete(request)
+
+    monkeypatch.setattr(retry, "time", SimpleNamespace(perf_counter=lambda: now[0]))
+    inner = Timed(TransientLLMError("busy"))
+    client = RetryingClient(inner, base_delay_s=1.0,
+                            sleep=lambda s: now.__setitem__(0, now[0] + s))
     assert (client.name, client.model) == ("scripted", "m-1")
     response = client.complete(make_request())
     assert inner.calls == 2 and client.last_attempts == 2
     assert response.text == "fine"
-    # The latency is the measured wall time of the whole call, not the inner 0.25 s.
-    assert response.latency_s < 0.25
+    # The latency is the wall time of the whole call, waits included, not the inner 0.25 s.
+    assert response.latency_s == pytest.approx(0.1 + 1.0 + 0.1, abs=1e-9)
 
 
 # --- recording -------------------------------------------------------------------------------

@@ -15,7 +15,6 @@ from physcap_drake.clock import Clock
 from physcap_drake.control.planning_model import TCP_FRAME
 from physcap_drake.physx.mass_estimator import (
     ESTIMATE_PORT,
-    GRAVITY,
     WINDOW_PORT,
     MassEstimator,
     TorqueWindow,
@@ -31,6 +30,8 @@ from physcap_drake.scenario import load_scenario
 from physcap_drake.station import ports
 from physcap_drake.station.robot_model import robot_model
 
+#: Standard gravity, m/s², written out: the estimator's own constant is under test.
+GRAVITY = 9.81
 LIFT_POSE = np.array([0.3, 1.5, -1.3, 0.1, 1.0, 0.2])  # rad, an arm reaching over the table
 
 

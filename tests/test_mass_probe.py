@@ -34,7 +34,6 @@ from physcap_drake.control.requests import (
 from physcap_drake.control.skill_executor import MONITOR_PERIOD, REQUEST_PORT, STATUS_PORT
 from physcap_drake.physx.mass_estimator import (
     ESTIMATE_PORT,
-    GRAVITY,
     WINDOW_PORT,
     MassEstimator,
     WindowKind,
@@ -48,6 +47,8 @@ from physcap_drake.scenario import load_scenario
 from physcap_drake.station import ports
 from physcap_drake.station.robot_model import robot_model
 
+#: Standard gravity, m/s², written out: the estimator's own constant is under test.
+GRAVITY = 9.81
 LIFT_POSE = np.array([0.3, 1.5, -1.3, 0.1, 1.0, 0.2])  # rad, an arm reaching over the table
 MASS = 0.6  # kg, what the fake robot's torques show while it holds the object
 GRASP = [0.3, 0.1, 0.05]

@@ -8,12 +8,14 @@ import pytest
 
 from physcap_drake.app import calibration
 from physcap_drake.control.planning_model import TCP_FRAME
-from physcap_drake.physx.mass_estimator import GRAVITY, MassEstimator, TorqueWindow
+from physcap_drake.physx.mass_estimator import MassEstimator, TorqueWindow
 from physcap_drake.physx.torque_gain import fit_torque_gain
 from physcap_drake.resources import stations_dir
 from physcap_drake.scenario import ScenarioError, load_scenario
 from physcap_drake.station.robot_model import robot_model
 
+#: Standard gravity, m/s², written out: the estimator's own constant is under test.
+GRAVITY = 9.81
 #: rad: the arm reaching over the table at two places (the weight's and an object's).
 CALIBRATION_POSE = np.array([0.3, 1.5, -1.3, 0.1, 1.0, 0.2])
 OTHER_POSE = np.array([-0.4, 1.2, -0.9, -0.1, 0.8, -0.3])
