@@ -38,6 +38,10 @@ WRITES = frozenset({"FixValue", "SetMass", "get_mutable_context", "SetTime",
 
 #: file (relative to physcap_drake/) -> {call: why this module may make it}.
 ALLOWED = {
+    "can/arm_gravity.py": {
+        "SetPositions": "ArmGravity's own scratch context of its own plant (the kinematic "
+                        "emulated arm's holding torques), never a running diagram's",
+    },
     "clock.py": {
         "get_mutable_context": "the Clock owns the simulator; it hands the root context "
                                "out only for the outside client's exported input",

@@ -14,7 +14,7 @@ from physcap_drake.commands.agent_demo import DEMO_SEED, TASK
 from physcap_drake.recording.reading import read_recording
 from physcap_drake.tasks.registry import get_task
 
-pytestmark = pytest.mark.episode
+pytestmark = [pytest.mark.episode, pytest.mark.xdist_group("test_demo")]  # one demo run
 
 MEASURED = re.compile(r"^(\w+ can): mass = ([\d.]+) kg$", re.M)
 

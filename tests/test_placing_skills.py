@@ -16,6 +16,10 @@ SEED = 4
 CUP_RADIUS = 0.045  # the large paper cup's rim, m (objects/paper_cup_large)
 
 
+# One episode for the module, its tests in order on one worker.
+pytestmark = [pytest.mark.episode, pytest.mark.xdist_group("test_placing_skills")]
+
+
 @pytest.fixture(scope="module")
 def episode():
     return make_episode("find_blue_cube", SEED)

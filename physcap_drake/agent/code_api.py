@@ -51,15 +51,14 @@ PARAMETER_KINDS: dict[str, dict[str, ParameterKind]] = {
     "place_in": {"container": _NAME, "name": _NAME},
     "lift_and_look": {"position": _POSITION, "name": _NAME, "destination": OrNone(_NAME)},
     "get_mass": {"position": _POSITION, "name": OrNone(_NAME)},
-    "get_weight": {"position": _POSITION, "name": OrNone(_NAME)},
     "get_stiffness": {"position": _POSITION, "name": OrNone(_NAME)},
     "breakpoint_code_block": {},
 }
 #: The functions that move the robot (robot-time budgets are checked before each call).
 MOVING = frozenset({"goto_pose", "open_gripper", "close_gripper", "home_pose", "get_mass",
-                    "get_weight", "get_stiffness", "place_in", "lift_and_look"})
+                    "get_stiffness", "place_in", "lift_and_look"})
 #: The per-block budget each function's calls count against (sandbox.budget.COUNTED).
-COUNTED_AS = {"close_gripper": "gripper_cycle", "get_mass": "probe", "get_weight": "probe",
+COUNTED_AS = {"close_gripper": "gripper_cycle", "get_mass": "probe",
               "get_stiffness": "probe", "get_object_pose": "pose", "free_spot": "pose",
               "place_in": "gripper_cycle", "lift_and_look": "gripper_cycle"}
 

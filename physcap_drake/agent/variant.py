@@ -31,7 +31,7 @@ class AgentVariant:
     name: str = ""
     # One line for listings.
     description: str = ""
-    # Whether generated code may call get_mass / get_weight / get_stiffness.
+    # Whether generated code may call get_mass / get_stiffness.
     physx_api: bool = True
     # See DECIDERS.
     decider: str = "planner"

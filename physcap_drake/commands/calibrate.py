@@ -39,9 +39,9 @@ def board(paper: Annotated[str, typer.Option(
           out: Annotated[Path | None, typer.Option(
               "--out", help="The PDF to write (default: charuco_<paper>.pdf).")] = None,
           ) -> None:
-    """Write a calibration board to print at 1:1 (PDF, one landscape page).
+    """Write a board to print at 1:1 (PDF).
 
-    The page has margins, crop marks, a 100 mm scale bar and the board's parameters. Print
+    One landscape page with margins, crop marks, a 100 mm scale bar and the board's parameters. Print
     at 100 % ("actual size"), measure the scale bar and a square, and give the square to
     `calibrate camera --square-mm`."""
     from physcap_drake.perception.printed_boards import BOARDS, write_board_pdf  # noqa: PLC0415

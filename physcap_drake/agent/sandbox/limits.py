@@ -31,7 +31,7 @@ class SandboxLimits:
         entries' text), checked after each call.
     max_gripper_cycles: times the code may close the gripper (each close, and the opening
         that follows, wears the fingers and whatever they hold).
-    max_probe_calls: physical probes (get_mass, get_weight, get_stiffness) the code may run.
+    max_probe_calls: physical probes (get_mass, get_stiffness) the code may run.
     max_pose_calls: get_object_pose calls the code may make (with a model as the pointer,
         each new look is a paid model call).
     startup_s: wall time the child may take to start and lock itself down, counted from the
