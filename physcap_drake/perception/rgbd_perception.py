@@ -10,6 +10,7 @@ from collections.abc import Mapping
 import numpy as np
 
 from physcap_drake.perception.camera_geometry import CameraGeometry
+from physcap_drake.perception.container_memory import ContainerMemory
 from physcap_drake.perception.decimation import decimation_factor, upsample
 from physcap_drake.perception.describe import FullImage, describe
 from physcap_drake.perception.footprint import footprint_outline
@@ -17,7 +18,7 @@ from physcap_drake.perception.last_look import LastLook
 from physcap_drake.perception.object_memory import ObjectMemory
 from physcap_drake.perception.regions import (
     find_regions,
-    footprint_rectangle,
+    floor_height,
     is_wall_of,
     scene_geometry,
 )
@@ -38,6 +39,7 @@ class RgbdPerception:
         self.camera = camera
         self.vocabulary = tuple(vocabulary)
         self.memory = ObjectMemory()
+        self.containers = ContainerMemory()
         self._last = LastLook()
 
     def look(self, images: Mapping[str, np.ndarray]) -> list[SeenObject]:
@@ -61,16 +63,23 @@ class RgbdPerception:
         views = [v for v in views if v.container or not any(
             is_wall_of(v.region, container) for container in containers)]
         names = self.memory.recognize(views)
-        seen = sorted((SeenObject(visible, upsample(view.region.mask, step, rgb.shape[:2]),
-                                  step * view.column, step * view.row,
-                                  view.grasp_point, view.top_height,
-                                  footprint_outline(view.region.points),
-                                  footprint_rectangle(view.region.points) if view.container
-                                  else None)
+        seen = sorted((self._seen(visible, view, geometry, step, rgb.shape[:2])
                        for visible, view in zip(names, views, strict=True)),
                       key=lambda s: s.column)
         self._last.keep(key, seen)
         return list(seen)
+
+    def _seen(self, visible: VisibleObject, view, geometry, step: int, shape) -> SeenObject:
+        """The SeenObject of one described region; a container's area (and the grasp
+        point over its middle) as kept while objects on it hide parts of it."""
+        grasp, area = view.grasp_point, None
+        if view.container:
+            area = self.containers.area(visible.name, view.region.points,
+                                        lambda rectangle: floor_height(geometry, rectangle))
+            grasp = np.array([*area.mean(axis=0), grasp[2]])
+        return SeenObject(visible, upsample(view.region.mask, step, shape),
+                          step * view.column, step * view.row, grasp, view.top_height,
+                          footprint_outline(view.region.points), area)
 
     def known(self) -> list[VisibleObject]:
         """Every object named so far (in view or not)."""

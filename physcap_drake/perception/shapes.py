@@ -25,6 +25,8 @@ PROTOTYPES: dict[str, tuple[tuple[float, float, float], ...]] = {
     # A 5 cm toy block.
     "cube": ((0.053, 0.052, 0.045),),
 }
+#: The size word of a prototype ("" for none), where a kind comes in sizes a task names.
+PROTOTYPE_SIZES: dict[str, tuple[str, ...]] = {"cup": ("large", "small", "")}
 CONTAINERS = ("tray", "basket")
 #: Largest RMS log-ratio between measured and prototype sizes for a match (0.3: about
 #: 35 % off on every side).
@@ -55,6 +57,17 @@ def classify(height: float, footprint: tuple[float, float],
             if d < distance:
                 best, distance = kind, d
     return best
+
+
+def size_word(kind: str, height: float, footprint: tuple[float, float]) -> str:
+    """"large" / "small" (or "") from the prototype of `kind` nearest the measured size
+    (m; see PROTOTYPE_SIZES): judged against the kind's typical sizes, not the
+    neighbours in view."""
+    words = PROTOTYPE_SIZES.get(kind)
+    if not words:
+        return ""
+    distances = [shape_distance((height, *footprint), p) for p in PROTOTYPES[kind]]
+    return words[int(np.argmin(distances))]
 
 
 def container_kind(rim_height: float) -> str:
