@@ -5,6 +5,7 @@ Design notes: docs/design/perception.md.
 
 from __future__ import annotations
 
+import dataclasses as dc
 from collections.abc import Mapping
 
 import numpy as np
@@ -16,9 +17,11 @@ from physcap_drake.perception.describe import FullImage, describe
 from physcap_drake.perception.footprint import footprint_outline
 from physcap_drake.perception.last_look import LastLook
 from physcap_drake.perception.object_memory import ObjectMemory
+from physcap_drake.perception.object_state import NO_STANCE, stance_in_depth
 from physcap_drake.perception.regions import (
     find_regions,
     floor_height,
+    inside_rectangle,
     is_wall_of,
     scene_geometry,
 )
@@ -63,13 +66,14 @@ class RgbdPerception:
         views = [v for v in views if v.container or not any(
             is_wall_of(v.region, container) for container in containers)]
         names = self.memory.recognize(views)
-        seen = sorted((self._seen(visible, view, geometry, step, rgb.shape[:2])
+        seen = sorted((self._seen(visible, view, geometry, depth, step)
                        for visible, view in zip(names, views, strict=True)),
                       key=lambda s: s.column)
+        seen = [dc.replace(s, on=standing_on(s, seen)) for s in seen]
         self._last.keep(key, seen)
         return list(seen)
 
-    def _seen(self, visible: VisibleObject, view, geometry, step: int, shape) -> SeenObject:
+    def _seen(self, visible: VisibleObject, view, geometry, depth, step: int) -> SeenObject:
         """The SeenObject of one described region; a container's area (and the grasp
         point over its middle) as kept while objects on it hide parts of it."""
         grasp, area = view.grasp_point, None
@@ -77,10 +81,26 @@ class RgbdPerception:
             area = self.containers.area(visible.name, view.region.points,
                                         lambda rectangle: floor_height(geometry, rectangle))
             grasp = np.array([*area.mean(axis=0), grasp[2]])
-        return SeenObject(visible, upsample(view.region.mask, step, shape),
-                          step * view.column, step * view.row, grasp, view.top_height,
-                          footprint_outline(view.region.points), area)
+        mask = upsample(view.region.mask, step, depth.shape)
+        pose = NO_STANCE if view.container else stance_in_depth(
+            visible.category, np.where(depth > 0, depth, np.nan), mask, self.camera,
+            geometry.plane)
+        return SeenObject(visible, mask, step * view.column, step * view.row, grasp,
+                          view.top_height, footprint_outline(view.region.points), area,
+                          pose.state, pose.tilt_deg)
 
     def known(self) -> list[VisibleObject]:
         """Every object named so far (in view or not)."""
         return self.memory.known()
+
+
+def standing_on(seen: SeenObject, everything: list[SeenObject]) -> str:
+    """The name of the container whose area holds the middle of `seen` ("" for none, and
+    for a container)."""
+    if seen.area is not None:
+        return ""
+    for other in everything:
+        if other.area is not None and inside_rectangle(seen.grasp_point[None], other.area,
+                                                       0.0)[0]:
+            return other.name
+    return ""
