@@ -34,6 +34,13 @@ MAX_DISTANCE = 0.3
 #: A container with walls lower than this is a tray, m.
 TRAY_RIM = 0.045
 UNKNOWN = "object"
+#: A kind the task's words give this object's colour ("three blue cubes") is preferred:
+#: its size distance counts this much (a cube whose depth is half missing still fits); a
+#: kind the task gives another colour counts the inverse (a white cup is no blue cube).
+TOLD_COLOUR_WEIGHT = 0.7
+#: Colour words a task may put before a kind.
+COLOUR_WORDS = ("red", "orange", "yellow", "green", "blue", "purple", "pink", "white",
+                "grey", "black", "brown")
 
 
 def shape_distance(size: tuple[float, float, float], prototype: tuple[float, float, float]
@@ -45,15 +52,23 @@ def shape_distance(size: tuple[float, float, float], prototype: tuple[float, flo
 
 
 def classify(height: float, footprint: tuple[float, float],
-             vocabulary: tuple[str, ...] = ()) -> str:
+             vocabulary: tuple[str, ...] = (), color: str = "") -> str:
     """The kind (a PROTOTYPES key) whose typical size is nearest the measured one (m), among
-    `vocabulary` (all known kinds when empty); UNKNOWN if none is within MAX_DISTANCE."""
-    kinds = [k for k in (vocabulary or PROTOTYPES) if k in PROTOTYPES]
+    `vocabulary` (all known kinds when empty; an entry may carry the colour the task
+    gives the kind, "blue cube", which favours that kind for an object of `color`, see
+    TOLD_COLOUR_WEIGHT, and disfavours it for another colour); UNKNOWN if none is within
+    MAX_DISTANCE."""
+    entries = [entry.split() for entry in (vocabulary or PROTOTYPES)]
+    told = {words[-1]: words[0] for words in entries if len(words) == 2}
+    kinds = dict.fromkeys(words[-1] for words in entries if words[-1] in PROTOTYPES)
     size = (height, *footprint)
     best, distance = UNKNOWN, MAX_DISTANCE
     for kind in kinds:
+        weight = 1.0
+        if color and kind in told:
+            weight = TOLD_COLOUR_WEIGHT if told[kind] == color else 1.0 / TOLD_COLOUR_WEIGHT
         for prototype in PROTOTYPES[kind]:
-            d = shape_distance(size, prototype)
+            d = weight * shape_distance(size, prototype)
             if d < distance:
                 best, distance = kind, d
     return best
@@ -76,9 +91,10 @@ def container_kind(rim_height: float) -> str:
 
 
 def vocabulary_of(text: str) -> tuple[str, ...]:
-    """The kinds a task text names ("Four soda cans ... the wooden tray" -> can, tray). A
-    singular noun that is also a verb ("cubes can be seen") does not count: a kind counts in
-    the plural, or in the singular unless a verb follows it."""
+    """The kinds a task text names ("Four soda cans ... the wooden tray" -> can, tray), each
+    with the colour word the text puts right before it, if any ("Three blue cubes" -> "blue
+    cube"). A singular noun that is also a verb ("cubes can be seen") does not count: a
+    kind counts in the plural, or in the singular unless a verb follows it."""
     words = re.findall(r"[a-z]+", text.lower())
     found = []
     for kind in (*PROTOTYPES, *CONTAINERS):
@@ -86,7 +102,9 @@ def vocabulary_of(text: str) -> tuple[str, ...]:
         singular = [i for i, w in enumerate(words) if w == kind
                     and (i + 1 == len(words) or words[i + 1] not in _VERB_FOLLOWERS)]
         if plural in words or singular:
-            found.append(kind)
+            places = [i for i, w in enumerate(words) if w == plural] + singular
+            colours = {words[i - 1] for i in places if i > 0 and words[i - 1] in COLOUR_WORDS}
+            found.append(f"{colours.pop()} {kind}" if len(colours) == 1 else kind)
     return tuple(found)
 
 
