@@ -4,6 +4,8 @@ each its own object, the tray where it was."""
 
 from __future__ import annotations
 
+import dataclasses as dc
+
 import numpy as np
 import pytest
 from pydrake.math import RigidTransform, RollPitchYaw, RotationMatrix
@@ -120,3 +122,16 @@ def test_two_cups_in_the_tray_are_objects_of_their_own_and_the_tray_stays(scene)
     finally:
         for body, start in starts.items():
             plant.SetFreeBodyPose(context, body, start)
+
+
+def test_the_agent_reads_the_stance_and_the_container():
+    from physcap_drake.agent.observation import ObjectInView
+
+    cup = ObjectInView("large white cup 1", "cup", "white", False, "large", 0.108, 1.0, 2.0)
+    assert cup.describe() == "'large white cup 1': large white cup, 11 cm high"
+    tilted = ObjectInView(*dc.astuple(cup)[:8], "tilted", 11.3, "brown tray")
+    assert tilted.describe() == ("'large white cup 1': large white cup, 11 cm high, "
+                                 "tilted 11°, on the brown tray")
+    lying = ObjectInView(*dc.astuple(cup)[:8], "lying", 90.0)
+    assert lying.describe().endswith("cm high, lying on its side")
+    assert tilted.as_context()["state"] == "tilted" and tilted.as_context()["on"]
