@@ -102,3 +102,37 @@ def test_sizes_are_judged_against_the_kinds_typical_sizes():
     memory = ObjectMemory()
     names = memory.recognize([_view("cup", "white", 0.44, 0.18, 0.066, 0.043)])
     assert [(v.name, v.size) for v in names] == [("small white cup", "small")]
+
+
+def _seen_at(name, x, y, category="cup", state="upright", tilt=0.0):
+    from physcap_drake.perception.seen_object import SeenObject
+    from physcap_drake.perception.visible_objects import VisibleObject
+
+    return SeenObject(VisibleObject(name, category, "white"), np.zeros((2, 2), bool), 0.0,
+                      0.0, np.array([x, y, 0.05]), 0.1, np.zeros((3, 2)), None, state, tilt)
+
+
+def test_the_bench_counts_merges_phantoms_switches_and_stance_errors():
+    from physcap_drake.bench.perception_bench import _compare
+
+    truths = {"cup a": (np.array([0.30, 0.10]), 0.0), "cup b": (np.array([0.30, -0.10]), 0.0)}
+    first: dict[str, str] = {}
+    clean = _compare("t", 0, 0, truths, [_seen_at("cup 1", 0.30, 0.10),
+                                         _seen_at("cup 2", 0.30, -0.10)], first, ("cup",))
+    assert (clean.merges, clean.phantoms, clean.switches, clean.not_found,
+            clean.state_errors) == ([], [], [], [], [])
+    # Cup b now stands 2 cm from cup a and is tilted 12 degrees: one seen object covers
+    # both (a merge, cup b was 'cup 2'), a shadow becomes an object, and the merged one
+    # reads upright.
+    truths = {"cup a": (np.array([0.30, 0.10]), 0.0), "cup b": (np.array([0.30, 0.12]), 12.0)}
+    later = _compare("t", 0, 1, truths, [_seen_at("cup 1", 0.30, 0.11),
+                                         _seen_at("object", 0.2, 0.0, "object", "")],
+                     first, ("cup",))
+    assert later.merges == ["'cup 1' for cup a, cup b"]
+    assert later.phantoms == ["object"]
+    assert later.switches == ["cup b: 'cup 2' now 'cup 1'"]
+    assert later.state_errors == ["cup b: seen upright 0°, is tilted 12°"]
+    # 3.5 cm off: not found rather than matched.
+    gone = _compare("t", 0, 2, {"cup a": (np.array([0.30, 0.135]), 0.0)},
+                    [_seen_at("cup 1", 0.30, 0.10)], first, ("cup",))
+    assert gone.not_found == ["cup a"] and gone.phantoms == ["cup 1"]
