@@ -93,6 +93,9 @@ def test_sizes_are_judged_against_the_kinds_typical_sizes():
     assert size_word("cup", 0.066, (0.043, 0.043)) == "small"
     assert size_word("cup", 0.086, (0.049, 0.049)) == ""
     assert size_word("cube", 0.053, (0.05, 0.05)) == ""
+    # "Four cups with lids": one size, whatever the one in view measures.
+    assert size_word("cup", 0.066, (0.043, 0.043), ("lidded cup", "basket")) == ""
+    assert size_word("cup", 0.066, (0.043, 0.043), ("cup", "blue cube")) == "small"
     # Two large cups and no small one in view: both large (not one of them "small").
     memory = ObjectMemory()
     names = memory.recognize([_view("cup", "white", 0.44, 0.30),

@@ -35,10 +35,12 @@ class Remembered:
 
 
 class ObjectMemory:
-    """The named objects of one episode (see the design notes)."""
+    """The named objects of one episode (see the design notes); `vocabulary` as
+    `shapes.vocabulary_of` gives it (for the size words)."""
 
-    def __init__(self):
+    def __init__(self, vocabulary: tuple[str, ...] = ()):
         self.objects: list[Remembered] = []
+        self.vocabulary = tuple(vocabulary)
 
     def recognize(self, views: list[ObjectView]) -> list[VisibleObject]:
         """The VisibleObject (with its name) of each view, in the same order; remembers
@@ -46,7 +48,8 @@ class ObjectMemory:
         pairs = self._pair(views)
         new = [i for i in range(len(views)) if i not in pairs]
         sizes = {i: "" if views[i].container else size_word(
-            views[i].category, views[i].top_height, views[i].footprint) for i in new}
+            views[i].category, views[i].top_height, views[i].footprint, self.vocabulary)
+            for i in new}
         bases = {i: " ".join(w for w in (sizes.get(i, ""), views[i].color, views[i].category)
                              if w) for i in new}
         for index in sorted(new, key=lambda i: views[i].column):

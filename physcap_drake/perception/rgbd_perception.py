@@ -41,7 +41,7 @@ class RgbdPerception:
     def __init__(self, camera: CameraGeometry, vocabulary: tuple[str, ...] = ()):
         self.camera = camera
         self.vocabulary = tuple(vocabulary)
-        self.memory = ObjectMemory()
+        self.memory = ObjectMemory(self.vocabulary)
         self.containers = ContainerMemory()
         self._last = LastLook()
 

@@ -59,7 +59,8 @@ def classify(height: float, footprint: tuple[float, float],
     TOLD_COLOUR_WEIGHT, and disfavours it for another colour); UNKNOWN if none is within
     MAX_DISTANCE."""
     entries = [entry.split() for entry in (vocabulary or PROTOTYPES)]
-    told = {words[-1]: words[0] for words in entries if len(words) == 2}
+    told = {words[-1]: words[0] for words in entries
+            if len(words) == 2 and words[0] in COLOUR_WORDS}
     kinds = dict.fromkeys(words[-1] for words in entries if words[-1] in PROTOTYPES)
     size = (height, *footprint)
     best, distance = UNKNOWN, MAX_DISTANCE
@@ -74,12 +75,14 @@ def classify(height: float, footprint: tuple[float, float],
     return best
 
 
-def size_word(kind: str, height: float, footprint: tuple[float, float]) -> str:
+def size_word(kind: str, height: float, footprint: tuple[float, float],
+              vocabulary: tuple[str, ...] = ()) -> str:
     """"large" / "small" (or "") from the prototype of `kind` nearest the measured size
     (m; see PROTOTYPE_SIZES): judged against the kind's typical sizes, not the
-    neighbours in view."""
+    neighbours in view. None for a kind the task says comes with lids ("lidded cup" in
+    `vocabulary`): lidded take-away cups come in one size."""
     words = PROTOTYPE_SIZES.get(kind)
-    if not words:
+    if not words or f"lidded {kind}" in vocabulary:
         return ""
     distances = [shape_distance((height, *footprint), p) for p in PROTOTYPES[kind]]
     return words[int(np.argmin(distances))]
@@ -93,7 +96,8 @@ def container_kind(rim_height: float) -> str:
 def vocabulary_of(text: str) -> tuple[str, ...]:
     """The kinds a task text names ("Four soda cans ... the wooden tray" -> can, tray), each
     with the colour word the text puts right before it, if any ("Three blue cubes" -> "blue
-    cube"). A singular noun that is also a verb ("cubes can be seen") does not count: a
+    cube"), or "lidded" for one it says comes with lids ("cups with lids" -> "lidded cup").
+    A singular noun that is also a verb ("cubes can be seen") does not count: a
     kind counts in the plural, or in the singular unless a verb follows it."""
     words = re.findall(r"[a-z]+", text.lower())
     found = []
@@ -104,7 +108,10 @@ def vocabulary_of(text: str) -> tuple[str, ...]:
         if plural in words or singular:
             places = [i for i, w in enumerate(words) if w == plural] + singular
             colours = {words[i - 1] for i in places if i > 0 and words[i - 1] in COLOUR_WORDS}
-            found.append(f"{colours.pop()} {kind}" if len(colours) == 1 else kind)
+            lidded = any(words[i + 1:i + 3] in (["with", "lids"], ["with", "lid"])
+                         for i in places)
+            found.append(f"{colours.pop()} {kind}" if len(colours) == 1
+                         else f"lidded {kind}" if lidded else kind)
     return tuple(found)
 
 
