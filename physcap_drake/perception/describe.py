@@ -31,10 +31,6 @@ MAX_AXIS_SHIFT = 0.03
 #: plane (m); it needs this many pixels of each colour.
 TABLE_BAND = 0.02
 MIN_SHARPENED = 200
-#: The outline may grow by this many pixels (one side of the square grown by) into pixels
-#: lower than an object (`regions` leaves the container's pixels around the objects on it
-#: out, where the smoothed height rises with the objects).
-ZONE_GROWTH = 17
 
 
 @dc.dataclass(frozen=True)
@@ -156,9 +152,7 @@ def sharpen_container(region: Region, rgb: np.ndarray, geometry: SceneGeometry) 
         return region
     lab = _lab(rgb[:, :, :3])
     own, table = np.median(lab[inside], axis=0), np.median(lab[ring], axis=0)
-    low = np.nan_to_num(geometry.heights, nan=np.inf) < OBJECT_HEIGHT
-    zone = geometry.usable & (region.mask | (low & cv2.dilate(
-        mask, np.ones((ZONE_GROWTH, ZONE_GROWTH), np.uint8)).astype(bool)))
+    zone = cv2.dilate(mask, np.ones((5, 5), np.uint8)).astype(bool) & geometry.usable
     nearer = np.linalg.norm(lab - own, axis=2) < np.linalg.norm(lab - table, axis=2)
     sharp = cv2.morphologyEx((zone & nearer).astype(np.uint8), cv2.MORPH_OPEN,
                              np.ones((3, 3), np.uint8)).astype(bool)
