@@ -4,6 +4,8 @@ sizes (not from the neighbours in view)."""
 
 from __future__ import annotations
 
+import dataclasses as dc
+
 import numpy as np
 import pytest
 
@@ -139,3 +141,13 @@ def test_the_bench_counts_merges_phantoms_switches_and_stance_errors():
     gone = _compare("t", 0, 2, {"cup a": (np.array([0.30, 0.135]), 0.0)},
                     [_seen_at("cup 1", 0.30, 0.10)], first, ("cup",))
     assert gone.not_found == ["cup a"] and gone.phantoms == ["cup 1"]
+    # Two cups standing in the tray seen as part of a basket-like container: a merge, and
+    # the container itself (true, with nothing matched to it) is no phantom.
+    basket = dc.replace(_seen_at("brown basket", 0.30, -0.27, "basket", ""),
+                        area=np.array([[0.2, -0.35], [0.4, -0.35], [0.4, -0.2], [0.2, -0.2]]))
+    tray = dc.replace(_seen_at("brown tray", 0.30, 0.30, "tray", ""),
+                      area=np.array([[0.2, 0.25], [0.4, 0.25], [0.4, 0.35], [0.2, 0.35]]))
+    merged = _compare("t", 0, 3, {"cup a": (np.array([0.30, -0.27]), 0.0)},
+                      [basket, tray], {}, ("cup",))
+    assert merged.merges == ["'brown basket' for cup a"]
+    assert merged.phantoms == [] and merged.not_found == []

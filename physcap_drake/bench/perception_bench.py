@@ -136,9 +136,9 @@ UPRIGHT_DEG = 10.0
 @dc.dataclass
 class LookAfterMoves:
     """One look after the oracle moved `moved` objects into the container: true objects in
-    view, merges (one seen object for several true ones), phantoms (seen objects for no
-    true one), identity switches (a true object under another name than at first),
-    objects not found and stance errors, each with what it was."""
+    view, merges (one seen object for several true ones, or a container for any), phantoms
+    (seen objects for no true one), identity switches (a true object under another name
+    than at first), objects not found and stance errors, each with what it was."""
 
     task: str
     seed: int
@@ -178,8 +178,10 @@ def _look(episode):
 
 
 def _compare(task, seed, moved, truths, seen, first_names, upright_kinds) -> LookAfterMoves:
-    objects = [s for s in seen if s.area is None]
+    # Containers take part: a true object matched to one was merged into it.
+    objects = list(seen)
     matched: dict[str, list[str]] = {s.name: [] for s in objects}
+    containers = {s.name for s in seen if s.area is not None}
     result = LookAfterMoves(task, seed, moved, len(truths), [], [], [], [], [])
     for name, (xy, tilt) in truths.items():
         near = min(objects, key=lambda s: np.linalg.norm(s.grasp_point[:2] - xy),
@@ -196,9 +198,9 @@ def _compare(task, seed, moved, truths, seen, first_names, upright_kinds) -> Loo
             result.state_errors.append(f"{name}: seen {near.state} {near.tilt_deg:.0f}°, "
                                        f"is tilted {tilt:.0f}°")
     for seen_name, names in matched.items():
-        if len(names) > 1:
+        if len(names) > 1 or (names and seen_name in containers):
             result.merges.append(f"'{seen_name}' for {', '.join(names)}")
-        elif not names:
+        elif not names and seen_name not in containers:
             result.phantoms.append(seen_name)
     return result
 
