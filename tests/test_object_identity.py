@@ -87,6 +87,11 @@ def test_an_object_that_stayed_keeps_its_name_when_its_outline_looks_different()
     memory.recognize([_view("cube", "blue", 0.30, 0.10, 0.05, 0.05)])
     names = memory.recognize([_view("object", "blue", 0.30, 0.13, 0.06, 0.05)])
     assert names[0].name == "blue object"
+    # First judged of no known kind, then seen as a cup where it stood: a cup from now on.
+    memory = ObjectMemory()
+    assert memory.recognize([_view("object", "blue", 0.30, 0.01, 0.09, 0.04)])[0].name == (
+        "blue object")
+    assert memory.recognize([_view("cup", "blue", 0.30, 0.01)])[0].category == "cup"
 
 
 def test_sizes_are_judged_against_the_kinds_typical_sizes():

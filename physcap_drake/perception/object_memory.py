@@ -10,12 +10,13 @@ import dataclasses as dc
 import numpy as np
 
 from physcap_drake.perception.describe import ObjectView
-from physcap_drake.perception.shapes import size_word
+from physcap_drake.perception.shapes import UNKNOWN, size_word
 from physcap_drake.perception.visible_objects import VisibleObject
 
-#: A view of the remembered colour within this distance of where a remembered object was
-#: last seen is that object, whatever kind its outline suggests now (noise, a neighbour
-#: in front), m; such pairs are made before any other.
+#: A view of the remembered colour within this distance of where a remembered object of a
+#: known kind was last seen is that object, whatever kind its outline suggests now (noise,
+#: a neighbour in front), m; such pairs are made before any other. An object first judged
+#: of no known kind ("blue object") is named anew once it is seen as one ("blue cup").
 STAYED = 0.02
 #: Pairing costs: distance on the table (m), plus this for a straw seen on one and not the
 #: other (a straw can hide behind the object or fall out of view).
@@ -74,7 +75,8 @@ class ObjectMemory:
             for remembered in self.objects:
                 seen = remembered.visible
                 distance = float(np.linalg.norm(view.centre - remembered.centre))
-                stayed = distance < STAYED and seen.color == view.color
+                stayed = (distance < STAYED and seen.color == view.color
+                          and seen.category != UNKNOWN)
                 if not stayed and (seen.category, seen.color) != (view.category, view.color):
                     continue
                 if abs(view.top_height - remembered.top_height) > HEIGHT_TOLERANCE * max(
