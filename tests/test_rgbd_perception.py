@@ -117,11 +117,23 @@ def test_kinds_by_size_among_the_task_nouns():
     assert classify(0.053, (0.05, 0.046), ("cup", "cube")) == "cube"
     assert classify(0.069, (0.07, 0.06), ("avocado",)) == "avocado"
     assert classify(0.30, (0.05, 0.05), ("can",)) == shapes.UNKNOWN
+    # A cube with half its depth missing (5 cm high, 3 x 4 cm of it in view) is nearer a
+    # small cup's size; the task's "blue cubes" make a blue one a cube, a white one not.
+    task = ("cup", "blue cube", "tray")
+    assert classify(0.051, (0.028, 0.041), ("cup", "cube")) == "cup"
+    assert classify(0.051, (0.028, 0.041), task, "blue") == "cube"
+    assert classify(0.051, (0.028, 0.041), task, "white") == "cup"
+    assert classify(0.066, (0.043, 0.043), task, "blue") == "cup"  # a blue small cup
+    # A small white cup measured squat (5.7 cm, 4.6 cm across) is a cube by size alone.
+    assert classify(0.057, (0.046, 0.046), ("cup", "cube")) == "cube"
+    assert classify(0.057, (0.046, 0.046), task, "white") == "cup"
+    # "lidded" is no colour: a red cup in a task of lidded cups is judged by size alone.
+    assert classify(0.057, (0.046, 0.046), ("lidded cup", "cube"), "red") == "cube"
     prompts = {task: vocabulary_of(get_task(task).instance(0).prompt) for task in TASKS}
-    assert prompts == {"find_blue_cube": ("cup", "cube", "tray"),
+    assert prompts == {"find_blue_cube": ("cup", "blue cube", "tray"),
                        "identify_empty_can": ("can", "tray"),
                        "pick_ripe_avocado": ("avocado", "tray"),
-                       "empty_cup": ("cup", "basket")}  # "cubes can be seen": no can
+                       "empty_cup": ("lidded cup", "basket")}  # "cubes can be seen": no can
 
 
 def _view(category, color, x, y, height=0.1, width=0.06, straw=False, container=False):

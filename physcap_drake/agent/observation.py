@@ -20,7 +20,8 @@ class ObjectInView:
     """One object the perception module finds in the image: its name (the handle
     get_object_pose accepts), its visible attributes, how high its top stands above the
     table (m), and where it appears in the image (mean column and row of its pixels, px;
-    columns grow to the image's right)."""
+    columns grow to the image's right). state: "upright", "tilted" or "lying" ("" unknown),
+    tilt_deg its top's angle to the table (deg); on: the container it stands on or in."""
 
     name: str
     category: str
@@ -30,12 +31,18 @@ class ObjectInView:
     height_m: float
     image_x: float
     image_y: float
+    state: str = ""
+    tilt_deg: float = 0.0
+    on: str = ""
 
     def describe(self) -> str:
         size = f"{self.size} " if self.size else ""
         straw = ", with a straw (opened)" if self.straw else ""
+        stance = {"tilted": f", tilted {self.tilt_deg:.0f}°",
+                  "lying": ", lying on its side"}.get(self.state, "")
+        on = f", on the {self.on}" if self.on else ""
         return (f"'{self.name}': {size}{self.color} {self.category}{straw}, "
-                f"{100 * self.height_m:.0f} cm high")
+                f"{100 * self.height_m:.0f} cm high{stance}{on}")
 
     def as_context(self) -> dict:
         return dc.asdict(self)
@@ -66,7 +73,8 @@ def observe(images: dict[str, np.ndarray], perception, robot_time_s: float) -> O
     objects = tuple(
         ObjectInView(seen.visible.name, seen.visible.category, seen.visible.color,
                      seen.visible.straw, seen.visible.size, round(seen.top_height, 3),
-                     round(seen.column, 1), round(seen.row, 1))
+                     round(seen.column, 1), round(seen.row, 1), seen.state,
+                     round(seen.tilt_deg, 1), seen.on)
         for seen in perception.look(images))
     return Observation(objects, encode_jpeg(images[ports.CAMERA_RGB], JPEG_QUALITY),
                        robot_time_s)

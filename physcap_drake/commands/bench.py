@@ -12,7 +12,7 @@ from rich.table import Table
 from physcap_drake.bench.can_loop_bench import run_can_loop
 from physcap_drake.bench.episode_bench import TASKS as EPISODE_TASKS
 from physcap_drake.bench.episode_bench import run_episode_bench, spread_over_runs, warm_up
-from physcap_drake.bench.perception_bench import bench_episode
+from physcap_drake.bench.perception_bench import bench_episode, bench_moves, summarize_moves
 from physcap_drake.bench.perception_bench import summarize as summarize_perception
 from physcap_drake.bench.pick_place_bench import run_trial, summarize
 from physcap_drake.bench.station_bench import CASES, DURATION, run_station_case
@@ -185,14 +185,17 @@ def perception(
 
     Looks at each task's first view through an emulated RealSense, locates every visible
     object by its task name and prints the worst and mean grasp-point error, the objects
-    not found and the attributes seen wrong."""
+    not found and the attributes seen wrong; then looks again after each object the oracle
+    sets in the container and prints merges, phantoms, identity switches, objects not
+    found and stance errors."""
     names = list(TASKS) if tasks == "all" else tasks.split(",")
     jobs = [(task, seed) for task in names for seed in parse_seeds(seeds)]
-    results = []
+    results, looks = [], []
     with trial_progress("perception", len(jobs)) as advance:
         for task, seed in jobs:
             found = bench_episode(task, seed)
             results.extend(found)
+            looks.extend(bench_moves(task, seed))
             advance(all(r.error_m < 0.015 and not r.mismatch for r in found))
     summary = summarize_perception(results)
     table = Table(title="physcap bench perception (RGB-D, emulated RealSense)")
@@ -209,5 +212,17 @@ def perception(
                       f"'{item['seen_as']}': {item['mismatch']}")
     console.print(f"worst grasp-point error over all objects: "
                   f"{summary['all']['worst_error_mm']:.2f} mm")
+    moves = summarize_moves(looks)
+    table = Table(title="after manipulation (first view and after each object moved)")
+    keys = ("looks", "merges", "phantoms", "switches", "not_found", "state_errors")
+    for column in ("task", "looks", "merges", "phantoms", "identity switches", "not found",
+                   "state errors"):
+        table.add_column(column, justify="right")
+    for task, row in [*moves["tasks"].items(), ("all", moves["all"])]:
+        table.add_row(task, *(str(row[k]) for k in keys))
+    console.print(table)
+    for look in moves["problems"]:
+        problems = "; ".join(f"{k}: {', '.join(look[k])}" for k in keys[1:] if look[k])
+        console.print(f"{look['task']} seed {look['seed']}, {look['moved']} moved: {problems}")
     if json_path is not None:
-        save_json(json_path, summary)
+        save_json(json_path, summary | {"after_moves": moves})

@@ -96,7 +96,7 @@ def describe(region: Region, rgb: np.ndarray, geometry: SceneGeometry,
     table_points = np.column_stack([points[:, :2], heights])
     grasp, top = grasp_point_from_points(table_points)
     sides = footprint(points)
-    kind = classify(top, sides, vocabulary)
+    kind = classify(top, sides, vocabulary, color)
     if kind in ROUND_TOPS:
         grasp[:2] = dome_centre(table_points, grasp[:2])
     straw = rises_in_depth(region, geometry, top, grasp[:2]) or _straw_in_colour(

@@ -10,11 +10,14 @@ import dataclasses as dc
 import numpy as np
 
 from physcap_drake.perception.describe import ObjectView
+from physcap_drake.perception.shapes import UNKNOWN, size_word
 from physcap_drake.perception.visible_objects import VisibleObject
 
-#: Objects of one category differ in size when the largest volume (top height × footprint)
-#: is at least this many times the smallest.
-SIZE_RATIO = 1.8
+#: A view of the remembered colour within this distance of where a remembered object of a
+#: known kind was last seen is that object, whatever kind its outline suggests now (noise,
+#: a neighbour in front), m; such pairs are made before any other. An object first judged
+#: of no known kind ("blue object") is named anew once it is seen as one ("blue cup").
+STAYED = 0.02
 #: Pairing costs: distance on the table (m), plus this for a straw seen on one and not the
 #: other (a straw can hide behind the object or fall out of view).
 STRAW_MISMATCH = 0.3
@@ -33,17 +36,21 @@ class Remembered:
 
 
 class ObjectMemory:
-    """The named objects of one episode (see the design notes)."""
+    """The named objects of one episode (see the design notes); `vocabulary` as
+    `shapes.vocabulary_of` gives it (for the size words)."""
 
-    def __init__(self):
+    def __init__(self, vocabulary: tuple[str, ...] = ()):
         self.objects: list[Remembered] = []
+        self.vocabulary = tuple(vocabulary)
 
     def recognize(self, views: list[ObjectView]) -> list[VisibleObject]:
         """The VisibleObject (with its name) of each view, in the same order; remembers
         new objects and where known ones are now."""
         pairs = self._pair(views)
         new = [i for i in range(len(views)) if i not in pairs]
-        sizes = _size_classes(views, new)
+        sizes = {i: "" if views[i].container else size_word(
+            views[i].category, views[i].top_height, views[i].footprint, self.vocabulary)
+            for i in new}
         bases = {i: " ".join(w for w in (sizes.get(i, ""), views[i].color, views[i].category)
                              if w) for i in new}
         for index in sorted(new, key=lambda i: views[i].column):
@@ -67,13 +74,16 @@ class ObjectMemory:
         for i, view in enumerate(views):
             for remembered in self.objects:
                 seen = remembered.visible
-                if (seen.category, seen.color) != (view.category, view.color):
+                distance = float(np.linalg.norm(view.centre - remembered.centre))
+                stayed = (distance < STAYED and seen.color == view.color
+                          and seen.category != UNKNOWN)
+                if not stayed and (seen.category, seen.color) != (view.category, view.color):
                     continue
                 if abs(view.top_height - remembered.top_height) > HEIGHT_TOLERANCE * max(
                         remembered.top_height, 1e-3):
                     continue
-                cost = float(np.linalg.norm(view.centre - remembered.centre)) + (
-                    STRAW_MISMATCH if seen.straw != view.straw else 0.0)
+                cost = distance + (STRAW_MISMATCH if seen.straw != view.straw else 0.0) - (
+                    1.0 if stayed else 0.0)
                 costs.append((cost, i, id(remembered), remembered))
         pairs: dict[int, Remembered] = {}
         taken: set[int] = set()
@@ -95,26 +105,3 @@ class ObjectMemory:
 def _base(name: str) -> str:
     head, _, tail = name.rpartition(" ")
     return head if tail.isdigit() else name
-
-
-def _size_classes(views: list[ObjectView], indices: list[int]) -> dict[int, str]:
-    """"large" / "small" for the objects `indices` of categories whose members in view
-    clearly differ in size (see SIZE_RATIO); nothing for the others."""
-    classes: dict[int, str] = {}
-    by_category: dict[str, list[int]] = {}
-    for i, view in enumerate(views):
-        if not view.container:
-            by_category.setdefault(view.category, []).append(i)
-    for members in by_category.values():
-        volume = {i: views[i].top_height * views[i].footprint[0] * views[i].footprint[1]
-                  for i in members}
-        ordered = sorted(members, key=volume.get)
-        if len(ordered) < 2 or volume[ordered[-1]] < SIZE_RATIO * volume[ordered[0]]:
-            continue
-        ratios = [volume[b] / max(volume[a], 1e-12) for a, b in zip(ordered, ordered[1:],
-                                                                    strict=False)]
-        split = int(np.argmax(ratios)) + 1
-        for rank, i in enumerate(ordered):
-            if i in indices:
-                classes[i] = "large" if rank >= split else "small"
-    return classes

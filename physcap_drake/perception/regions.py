@@ -223,6 +223,30 @@ def footprint_rectangle(points: np.ndarray, percent: float = 2.0) -> np.ndarray:
     return mean + corners @ axes
 
 
+def inside_rectangle(points: np.ndarray, rectangle: np.ndarray, margin: float) -> np.ndarray:
+    """Which points (N × 2 or more, world, m) lie over `rectangle` (4 × 2 corners in order)
+    grown by `margin` (m; shrunk if negative) on every side."""
+    xy = np.asarray(points, dtype=float)[:, :2]
+    centre, inside = rectangle.mean(axis=0), np.ones(len(xy), dtype=bool)
+    for axis in (rectangle[1] - rectangle[0], rectangle[3] - rectangle[0]):
+        length = float(np.linalg.norm(axis))
+        inside &= np.abs((xy - centre) @ (axis / length)) <= length / 2 + margin
+    return inside
+
+
+def floor_height(geometry: SceneGeometry, rectangle: np.ndarray) -> float:
+    """The median height above the table (m) of what the camera sees inside `rectangle`
+    (4 × 2 corners, m) kept WALL_BAND clear of its sides, objects (anything higher than
+    OBJECT_HEIGHT) left out; NaN with fewer than MIN_PIXELS such pixels."""
+    heights = np.where(geometry.usable, geometry.heights, np.nan)
+    low = np.isfinite(heights) & (np.abs(np.nan_to_num(heights)) < OBJECT_HEIGHT)
+    rows, cols = np.nonzero(low)
+    inside = inside_rectangle(geometry.points[rows, cols], rectangle, -WALL_BAND)
+    if inside.sum() < MIN_PIXELS:
+        return float("nan")
+    return float(np.median(heights[rows[inside], cols[inside]]))
+
+
 def footprint(points: np.ndarray) -> tuple[float, float]:
     """The sides (shorter, longer) of the points' footprint on the table (robust extent
     along its principal axes), m."""

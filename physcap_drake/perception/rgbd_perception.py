@@ -5,19 +5,23 @@ Design notes: docs/design/perception.md.
 
 from __future__ import annotations
 
+import dataclasses as dc
 from collections.abc import Mapping
 
 import numpy as np
 
 from physcap_drake.perception.camera_geometry import CameraGeometry
+from physcap_drake.perception.container_memory import ContainerMemory
 from physcap_drake.perception.decimation import decimation_factor, upsample
 from physcap_drake.perception.describe import FullImage, describe
 from physcap_drake.perception.footprint import footprint_outline
 from physcap_drake.perception.last_look import LastLook
 from physcap_drake.perception.object_memory import ObjectMemory
+from physcap_drake.perception.object_state import NO_STANCE, stance_in_depth
 from physcap_drake.perception.regions import (
     find_regions,
-    footprint_rectangle,
+    floor_height,
+    inside_rectangle,
     is_wall_of,
     scene_geometry,
 )
@@ -37,7 +41,8 @@ class RgbdPerception:
     def __init__(self, camera: CameraGeometry, vocabulary: tuple[str, ...] = ()):
         self.camera = camera
         self.vocabulary = tuple(vocabulary)
-        self.memory = ObjectMemory()
+        self.memory = ObjectMemory(self.vocabulary)
+        self.containers = ContainerMemory()
         self._last = LastLook()
 
     def look(self, images: Mapping[str, np.ndarray]) -> list[SeenObject]:
@@ -61,17 +66,41 @@ class RgbdPerception:
         views = [v for v in views if v.container or not any(
             is_wall_of(v.region, container) for container in containers)]
         names = self.memory.recognize(views)
-        seen = sorted((SeenObject(visible, upsample(view.region.mask, step, rgb.shape[:2]),
-                                  step * view.column, step * view.row,
-                                  view.grasp_point, view.top_height,
-                                  footprint_outline(view.region.points),
-                                  footprint_rectangle(view.region.points) if view.container
-                                  else None)
+        seen = sorted((self._seen(visible, view, geometry, depth, step)
                        for visible, view in zip(names, views, strict=True)),
                       key=lambda s: s.column)
+        seen = [dc.replace(s, on=standing_on(s, seen)) for s in seen]
         self._last.keep(key, seen)
         return list(seen)
+
+    def _seen(self, visible: VisibleObject, view, geometry, depth, step: int) -> SeenObject:
+        """The SeenObject of one described region; a container's area (and the grasp
+        point over its middle) as kept while objects on it hide parts of it."""
+        grasp, area = view.grasp_point, None
+        if view.container:
+            area = self.containers.area(visible.name, view.region.points,
+                                        lambda rectangle: floor_height(geometry, rectangle))
+            grasp = np.array([*area.mean(axis=0), grasp[2]])
+        mask = upsample(view.region.mask, step, depth.shape)
+        pose = NO_STANCE if view.container else stance_in_depth(
+            visible.category, np.where(depth > 0, depth, np.nan), mask, self.camera,
+            geometry.plane)
+        return SeenObject(visible, mask, step * view.column, step * view.row, grasp,
+                          view.top_height, footprint_outline(view.region.points), area,
+                          pose.state, pose.tilt_deg)
 
     def known(self) -> list[VisibleObject]:
         """Every object named so far (in view or not)."""
         return self.memory.known()
+
+
+def standing_on(seen: SeenObject, everything: list[SeenObject]) -> str:
+    """The name of the container whose area holds the middle of `seen` ("" for none, and
+    for a container)."""
+    if seen.area is not None:
+        return ""
+    for other in everything:
+        if other.area is not None and inside_rectangle(seen.grasp_point[None], other.area,
+                                                       0.0)[0]:
+            return other.name
+    return ""

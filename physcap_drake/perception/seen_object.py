@@ -20,7 +20,10 @@ class SeenObject:
     table, m. footprint: the outline of the part of the table it stands over, as its
     3D points show it (K × 2 corners of a convex polygon, world x y, m; see
     `footprint.footprint_outline`). area: for a container (tray, basket), the rectangle it
-    covers on the table (4 × 2 corners, m); None for other objects.
+    covers on the table (4 × 2 corners, m); None for other objects. state: "upright",
+    "tilted" or "lying" ("" where the kind has none or the perception does not tell);
+    tilt_deg: its top's angle to the table, deg; on: the name of the container it stands
+    on or in ("" on the table).
     """
 
     visible: VisibleObject
@@ -31,6 +34,9 @@ class SeenObject:
     top_height: float
     footprint: np.ndarray
     area: np.ndarray | None = None
+    state: str = ""
+    tilt_deg: float = 0.0
+    on: str = ""
 
     @property
     def name(self) -> str:

@@ -25,6 +25,8 @@ PROTOTYPES: dict[str, tuple[tuple[float, float, float], ...]] = {
     # A 5 cm toy block.
     "cube": ((0.053, 0.052, 0.045),),
 }
+#: The size word of a prototype ("" for none), where a kind comes in sizes a task names.
+PROTOTYPE_SIZES: dict[str, tuple[str, ...]] = {"cup": ("large", "small", "")}
 CONTAINERS = ("tray", "basket")
 #: Largest RMS log-ratio between measured and prototype sizes for a match (0.3: about
 #: 35 % off on every side).
@@ -32,6 +34,13 @@ MAX_DISTANCE = 0.3
 #: A container with walls lower than this is a tray, m.
 TRAY_RIM = 0.045
 UNKNOWN = "object"
+#: A kind the task's words give this object's colour ("three blue cubes") is preferred:
+#: its size distance counts this much (a cube whose depth is half missing still fits); a
+#: kind the task gives another colour counts the inverse (a white cup is no blue cube).
+TOLD_COLOUR_WEIGHT = 0.7
+#: Colour words a task may put before a kind.
+COLOUR_WORDS = ("red", "orange", "yellow", "green", "blue", "purple", "pink", "white",
+                "grey", "black", "brown")
 
 
 def shape_distance(size: tuple[float, float, float], prototype: tuple[float, float, float]
@@ -43,18 +52,40 @@ def shape_distance(size: tuple[float, float, float], prototype: tuple[float, flo
 
 
 def classify(height: float, footprint: tuple[float, float],
-             vocabulary: tuple[str, ...] = ()) -> str:
+             vocabulary: tuple[str, ...] = (), color: str = "") -> str:
     """The kind (a PROTOTYPES key) whose typical size is nearest the measured one (m), among
-    `vocabulary` (all known kinds when empty); UNKNOWN if none is within MAX_DISTANCE."""
-    kinds = [k for k in (vocabulary or PROTOTYPES) if k in PROTOTYPES]
+    `vocabulary` (all known kinds when empty; an entry may carry the colour the task
+    gives the kind, "blue cube", which favours that kind for an object of `color`, see
+    TOLD_COLOUR_WEIGHT, and disfavours it for another colour); UNKNOWN if none is within
+    MAX_DISTANCE."""
+    entries = [entry.split() for entry in (vocabulary or PROTOTYPES)]
+    told = {words[-1]: words[0] for words in entries
+            if len(words) == 2 and words[0] in COLOUR_WORDS}
+    kinds = dict.fromkeys(words[-1] for words in entries if words[-1] in PROTOTYPES)
     size = (height, *footprint)
     best, distance = UNKNOWN, MAX_DISTANCE
     for kind in kinds:
+        weight = 1.0
+        if color and kind in told:
+            weight = TOLD_COLOUR_WEIGHT if told[kind] == color else 1.0 / TOLD_COLOUR_WEIGHT
         for prototype in PROTOTYPES[kind]:
-            d = shape_distance(size, prototype)
+            d = weight * shape_distance(size, prototype)
             if d < distance:
                 best, distance = kind, d
     return best
+
+
+def size_word(kind: str, height: float, footprint: tuple[float, float],
+              vocabulary: tuple[str, ...] = ()) -> str:
+    """"large" / "small" (or "") from the prototype of `kind` nearest the measured size
+    (m; see PROTOTYPE_SIZES): judged against the kind's typical sizes, not the
+    neighbours in view. None for a kind the task says comes with lids ("lidded cup" in
+    `vocabulary`): lidded take-away cups come in one size."""
+    words = PROTOTYPE_SIZES.get(kind)
+    if not words or f"lidded {kind}" in vocabulary:
+        return ""
+    distances = [shape_distance((height, *footprint), p) for p in PROTOTYPES[kind]]
+    return words[int(np.argmin(distances))]
 
 
 def container_kind(rim_height: float) -> str:
@@ -63,9 +94,11 @@ def container_kind(rim_height: float) -> str:
 
 
 def vocabulary_of(text: str) -> tuple[str, ...]:
-    """The kinds a task text names ("Four soda cans ... the wooden tray" -> can, tray). A
-    singular noun that is also a verb ("cubes can be seen") does not count: a kind counts in
-    the plural, or in the singular unless a verb follows it."""
+    """The kinds a task text names ("Four soda cans ... the wooden tray" -> can, tray), each
+    with the colour word the text puts right before it, if any ("Three blue cubes" -> "blue
+    cube"), or "lidded" for one it says comes with lids ("cups with lids" -> "lidded cup").
+    A singular noun that is also a verb ("cubes can be seen") does not count: a
+    kind counts in the plural, or in the singular unless a verb follows it."""
     words = re.findall(r"[a-z]+", text.lower())
     found = []
     for kind in (*PROTOTYPES, *CONTAINERS):
@@ -73,7 +106,12 @@ def vocabulary_of(text: str) -> tuple[str, ...]:
         singular = [i for i, w in enumerate(words) if w == kind
                     and (i + 1 == len(words) or words[i + 1] not in _VERB_FOLLOWERS)]
         if plural in words or singular:
-            found.append(kind)
+            places = [i for i, w in enumerate(words) if w == plural] + singular
+            colours = {words[i - 1] for i in places if i > 0 and words[i - 1] in COLOUR_WORDS}
+            lidded = any(words[i + 1:i + 3] in (["with", "lids"], ["with", "lid"])
+                         for i in places)
+            found.append(f"{colours.pop()} {kind}" if len(colours) == 1
+                         else f"lidded {kind}" if lidded else kind)
     return tuple(found)
 
 
