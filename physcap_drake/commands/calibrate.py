@@ -41,9 +41,9 @@ def board(paper: Annotated[str, typer.Option(
           ) -> None:
     """Write a board to print at 1:1 (PDF).
 
-    One landscape page with margins, crop marks, a 100 mm scale bar and the board's parameters. Print
-    at 100 % ("actual size"), measure the scale bar and a square, and give the square to
-    `calibrate camera --square-mm`."""
+    One landscape page with margins, crop marks, a 100 mm scale bar and the board's
+    parameters. Print at 100 % ("actual size"), measure the scale bar and a square, and give
+    the square to `calibrate camera --square-mm`."""
     from physcap_drake.perception.printed_boards import BOARDS, write_board_pdf  # noqa: PLC0415
 
     if paper not in BOARDS:
