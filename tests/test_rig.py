@@ -150,10 +150,7 @@ def _rig_without_a_world(tmp_path, monkeypatch, image_period: float):
     scenario = load_scenario_text(
         ROBOT + f"station: !PiperCan {{interface: virtual, channel: {unique_channel()}}}\n"
         f"cameras: [!RealSense {{width: {W}, height: {H}, recording: {recording}, "
-        f"{CAMERA_POSE}}}]\n"
-        # The arm's emulator shares this machine's CPUs, as the twins' does
-        # (stations/rig_emulated.yaml): it may run further behind its plan than a real arm.
-        "skills: {tracking_delay: 0.3, tracking_tolerance: 0.1}\n")
+        f"{CAMERA_POSE}}}]\n")
     sink = McapSink(tmp_path / "rig.mcap")
     robot = build_robot_stack(scenario, make_recorder=lambda station: make_mcap_recorder(
         sink, station, scenario, image_period=image_period))

@@ -90,8 +90,8 @@ def test_private_names_are_rejected_but_a_lone_underscore_is_not(name):
 
 
 @pytest.mark.parametrize("attribute", ["f_globals", "gi_frame", "co_code", "tb_next",
-                                       "cr_await", "ag_frame"])
+                                       "cr_await", "ag_frame", "func_globals"])
 def test_frame_and_code_attributes_are_rejected_with_their_reason(attribute):
     assert rejected(f"y = [1].{attribute}") == (
         f"code rejected: line 1: the attribute {attribute!r} is not allowed (attributes of "
-        "frames, code objects, tracebacks and generators may not be used)")
+        "frames, code objects, tracebacks, generators and compiled functions may not be used)")

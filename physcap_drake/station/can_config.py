@@ -238,11 +238,25 @@ class PiperCan:
             apply(self.emulated, drawn)
 
 
+#: Tracking limits no skill on a CAN station goes below (rad, s): the arm's feedback comes
+#: over a link with its own latency and jitter, and an emulated arm shares the host's CPUs,
+#: so it may run further behind its plan, and off it while it catches up, than a simulated
+#: one (docs/motion_safety.md).
+CAN_TRACKING_TOLERANCE = 0.1
+CAN_TRACKING_DELAY = 0.3
+
+
 def rig_skills(skills, station):
-    """The skills' limits for `station`: on a real arm (PiperCan, not emulated) the joint
-    speed and acceleration are at most the station's, and the speed at most the arm's at
-    its speed percentage; elsewhere `skills` unchanged."""
-    if not isinstance(station, PiperCan) or not station.real_arm:
+    """The skills' limits for `station`: on a CAN station, tracking judged within at least
+    CAN_TRACKING_TOLERANCE and CAN_TRACKING_DELAY; on a real arm (not emulated) also the joint
+    speed and acceleration at most the station's, and the speed at most the arm's at its
+    speed percentage; elsewhere `skills` unchanged."""
+    if not isinstance(station, PiperCan):
+        return skills
+    skills = dc.replace(skills,
+                        tracking_tolerance=max(skills.tracking_tolerance, CAN_TRACKING_TOLERANCE),
+                        tracking_delay=max(skills.tracking_delay, CAN_TRACKING_DELAY))
+    if not station.real_arm:
         return skills
     arm_speed = MAX_JOINT_SPEED * station.arm_speed_percent / 100.0
     return dc.replace(skills, max_joint_velocity=min(skills.max_joint_velocity,
