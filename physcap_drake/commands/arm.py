@@ -150,7 +150,7 @@ def enable(scenario: ScenarioOption = None, scenario_text: ScenarioText = "",
 
 @app.command("disable")
 def disable(scenario: ScenarioOption = None, scenario_text: ScenarioText = "",
-           interface: Interface = None,
+            interface: Interface = None,
             channel: Channel = None, yes: Annotated[bool, typer.Option(
                 "--yes", help="Confirm that the arm is supported (or parked): its motors "
                               "lose power.")] = False) -> None:
@@ -168,7 +168,7 @@ def disable(scenario: ScenarioOption = None, scenario_text: ScenarioText = "",
 
 @app.command("park")
 def park(scenario: ScenarioOption = None, scenario_text: ScenarioText = "",
-           interface: Interface = None,
+         interface: Interface = None,
          channel: Channel = None, yes: Yes = False) -> None:
     """Park: to the rest pose slowly, then motors off.
 
@@ -183,7 +183,7 @@ def park(scenario: ScenarioOption = None, scenario_text: ScenarioText = "",
 @app.command("gripper")
 def gripper(action: Annotated[str, typer.Argument(help="open, close or zero.")],
             scenario: ScenarioOption = None, scenario_text: ScenarioText = "",
-           interface: Interface = None,
+            interface: Interface = None,
             channel: Channel = None, yes: Yes = False) -> None:
     """Open or close the gripper, or zero it.
 
@@ -206,7 +206,7 @@ def gripper(action: Annotated[str, typer.Argument(help="open, close or zero.")],
 
 @app.command("estop")
 def estop(scenario: ScenarioOption = None, scenario_text: ScenarioText = "",
-           interface: Interface = None,
+          interface: Interface = None,
           channel: Channel = None) -> None:
     """Emergency stop (0x150 = 1); returns once the arm reports it."""
     _with_arm(scenario, lambda link, _: link.emergency_stop(), interface, channel,
@@ -231,7 +231,7 @@ def resume(scenario: ScenarioOption = None, scenario_text: ScenarioText = "",
 
 @app.command("clear-errors")
 def clear_errors(scenario: ScenarioOption = None, scenario_text: ScenarioText = "",
-           interface: Interface = None,
+                 interface: Interface = None,
                  channel: Channel = None) -> None:
     """Clear every joint's errors (0x475) and say what is left.
 
