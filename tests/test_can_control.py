@@ -133,10 +133,21 @@ def test_a_lost_mode_frame_is_sent_again_until_the_arm_confirms():
             link.close()
 
 
-def test_an_arm_that_never_confirms_ends_start_up_naming_what_it_reports():
+def test_an_arm_that_stays_in_standby_ends_start_up_saying_to_reset_it():
     with emulated_arm(drop=lambda i, d: i == codec.MODE_CONTROL) as (channel, _, received):
+        took = start_fails(link_on(channel), r"stays in standby: it took no mode frame.*"
+                                             r"physcap arm resume --yes.*power-cycle")
+        assert took < 3.0 and codec.MOTOR_ENABLE not in [i for i, _ in received]
+
+
+def test_an_arm_that_never_confirms_ends_start_up_naming_what_it_reports():
+    def ethernet(arm):
+        arm.ctrl_mode = 3  # another host controls it over Ethernet
+
+    with emulated_arm(ethernet, drop=lambda i, d: i == codec.MODE_CONTROL) as (
+            channel, _, received):
         took = start_fails(link_on(channel), r"never confirmed CAN control in MOVE J.*it "
-                                             r"reports standby, MOVE P, normal")
+                                             r"reports Ethernet control, MOVE P, normal")
         assert took < 3.0 and codec.MOTOR_ENABLE not in [i for i, _ in received]
 
 

@@ -1,7 +1,7 @@
 """The emulated PiPER's start states, read and driven through the vendor's SDK as a host
 would: drag-teach (motion ignored until reset), a linkage's leader (no joint feedback,
-control frames instead), standby with the first mode frame lost; and the normal start
-on the other side of each."""
+control frames instead), stuck in standby (every mode frame dropped until reset), lossy
+(the first mode frame lost); and the normal start on the other side of each."""
 
 from __future__ import annotations
 
@@ -39,9 +39,9 @@ def control_confirmed(sdk) -> bool:
 
 
 def test_an_unknown_start_state_is_refused_naming_the_states():
-    with pytest.raises(ValueError, match="'drag'.*normal, teach, leader, standby"):
+    with pytest.raises(ValueError, match="'drag'.*normal, teach, leader, standby, lossy"):
         Firmware(KinematicMotion(), start="drag")
-    assert START_STATES == ("normal", "teach", "leader", "standby")
+    assert START_STATES == ("normal", "teach", "leader", "standby", "lossy")
 
 
 def test_a_scenario_names_a_bad_start_state_by_its_field():
@@ -108,8 +108,25 @@ def test_a_leader_arm_sends_control_frames_and_no_joint_feedback():
         assert sdk.GetArmJointCtrl().time_stamp == 0
 
 
-def test_a_standby_arm_loses_the_first_mode_frame_and_takes_the_second():
+def test_a_standby_arm_drops_every_mode_frame_until_it_is_reset():
     with started("standby") as (sdk, _):
+        enable(sdk, speed=30)
+        for _ in range(5):  # a host resending the mode frame, as start-up does
+            sdk.MotionCtrl_2(0x01, 0x01, 30, 0x00)
+            time.sleep(0.02)
+        stream(sdk, MOVED, lambda: False, timeout=0.3)
+        assert settled(sdk)
+        assert (status(sdk).ctrl_mode, status(sdk).mode_feed) == (0, 0)  # still standby
+        np.testing.assert_allclose(joints(sdk), READY, atol=1e-5)
+        sdk.MotionCtrl_1(0x02, 0, 0)  # the vendor's reset (piper_ctrl_reset.py)
+        assert wait_until(lambda: not any(sdk.GetArmEnableStatus()))  # motors off
+        enable(sdk, speed=30)
+        assert wait_until(lambda: control_confirmed(sdk))
+        assert stream(sdk, MOVED, lambda: np.allclose(joints(sdk), MOVED, atol=1e-5))
+
+
+def test_a_lossy_arm_loses_the_first_mode_frame_and_takes_the_second():
+    with started("lossy") as (sdk, _):
         enable(sdk, speed=30)  # its mode frame is lost
         assert settled(sdk)
         assert status(sdk).ctrl_mode == 0  # still standby

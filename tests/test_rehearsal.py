@@ -88,6 +88,7 @@ def test_status_enable_estop_resume_park_on_one_served_arm(serve, tmp_path):
 @pytest.mark.parametrize("state, words", [
     ("teach", "is in drag-teach (teach record): press the teach button"),
     ("leader", "is a leader (teach-input) arm"),
+    ("standby", "stays in standby: it took no mode frame (0x151, CAN control)"),
 ])
 def test_an_arm_that_cannot_be_controlled_is_named_in_one_line(serve, state, words):
     path = serve(state)
@@ -102,7 +103,16 @@ def test_an_arm_that_cannot_be_controlled_is_named_in_one_line(serve, state, wor
     assert run.exit_code == 2 and words in run.output.replace("\n", " ")
 
 
-@pytest.mark.parametrize("state", ["standby", "normal"])
+def test_an_arm_stuck_in_standby_enables_once_reset(serve, tmp_path):
+    path = serve("standby")
+    refused = arm("enable", "--yes", path=path)
+    assert refused.exit_code == 2 and "physcap arm resume --yes" in refused.output
+    assert arm("resume", "--yes", path=path).exit_code == 0
+    assert arm("enable", "--yes", path=path).exit_code == 0
+    assert status(path, tmp_path)["enabled"] == [True] * 6
+
+
+@pytest.mark.parametrize("state", ["lossy", "normal"])
 def test_a_lost_first_mode_frame_is_resent_and_the_arm_enables(serve, state, tmp_path):
     path = serve(state)
     assert arm("enable", "--yes", path=path).exit_code == 0

@@ -54,8 +54,10 @@ MIT_REFUSAL = ("MIT mode (MOVE M with 0xAD) is not emulated: the emulated arm's 
                "gains cannot follow per-joint kp/kd")
 #: The states an emulated arm can be powered up in, for rehearsals: as it left the factory;
 #: in drag-teach (its teach button pressed); configured as a linkage's leader (0x470 0xFA);
-#: in standby with the first mode frame (0x151) it is sent lost on the way.
-START_STATES = ("normal", "teach", "leader", "standby")
+#: stuck in standby, every mode frame (0x151) dropped until a reset (0x150 = 2) or a power
+#: cycle, as after drag-teach or MIT mode (piper_sdk issue 103, demo piper_ctrl_reset.py);
+#: "lossy": normal, but the first mode frame it is sent is lost on the way.
+START_STATES = ("normal", "teach", "leader", "standby", "lossy")
 
 
 def _joint_bits(joints) -> int:
@@ -116,8 +118,10 @@ class Firmware:
             self._handlers[identifier] = (lambda i: lambda d: self._end_pose(i, d))(index)
         for joint, identifier in enumerate(codec.MIT_COMMAND):
             self._handlers[identifier] = (lambda j: lambda d: self._mit_command(j, d))(joint)
-        #: Mode frames (0x151) still to be lost before one arrives (the standby start).
-        self._mode_frames_to_lose = 1 if start == "standby" else 0
+        #: Mode frames (0x151) still to be lost before one arrives (the lossy start).
+        self._mode_frames_to_lose = 1 if start == "lossy" else 0
+        #: Whether mode frames are dropped until a reset (the standby start).
+        self._stuck_in_standby = start == "standby"
         if start == "teach":
             self._drag_teach(1)
         elif start == "leader":
@@ -181,6 +185,7 @@ class Firmware:
         arm.arm_status, arm.err_code, arm.refusal = NORMAL, 0, ""
         # A leader stays one (its role is kept in flash; it changes with 0x470 only).
         arm.teach_status = 0
+        self._stuck_in_standby = False
         arm.ctrl_mode = 6 if arm.linkage.linkage == codec.LEADER else 0
         arm.enabled[:] = False
 
@@ -220,6 +225,8 @@ class Firmware:
         mode = codec.decode_mode_control(data)
         if self._mode_frames_to_lose:
             self._mode_frames_to_lose -= 1
+            return
+        if self._stuck_in_standby:
             return
         arm = self.arm
         if arm.ctrl_mode == 6 or arm.arm_status in (TEACH_RECORD, TEACH_EXECUTE, TEACH_PAUSE):

@@ -197,9 +197,20 @@ class PiperLink(ControlSteps):
             raise RuntimeError("resume cuts the motors' power: stop streaming (close the "
                                "station, or stop_streaming()) first")
         self.open()
-        self._wait_for(lambda: self._arm_status() == 0 or None,
-                       "the resume (0x2A1 arm status back to 0)",
-                       ask=lambda: self._send(*codec.encode_motion_control(emergency=2)))
+        sent: list[float] = []  # when the reset was sent: sent at least once, even to an
+        # arm already at status 0 (one stuck in standby is reset by it)
+
+        def reset() -> None:
+            sent.append(time.monotonic())
+            self._send(*codec.encode_motion_control(emergency=2))
+
+        def done() -> bool | None:
+            listener = self.listener
+            return (bool(sent) and self._arm_status() == 0
+                    and listener.reported_since(sent[0]).all()
+                    and not listener.enabled_since(sent[0]).any()) or None
+
+        self._wait_for(done, "the resume (0x2A1 arm status 0, every motor off)", ask=reset)
         self.listener.clear_fault()
 
     def clear_errors(self) -> str:

@@ -3,8 +3,9 @@
 `ControlSteps` is a part of PiperLink (it uses the link's listener, `_send` and
 `_wait_for`): `check_ready()` refuses an arm that is silent, in drag-teach, a leader, or
 sends no joint feedback; `take_control()` sends the mode frame (0x151: CAN control, MOVE J,
-the station's speed) until the arm's status (0x2A1) reports both; `set_collision_level`
-and `set_gripper_stroke` write a setting only when the arm's differs, and read it back;
+the station's speed) until the arm's status (0x2A1) reports both (one that stays in standby
+is to be reset); `set_collision_level` and `set_gripper_stroke` write a setting only when
+the arm's differs, and read it back;
 `enable()` / `disable()` switch the motors until every driver reports it. Each failure is
 a StartupError whose one line names the state and what to do.
 """
@@ -19,13 +20,17 @@ from physcap_drake.can import codec
 
 #: ctrl_mode and move mode of streaming joint targets (0x151, 0x2A1).
 CAN_CONTROL, MOVE_J = 1, 1
-#: ctrl_mode of an arm in drag-teach.
-TEACH_MODE = 2
+#: ctrl_mode of an arm in standby, and of one in drag-teach.
+STANDBY, TEACH_MODE = 0, 2
 #: Interval between enable (or disable) commands until the drivers report it, s.
 ENABLE_RETRY = 0.05
 #: How to leave drag-teach, and to make a leader arm a follower again.
 LEAVE_TEACH = ("press the teach button on the arm's base to end drag-teach (or `physcap arm "
                "resume --yes` with the arm supported), then try again")
+#: How owners get an arm out of standby (docs/real_rig.md).
+RESET_STANDBY = ("support the arm and reset it (`physcap arm resume --yes`, 0x150 = 2 as the "
+                 "vendor's piper_ctrl_reset.py: the motors lose power), then try again; "
+                 "power-cycle it if it stays in standby")
 MAKE_FOLLOWER = ("make it a follower (piper_sdk: MasterSlaveConfig(0xFC, 0, 0, 0)), "
                  "power-cycle it, then try again")
 
@@ -90,6 +95,12 @@ class ControlSteps:
                            ask=lambda: self._send(*self.mode_frame()))
         except StartupError:
             status = self.listener.snapshot().status
+            if status is not None and status.ctrl_mode == STANDBY:
+                raise StartupError(f"the arm on {self.where} stays in standby: it took no "
+                                   "mode frame (0x151, CAN control) within "
+                                   f"station.startup_timeout = {self.config.startup_timeout} "
+                                   "s, as after drag-teach or MIT mode: " + RESET_STANDBY
+                                   ) from None
             said = ("no status" if status is None else
                     f"{codec.CTRL_MODE_NAMES.get(status.ctrl_mode, status.ctrl_mode)}, "
                     f"{codec.MOVE_MODE_NAMES.get(status.mode_feed, status.mode_feed)}, "

@@ -44,7 +44,10 @@ def emulate_piper(
     start: Annotated[str, typer.Option(
         "--start", help="The state the arm powers up in: normal, teach (drag-teach: CAN "
                         "motion ignored until reset), leader (a linkage's leader arm: no joint "
-                        "feedback) or standby (the first mode frame is lost).")] = "normal",
+                        "feedback), standby (stuck in standby: every mode frame 0x151 "
+                        "dropped until reset with `physcap arm resume --yes`, as after "
+                        "drag-teach or MIT mode) or lossy (normal, but the first mode frame "
+                        "is lost on the way).")] = "normal",
     joints_deg: Annotated[str, typer.Option(
         "--joints-deg", help="Where the kinematic arm is at power-up: J1..J6 in degrees, comma "
                              "separated, within the mechanical stops (e.g. J6 at 160, past its "

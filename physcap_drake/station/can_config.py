@@ -135,8 +135,9 @@ class PiperCan:
     # Faults on the emulated bus.
     faults: CanFaults = dc.field(default_factory=CanFaults)
     # The state the emulated arm powers up in, for rehearsals (docs/piper_emulator.md):
-    # "normal", "teach" (drag-teach), "leader" (a linkage's leader arm), "standby" (its
-    # first mode frame is lost).
+    # "normal", "teach" (drag-teach), "leader" (a linkage's leader arm), "standby" (stuck
+    # in standby: mode frames dropped until a reset, 0x150 = 2), "lossy" (its first mode
+    # frame is lost).
     emulated_start: str = "normal"
 
     @property
