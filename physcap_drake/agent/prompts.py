@@ -29,22 +29,25 @@ from physcap_drake.agent.schemas import (
     PrioritizerAnswer,
 )
 from physcap_drake.agent.world_facts import WorldFacts
-from physcap_drake.knowledge import KnowledgeEntry
+from physcap_drake.knowledge import KnowledgeEntry, time_line
 from physcap_drake.resources import agents_dir
 
 
 @dc.dataclass(frozen=True)
 class AgentContext:
     """Everything an agent may know at a decision: the task text, what the camera shows, the
-    measurements and the steps so far. Nothing hidden goes in here."""
+    measurements and the steps so far, and the robot time used against the episode's budget
+    (`budget_s`, s; None where there is none). Nothing hidden goes in here."""
 
     task: str
     observation: Observation
     knowledge: tuple[KnowledgeEntry, ...]
     history: tuple[StepRecord, ...]
+    budget_s: float | None = None
 
     def as_context(self) -> dict:
-        return {"task": self.task,
+        return {"task": self.task, "robot_time_s": self.observation.robot_time_s,
+                "budget_s": self.budget_s,
                 "objects_in_view": [o.as_context() for o in self.observation.objects],
                 "knowledge": [_entry_context(e) for e in self.knowledge],
                 "history": [s.as_context() for s in self.history]}
@@ -53,6 +56,11 @@ class AgentContext:
         if not self.knowledge:
             return "(nothing measured yet)"
         return "\n".join(f"- {entry.describe()}" for entry in self.knowledge)
+
+    def time_text(self) -> str:
+        """The robot time used so far and the budget, one line."""
+        line = time_line(self.observation.robot_time_s, self.budget_s).removeprefix("- ")
+        return line[:1].upper() + line[1:]
 
 
 def _entry_context(entry: KnowledgeEntry) -> dict:
@@ -103,7 +111,7 @@ class PromptBook:
                  view.describe() if view else ""]
         return self.render("context", task=ctx.task, objects=objects_text(ctx.observation),
                            image_notes="".join(f"{n}\n" for n in notes if n),
-                           scene=scene, knowledge=ctx.knowledge_text(),
+                           scene=scene, knowledge=ctx.knowledge_text(), time=ctx.time_text(),
                            history=history_text(list(ctx.history)))
 
     def _seeing(self) -> dict[str, str]:
