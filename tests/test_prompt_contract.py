@@ -164,7 +164,7 @@ def test_lengths_are_in_metres(rendered):
     for request in requests:
         assert not re.search(r"\d\s*(cm|mm|centimet|millimet)", _text(request)), request.role
     context = requests[-1].prompt
-    assert "its top 0.100 m above the table" in context
+    assert "0.100 m high (top at z 0.100 m, bottom at z 0.000 m)" in context
 
 
 def test_the_sandbox_rules_in_the_coder_prompt_are_the_policy(rendered):
