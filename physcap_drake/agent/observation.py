@@ -11,6 +11,7 @@ import numpy as np
 from physcap_drake.perception.jpeg import encode_jpeg
 from physcap_drake.perception.object_geometry import Geometry, SteadySizes, measure
 from physcap_drake.perception.seen_object import SeenObject
+from physcap_drake.perception.shapes import CONTAINERS
 from physcap_drake.station import ports
 
 #: JPEG quality of the images sent to the models.
@@ -50,7 +51,7 @@ class ObjectInView:
 
     @property
     def container(self) -> bool:
-        return self.wall_height_m > 0.0
+        return self.category in CONTAINERS
 
     def describe(self) -> str:
         size = f"{self.size} " if self.size else ""

@@ -32,8 +32,8 @@ SMOOTHING = 5
 TABLE_BAND = 0.02
 TABLE_STEP = 4
 MIN_TABLE_POINTS = 100
-#: The error sizes and heights are stated with, m (rendered RGB-D views: tops within
-#: 0.005 m of the models', footprints within 0.008 m; docs/agent_prompts.md).
+#: The error heights are stated with, m (rendered find_blue_cube views: tops within
+#: 0.005 m of the models', cube sides within 0.006 m; docs/agent_prompts.md).
 STATED_ERROR = 0.01
 
 
