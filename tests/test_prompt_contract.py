@@ -25,6 +25,7 @@ from physcap_drake.agent.schemas import Candidate, JointPlannerAnswer, PlannerAn
 from physcap_drake.agent.structured_call import ask_structured
 from physcap_drake.agent.variant import load_variant, variant_names
 from physcap_drake.agent.world_facts import WorldFacts, finger_length
+from physcap_drake.app.agent_episode import ROBOT_TIME_LIMIT
 from physcap_drake.knowledge import KnowledgeEntry
 from physcap_drake.resources import stations_dir
 from physcap_drake.robot_api import RobotAPI
@@ -42,6 +43,17 @@ def world() -> WorldFacts:
     return WorldFacts.from_scenario(load_scenario(stations_dir() / "find_blue_cube.yaml"))
 
 
+#: Robot time used at the rendered decision, s.
+USED_S = 37.4
+
+
+def _budget(task: str) -> float:
+    """The budget the prompts must show: the one the task's prompt states ("within N s of
+    robot time"), else the episode's robot-time limit."""
+    stated = re.search(r"within (\d+) s of robot time", TASKS[task].prompt)
+    return float(stated.group(1)) if stated else ROBOT_TIME_LIMIT
+
+
 def _observation(task: str) -> Observation:
     objects = TASKS[task].instance(0).objects
     image = np.full((360, 640, 3), 90, np.uint8)
@@ -49,7 +61,7 @@ def _observation(task: str) -> Observation:
     return Observation(tuple(
         ObjectInView(o.visible.name, o.visible.category, o.visible.color, o.visible.straw,
                      o.visible.size, 0.1, 40.0 + 60 * i, 180.0)
-        for i, o in enumerate(objects)), jpeg, 0.0)
+        for i, o in enumerate(objects)), jpeg, USED_S)
 
 
 def _coder_api(physx: bool) -> CodeAPI:
@@ -68,7 +80,8 @@ def _requests(task: str, world: WorldFacts) -> list[LLMRequest]:
     knowledge = (KnowledgeEntry(first, "mass", 0.37, "kg", True),)
     failed = StepRecord(1, "explore", "", "", "t", "goto_pose([0.3, 0.0])", False,
                         "ValueError: position must have 3 numbers", "", (), (), 10.0)
-    ctx = AgentContext(instance.prompt, observation, knowledge, (failed,))
+    budget = min(ROBOT_TIME_LIMIT, getattr(TASKS[task], "time_limit_s", None) or math.inf)
+    ctx = AgentContext(instance.prompt, observation, knowledge, (failed,), budget)
     requests = []
     for name in variant_names():
         variant = load_variant(name)
@@ -151,7 +164,7 @@ def test_lengths_are_in_metres(rendered):
     for request in requests:
         assert not re.search(r"\d\s*(cm|mm|centimet|millimet)", _text(request)), request.role
     context = requests[-1].prompt
-    assert "its top 0.100 m above the table" in context
+    assert "0.100 m high (top at z 0.100 m, bottom at z 0.000 m)" in context
 
 
 def test_the_sandbox_rules_in_the_coder_prompt_are_the_policy(rendered):
@@ -220,3 +233,17 @@ def test_the_rule_on_what_to_explore_is_stated_once_in_the_same_words(rendered):
         assert request.system.count(rule) == 1, request.context.get("mode")
         assert "list every exploration" not in request.system
         assert "rank it last" not in request.system
+
+
+def test_every_prompt_shows_the_robot_time_used_and_the_tasks_budget(rendered):
+    task, requests = rendered
+    budget = _budget(task)
+    line = (f"Robot time used: 37 s of the task's {budget:.0f} s budget "
+            f"({budget - 37.4:.0f} s left).")
+    assert {"planner", "coder"} <= {r.role for r in requests}
+    for request in requests:
+        assert line in request.prompt, (request.role, request.context.get("mode"))
+        assert request.context["robot_time_s"] == USED_S
+        assert request.context["budget_s"] == budget
+    if task == "empty_cup":  # the only task whose prompt states its own limit
+        assert "of the task's 200 s budget (163 s left)" in requests[0].prompt

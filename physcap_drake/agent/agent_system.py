@@ -24,6 +24,7 @@ from physcap_drake.agent.sandbox import CallServer, CodeOutcome, SpareChild, Wai
 from physcap_drake.control.requests import RobotRequest, SkillStatus
 from physcap_drake.control.skill_executor import MONITOR_PERIOD, REQUEST_PORT, STATUS_PORT
 from physcap_drake.immutable_state import Immutable
+from physcap_drake.perception.object_geometry import SteadySizes
 from physcap_drake.station import ports
 from physcap_drake.station.arm_fault import ArmFault
 from physcap_drake.weak_method import weak_method
@@ -136,6 +137,7 @@ class AgentSystem(LeafSystem):
     def __init__(self, perception, period: float = PERIOD, *, background: bool = False):
         super().__init__()
         self._perception = perception
+        self._sizes = SteadySizes()  # the sizes stated so far, per object name
         self._background = background
         self._policy: AgentLoop | None = None
         self._start_problem = ""
@@ -186,7 +188,7 @@ class AgentSystem(LeafSystem):
             self._on_observe()
         images = {name: (port.Eval(context).data if name in _IMAGE_INPUTS
                          else port.Eval(context)) for name, port in self._inputs.items()}
-        return observe(images, self._perception, self._robot_time())
+        return observe(images, self._perception, self._robot_time(), self._sizes)
 
     def state(self, context: Context) -> AgentState:
         return context.get_abstract_state(self._state).get_value()

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import dataclasses as dc
 import json
+import math
 import threading
 from collections.abc import Callable, Generator
 
@@ -177,13 +178,15 @@ class AgentLoop:
                  limits: SandboxLimits | None = None, prompts: PromptBook | None = None,
                  robot_time_limit: float = 900.0, transcript: Transcript | None = None,
                  on_phase: Callable[[str, int, int], None] | None = None,
-                 block_retries: int = BLOCK_RETRIES):
+                 block_retries: int = BLOCK_RETRIES, task_budget_s: float | None = None):
         self.task, self.variant, self.llm, self.api = task, variant, llm, api
         self._check = check
         self._seed = seed
         self._limits = variant.block_limits(limits or SandboxLimits())
         self._prompts = prompts or PromptBook(images=takes_images(llm))
         self._robot_time_limit = robot_time_limit
+        # The budget the prompts show: the task's own, where it states one, within the episode's.
+        self._budget_s = min(robot_time_limit, task_budget_s or math.inf)
         self.transcript = transcript or Transcript()
         self._on_phase = on_phase
         self._block_retries = block_retries
@@ -236,7 +239,7 @@ class AgentLoop:
                              f"{failed.error}", kind=FailureKind.CODE)
         try:
             context = AgentContext(self.task, observation, tuple(self.api.knowledge.entries),
-                                   mind.steps)
+                                   mind.steps, self._budget_s)
             if failed is not None and mind.last_decision is not None:
                 decision = mind.last_decision
                 mind = dc.replace(mind, retries=mind.retries + 1)

@@ -9,6 +9,9 @@ import dataclasses as dc
 import numpy as np
 
 from physcap_drake.perception.jpeg import encode_jpeg
+from physcap_drake.perception.object_geometry import Geometry, SteadySizes, measure
+from physcap_drake.perception.seen_object import SeenObject
+from physcap_drake.perception.shapes import CONTAINERS
 from physcap_drake.station import ports
 
 #: JPEG quality of the images sent to the models.
@@ -21,7 +24,11 @@ class ObjectInView:
     get_object_pose accepts), its visible attributes, how high its top stands above the
     table (m), and where it appears in the image (mean column and row of its pixels, px;
     columns grow to the image's right). state: "upright", "tilted" or "lying" ("" unknown),
-    tilt_deg its top's angle to the table (deg); on: the container it stands on or in."""
+    tilt_deg its top's angle to the table (deg); on: the container it stands on or in.
+    Its size (m, see `object_geometry.Geometry`): length_m × width_m its footprint (a
+    round one's diameter twice, `round`), bottom_z_m what it stands on (world z; its own
+    height is height_m - bottom_z_m); a container's inner_length_m × inner_width_m and
+    wall_height_m (0 for other objects)."""
 
     name: str
     category: str
@@ -34,6 +41,17 @@ class ObjectInView:
     state: str = ""
     tilt_deg: float = 0.0
     on: str = ""
+    length_m: float = 0.0
+    width_m: float = 0.0
+    round: bool = False
+    bottom_z_m: float = 0.0
+    inner_length_m: float = 0.0
+    inner_width_m: float = 0.0
+    wall_height_m: float = 0.0
+
+    @property
+    def container(self) -> bool:
+        return self.category in CONTAINERS
 
     def describe(self) -> str:
         size = f"{self.size} " if self.size else ""
@@ -66,15 +84,30 @@ class Observation:
         return "\n".join(f"- {obj.describe()}" for obj in self.objects)
 
 
-def observe(images: dict[str, np.ndarray], perception, robot_time_s: float) -> Observation:
+def observe(images: dict[str, np.ndarray], perception, robot_time_s: float,
+            sizes: SteadySizes | None = None) -> Observation:
     """The observation from one camera frame (`images`: the station outputs the perception
-    reads, by port name): the objects the perception module finds, and the RGB image as
+    reads, by port name): the objects the perception module finds, with their sizes from
+    the depth image (held across looks by `sizes`, see SteadySizes), and the RGB image as
     JPEG."""
-    objects = tuple(
-        ObjectInView(seen.visible.name, seen.visible.category, seen.visible.color,
-                     seen.visible.straw, seen.visible.size, round(seen.top_height, 3),
-                     round(seen.column, 1), round(seen.row, 1), seen.state,
-                     round(seen.tilt_deg, 1), seen.on)
-        for seen in perception.look(images))
-    return Observation(objects, encode_jpeg(images[ports.CAMERA_RGB], JPEG_QUALITY),
-                       robot_time_s)
+    seen = perception.look(images)
+    rgb = images[ports.CAMERA_RGB]
+    shapes = []
+    if seen:
+        depth = np.asarray(images[ports.CAMERA_DEPTH], dtype=np.float64).reshape(
+            np.shape(rgb)[:2])
+        shapes = measure(seen, depth, perception.camera)
+    if sizes is not None:
+        shapes = [sizes.steady(s.name, g) for s, g in zip(seen, shapes, strict=True)]
+    objects = tuple(_in_view(s, g) for s, g in zip(seen, shapes, strict=True))
+    return Observation(objects, encode_jpeg(rgb, JPEG_QUALITY), robot_time_s)
+
+
+def _in_view(seen: SeenObject, shape: Geometry) -> ObjectInView:
+    return ObjectInView(seen.visible.name, seen.visible.category, seen.visible.color,
+                        seen.visible.straw, seen.visible.size, round(shape.top_z, 3),
+                        round(seen.column, 1), round(seen.row, 1), seen.state,
+                        round(seen.tilt_deg, 1), seen.on, round(shape.length, 3),
+                        round(shape.width, 3), shape.round, round(shape.bottom_z, 3),
+                        round(shape.inner_length, 3), round(shape.inner_width, 3),
+                        round(shape.wall_height, 3))

@@ -29,22 +29,26 @@ from physcap_drake.agent.schemas import (
     PrioritizerAnswer,
 )
 from physcap_drake.agent.world_facts import WorldFacts
-from physcap_drake.knowledge import KnowledgeEntry
+from physcap_drake.knowledge import KnowledgeEntry, time_line
+from physcap_drake.perception.object_geometry import STATED_ERROR
 from physcap_drake.resources import agents_dir
 
 
 @dc.dataclass(frozen=True)
 class AgentContext:
     """Everything an agent may know at a decision: the task text, what the camera shows, the
-    measurements and the steps so far. Nothing hidden goes in here."""
+    measurements and the steps so far, and the robot time used against the episode's budget
+    (`budget_s`, s; None where there is none). Nothing hidden goes in here."""
 
     task: str
     observation: Observation
     knowledge: tuple[KnowledgeEntry, ...]
     history: tuple[StepRecord, ...]
+    budget_s: float | None = None
 
     def as_context(self) -> dict:
-        return {"task": self.task,
+        return {"task": self.task, "robot_time_s": self.observation.robot_time_s,
+                "budget_s": self.budget_s,
                 "objects_in_view": [o.as_context() for o in self.observation.objects],
                 "knowledge": [_entry_context(e) for e in self.knowledge],
                 "history": [s.as_context() for s in self.history]}
@@ -53,6 +57,11 @@ class AgentContext:
         if not self.knowledge:
             return "(nothing measured yet)"
         return "\n".join(f"- {entry.describe()}" for entry in self.knowledge)
+
+    def time_text(self) -> str:
+        """The robot time used so far and the budget, one line."""
+        line = time_line(self.observation.robot_time_s, self.budget_s).removeprefix("- ")
+        return line[:1].upper() + line[1:]
 
 
 def _entry_context(entry: KnowledgeEntry) -> dict:
@@ -102,8 +111,9 @@ class PromptBook:
         notes = [self.world.image_text() if self.world else "",
                  view.describe() if view else ""]
         return self.render("context", task=ctx.task, objects=objects_text(ctx.observation),
+                           error=f"{STATED_ERROR:.2f}",
                            image_notes="".join(f"{n}\n" for n in notes if n),
-                           scene=scene, knowledge=ctx.knowledge_text(),
+                           scene=scene, knowledge=ctx.knowledge_text(), time=ctx.time_text(),
                            history=history_text(list(ctx.history)))
 
     def _seeing(self) -> dict[str, str]:
@@ -174,17 +184,32 @@ class PromptBook:
 
 
 def objects_text(observation: Observation) -> str:
-    """The objects in view, one line each, heights in metres."""
+    """The objects in view, one line each: what they look like, their size and place (m,
+    world z) and how they stand."""
     if not observation.objects:
         return "(the perception module finds no objects)"
-    return "\n".join(f"- {_object_line(o)}" for o in observation.objects)
+    return "\n".join(f"- {object_line(o)}" for o in observation.objects)
 
 
-def _object_line(obj: ObjectInView) -> str:
+def object_line(obj: ObjectInView) -> str:
+    """One object in view, as the prompts show it."""
     size = f"{obj.size} " if obj.size else ""
     straw = ", with a straw (opened)" if obj.straw else ""
-    return (f"'{obj.name}': {size}{obj.color} {obj.category}{straw}, its top "
-            f"{obj.height_m:.3f} m above the table")
+    if obj.round:
+        footprint = f"round, {obj.length_m:.3f} m across"
+    else:
+        footprint = f"footprint {obj.length_m:.3f} x {obj.width_m:.3f} m"
+    text = (f"'{obj.name}': {size}{obj.color} {obj.category}{straw}; {footprint}, "
+            f"{obj.height_m - obj.bottom_z_m:.3f} m high (top at z {obj.height_m:.3f} m, "
+            f"bottom at z {obj.bottom_z_m:.3f} m)")
+    if obj.container:
+        text += (f"; a container: inside {obj.inner_length_m:.3f} x {obj.inner_width_m:.3f} m, "
+                 f"walls {obj.wall_height_m:.3f} m above its floor (floor at z "
+                 f"{obj.height_m - obj.wall_height_m:.3f} m)")
+    stance = {"upright": "upright", "tilted": f"tilted {obj.tilt_deg:.0f} degrees",
+              "lying": "lying on its side"}.get(obj.state, "")
+    where = f"on the '{obj.on}'" if obj.on else ("" if obj.container else "on the table")
+    return text + "".join(f"; {w}" for w in (stance, where) if w)
 
 
 def scene_description(observation: Observation) -> str:

@@ -30,6 +30,7 @@ from physcap_drake.recording.agent_recording import AgentRecording
 from physcap_drake.recording.git_state import git_state
 from physcap_drake.recording.mcap_sink import McapSink
 from physcap_drake.station.arm_fault import ArmFault
+from physcap_drake.tasks.registry import get_task
 
 #: Robot execution time after which an episode is stopped, s (no task needs more).
 ROBOT_TIME_LIMIT = 900.0
@@ -198,6 +199,7 @@ def run_agent_episode(task: str, seed: int, *, agent: str = "physcap",
                      check=None if episode.judge == "operator" else episode.check,
                      seed=seed, limits=limits,
                      robot_time_limit=robot_time_limit, transcript=transcript,
+                     task_budget_s=getattr(get_task(task), "time_limit_s", None),
                      on_phase=on_phase, prompts=PromptBook(
                          images=takes_images(client), world=WorldFacts.build(
                              episode.robot.model, episode.scenario.skills.workspace,

@@ -53,6 +53,8 @@ def _spawn(rng: np.random.Generator, count: int) -> list[np.ndarray]:
 class EmptyCup:
     name: str = "empty_cup"
     scenario_file: str = "empty_cup.yaml"
+    #: The robot time the prompt allows, s.
+    time_limit_s: float = TIME_LIMIT
     prompt: str = ("Four cups with lids stand on the table; some have a straw in the lid. "
                    "Exactly one of them is empty; a cup "
                    "that weighs less than 100 g counts as empty. Put the empty cup in the "
