@@ -81,11 +81,13 @@ class RobotStack:
         """The diagram's clock: an initialized simulator configured by the scenario, with
         no request on `robot.request` yet (set in the root context created here, before any
         simulator holds it): nothing changes the diagram's state from outside once it runs.
-        (A simulated world's hidden masses are its plant's model data: `body_masses`.)"""
+        (A simulated world's hidden masses are its plant's model data: `body_masses`.)
+        A fault the station reports (`piper.fault`) ends the clock's runs."""
         context = self.diagram.CreateDefaultContext()
         if self.request_input is not None:
             self.put_request(context, RobotRequest())
-        return Clock(self.diagram, self.scenario.simulator_config, context)
+        return Clock(self.diagram, self.scenario.simulator_config, context,
+                     fault=self.diagram.GetOutputPort(ports.ARM_FAULT))
 
     def put_request(self, root: Context, request: RobotRequest) -> None:
         """The outside client's only way in (see the design notes): `request` becomes
@@ -207,6 +209,7 @@ def build_robot_stack(scenario: Scenario, meshcat: Meshcat | None = None, *,
     else:
         builder.ExportInput(mass_probe.GetInputPort(REQUEST_PORT), REQUEST_INPUT)
     builder.ExportOutput(mass_probe.GetOutputPort(STATUS_PORT), STATUS_OUTPUT)
+    builder.ExportOutput(station.GetOutputPort(ports.ARM_FAULT), ports.ARM_FAULT)
 
     recorder = None
     if make_recorder is not None:
