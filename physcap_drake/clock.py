@@ -46,22 +46,22 @@ class Clock:
     `mutable_context` (`port.FixValue`), as an outside client feeds a diagram. Time moves
     only through `run_for` and `run_until`.
 
-    `fault`: an output port of `diagram` whose value (str) names a fault, "" while there is
-    none (a station's `piper.fault`). A run ends after the step in which it reports one,
-    and a run asked for while it does ends at once: read `fault` after each run.
+    `fault`: an output port of `diagram` or of a system in it whose value (str) names a
+    fault, "" while there is none (a station's `piper.fault`). A run ends after the step in
+    which it reports one, and a run asked for while it does ends at once: read `fault`
+    after each run.
     """
 
     def __init__(self, diagram: Diagram, config: SimulatorConfig | None = None,
                  context: Context | None = None, *, fault: OutputPort | None = None):
-        if fault is not None and fault.get_system() is not diagram:
-            raise ValueError(f"the fault port {fault.get_name()!r} is not an output port of "
-                             f"the clock's diagram {diagram.get_name()!r}: export it there")
         self._diagram = diagram
-        self._fault = fault
         self._simulator = Simulator(diagram, context) if context is not None else (
             Simulator(diagram))
         if config is not None:
             ApplySimulatorConfig(config, self._simulator)
+        self._fault, self._fault_context = fault, None
+        if fault is not None:
+            self._fault_context = _context_of(fault, diagram, self._simulator.get_context())
         self._simulator.Initialize()
 
     @property
@@ -91,10 +91,10 @@ class Clock:
     @property
     def fault(self) -> str:
         """The fault the diagram's fault port reports now ("" if none, or without a port)."""
-        return self._fault_in(self.context)
+        return self._fault_in()
 
-    def _fault_in(self, context: Context) -> str:
-        return "" if self._fault is None else self._fault.Eval(context)
+    def _fault_in(self) -> str:
+        return "" if self._fault is None else self._fault.Eval(self._fault_context)
 
     @property
     def realtime_rate(self) -> float:
@@ -166,11 +166,27 @@ class Clock:
     def _ending_on_fault(self, monitor):
         """`monitor` (or none), preceded by the end of the run when a fault is reported."""
         def watch(context: Context) -> EventStatus:
-            fault = self._fault_in(context)
+            fault = self._fault_in()
             if fault:
                 return EventStatus.ReachedTermination(self._diagram, f"arm fault: {fault}")
             return EventStatus.DidNothing() if monitor is None else monitor(context)
         return watch
+
+
+def _context_of(port: OutputPort, diagram: Diagram, root: Context) -> Context:
+    """The context of `port`'s system within `root`, the context of `diagram`."""
+    system = port.get_system()
+    if not _holds(diagram, system):
+        raise ValueError(f"the fault port {port.get_name()!r} belongs to "
+                         f"{system.get_name()!r}, which is not in the clock's diagram "
+                         f"{diagram.get_name()!r}")
+    return system.GetMyContextFromRoot(root)
+
+
+def _holds(diagram, system) -> bool:
+    """Whether `system` is `diagram` or a system inside it, however deep."""
+    return system is diagram or isinstance(diagram, Diagram) and any(
+        _holds(inner, system) for inner in diagram.GetSystems())
 
 
 class _Pacing:

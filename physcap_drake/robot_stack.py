@@ -87,7 +87,7 @@ class RobotStack:
         if self.request_input is not None:
             self.put_request(context, RobotRequest())
         return Clock(self.diagram, self.scenario.simulator_config, context,
-                     fault=self.diagram.GetOutputPort(ports.ARM_FAULT))
+                     fault=self.station.GetOutputPort(ports.ARM_FAULT))
 
     def put_request(self, root: Context, request: RobotRequest) -> None:
         """The outside client's only way in (see the design notes): `request` becomes
@@ -209,7 +209,6 @@ def build_robot_stack(scenario: Scenario, meshcat: Meshcat | None = None, *,
     else:
         builder.ExportInput(mass_probe.GetInputPort(REQUEST_PORT), REQUEST_INPUT)
     builder.ExportOutput(mass_probe.GetOutputPort(STATUS_PORT), STATUS_OUTPUT)
-    builder.ExportOutput(station.GetOutputPort(ports.ARM_FAULT), ports.ARM_FAULT)
 
     recorder = None
     if make_recorder is not None:

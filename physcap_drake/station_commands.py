@@ -49,8 +49,7 @@ def build_commanded_station(scenario, *, meshcat=None, sweep: bool = False,
                             force_limit: float = DEMO_FORCE_LIMIT) -> tuple[Diagram, Diagram]:
     """The station with the arm holding `arm_position` (rad; default: its initial pose) or
     sweeping, and the gripper holding `gripper_opening` (m; default: its initial opening) with
-    `force_limit` (N) or sweeping too. Returns (diagram, station); the diagram exports the
-    station's `piper.fault` (for its Clock's `fault`)."""
+    `force_limit` (N) or sweeping too. Returns (diagram, station)."""
     builder = DiagramBuilder()
     station = builder.AddNamedSystem("station", MakeStation(scenario, meshcat))
     # Over CAN the arm starts where the emulated arm starts (the real arm: put it at home).
@@ -72,5 +71,4 @@ def build_commanded_station(scenario, *, meshcat=None, sweep: bool = False,
     builder.Connect(gripper.get_output_port(), station.GetInputPort(ports.GRIPPER_POSITION))
     force = builder.AddNamedSystem("force_limit_command", ConstantVectorSource([force_limit]))
     builder.Connect(force.get_output_port(), station.GetInputPort(ports.GRIPPER_FORCE_LIMIT))
-    builder.ExportOutput(station.GetOutputPort(ports.ARM_FAULT), ports.ARM_FAULT)
     return builder.Build(), station

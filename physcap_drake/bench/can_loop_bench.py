@@ -90,7 +90,6 @@ def _build(scenario, duration: float, camera_rate: float):
         rgb = station.GetOutputPort(ports.CAMERA_RGB)
         camera = builder.AddNamedSystem("camera_load", CameraLoad(camera_rate, rgb.Allocate()))
         builder.Connect(rgb, camera.get_input_port())
-    builder.ExportOutput(station.GetOutputPort(ports.ARM_FAULT), ports.ARM_FAULT)
     return builder.Build(), station, camera
 
 
@@ -108,7 +107,7 @@ def run_can_loop(duration: float = 5.0, control_rate: float = 200.0, on_progress
     diagram, station, camera = _build(scenario, duration, camera_rate)
     try:
         clock = Clock(diagram, scenario.simulator_config,
-                      fault=diagram.GetOutputPort(ports.ARM_FAULT))
+                      fault=station.GetOutputPort(ports.ARM_FAULT))
         link = station.GetSubsystemByName("piper_can").link
         first = len(link.cycle_starts())
         trips = link.status().stale_count

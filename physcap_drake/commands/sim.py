@@ -57,14 +57,15 @@ def sim(
     refuse_real_arm(loaded, yes, "sim")
     seconds = loaded.simulation_duration if duration is None else duration
     viewer = make_meshcat(loaded, live=meshcat) if (meshcat or html) else None
-    diagram, _ = build_commanded_station(loaded, meshcat=viewer, sweep=wiggle, duration=seconds)
+    diagram, station = build_commanded_station(loaded, meshcat=viewer, sweep=wiggle,
+                                               duration=seconds)
     if graphviz is not None:
         graphviz.parent.mkdir(parents=True, exist_ok=True)
         graphviz.write_text(diagram.GetGraphvizString())
         console.print(f"wrote the diagram to {graphviz}")
     try:
         clock = Clock(diagram, loaded.simulator_config,  # a CAN station starts up here
-                      fault=diagram.GetOutputPort(ports.ARM_FAULT))
+                      fault=station.GetOutputPort(ports.ARM_FAULT))
     except (ConnectionError, StartupError) as error:
         fail(str(error))
     if realtime_rate is not None or meshcat:
