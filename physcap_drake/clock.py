@@ -1,7 +1,8 @@
 """The Clock: the one object that advances a diagram's time.
 
 Everything that waits for the robot asks it to run for a duration or until a condition on
-the Context holds (Drake's simulator monitor, one `AdvanceTo`). It also paces a run at the
+the Context holds (Drake's simulator monitor, one `AdvanceTo`). The same monitor ends any run
+at the step where the diagram's fault port reports a fault. It also paces a run at the
 scenario's real-time rate, without making up for pauses or stalls.
 
 Design notes: docs/design/physcap_drake.md.
@@ -15,7 +16,7 @@ import time
 from collections.abc import Callable
 
 from pydrake.systems.analysis import ApplySimulatorConfig, Simulator, SimulatorConfig
-from pydrake.systems.framework import Context, Diagram, EventStatus
+from pydrake.systems.framework import Context, Diagram, EventStatus, OutputPort
 
 #: How often run_for reports progress by default, s of simulated time.
 PROGRESS_PERIOD = 0.1
@@ -44,15 +45,23 @@ class Clock:
     Read the diagram's state through `context`; write an exported input port through
     `mutable_context` (`port.FixValue`), as an outside client feeds a diagram. Time moves
     only through `run_for` and `run_until`.
+
+    `fault`: an output port of `diagram` or of a system in it whose value (str) names a
+    fault, "" while there is none (a station's `piper.fault`). A run ends after the step in
+    which it reports one, and a run asked for while it does ends at once: read `fault`
+    after each run.
     """
 
     def __init__(self, diagram: Diagram, config: SimulatorConfig | None = None,
-                 context: Context | None = None):
+                 context: Context | None = None, *, fault: OutputPort | None = None):
         self._diagram = diagram
         self._simulator = Simulator(diagram, context) if context is not None else (
             Simulator(diagram))
         if config is not None:
             ApplySimulatorConfig(config, self._simulator)
+        self._fault, self._fault_context = fault, None
+        if fault is not None:
+            self._fault_context = _context_of(fault, diagram, self._simulator.get_context())
         self._simulator.Initialize()
 
     @property
@@ -80,6 +89,14 @@ class Clock:
         return self._simulator.get_context().get_time()
 
     @property
+    def fault(self) -> str:
+        """The fault the diagram's fault port reports now ("" if none, or without a port)."""
+        return self._fault_in()
+
+    def _fault_in(self) -> str:
+        return "" if self._fault is None else self._fault.Eval(self._fault_context)
+
+    @property
     def realtime_rate(self) -> float:
         """The pacing: simulated seconds per wall-clock second at most (0: as fast as it
         goes)."""
@@ -92,8 +109,8 @@ class Clock:
 
     def run_for(self, duration: float,
                 on_progress: Callable[[float], None] | None = None) -> RunTiming:
-        """Runs `duration` s of simulated time; `on_progress(elapsed s)` is called every
-        PROGRESS_PERIOD s of simulated time and at the end. Timed."""
+        """Runs `duration` s of simulated time (less if a fault ends it); `on_progress(elapsed
+        s)` is called every PROGRESS_PERIOD s of simulated time and at the end. Timed."""
         start_time, start_wall = self.time, time.perf_counter()
         reported = [start_time]
 
@@ -112,7 +129,8 @@ class Clock:
 
     def run_until(self, condition: Callable[[Context], bool], *, timeout: float) -> bool:
         """Runs until `condition(root context)` holds, checked now and after every simulator
-        step, for at most `timeout` s of simulated time. Returns whether it holds."""
+        step, for at most `timeout` s of simulated time (less if a fault ends it). Returns
+        whether it holds."""
         if condition(self.context):
             return True
 
@@ -125,7 +143,11 @@ class Clock:
         return condition(self.context)
 
     def _advance(self, boundary: float, monitor) -> None:
+        if self.fault:
+            return  # the arm stopped: no time passes until someone sees to it
         simulator = self._simulator
+        if self._fault is not None:
+            monitor = self._ending_on_fault(monitor)
         rate = simulator.get_target_realtime_rate()
         if rate > 0:  # the time since the last run was a pause; stalls in it are let go
             monitor = _Pacing(simulator, rate, monitor)
@@ -140,6 +162,31 @@ class Clock:
                 gc.unfreeze()
             if monitor is not None:
                 simulator.clear_monitor()
+
+    def _ending_on_fault(self, monitor):
+        """`monitor` (or none), preceded by the end of the run when a fault is reported."""
+        def watch(context: Context) -> EventStatus:
+            fault = self._fault_in()
+            if fault:
+                return EventStatus.ReachedTermination(self._diagram, f"arm fault: {fault}")
+            return EventStatus.DidNothing() if monitor is None else monitor(context)
+        return watch
+
+
+def _context_of(port: OutputPort, diagram: Diagram, root: Context) -> Context:
+    """The context of `port`'s system within `root`, the context of `diagram`."""
+    system = port.get_system()
+    if not _holds(diagram, system):
+        raise ValueError(f"the fault port {port.get_name()!r} belongs to "
+                         f"{system.get_name()!r}, which is not in the clock's diagram "
+                         f"{diagram.get_name()!r}")
+    return system.GetMyContextFromRoot(root)
+
+
+def _holds(diagram, system) -> bool:
+    """Whether `system` is `diagram` or a system inside it, however deep."""
+    return system is diagram or isinstance(diagram, Diagram) and any(
+        _holds(inner, system) for inner in diagram.GetSystems())
 
 
 class _Pacing:

@@ -35,6 +35,7 @@ from physcap_drake.physx.stiffness_levels import LEVEL_NAMES
 from physcap_drake.physx.stiffness_probe import MeasureStiffness, StiffnessMeasurement
 from physcap_drake.robot_stack import RobotStack
 from physcap_drake.station import ports
+from physcap_drake.station.arm_fault import ArmFault
 
 #: This client's name on the request path.
 CLIENT = "robot_api"
@@ -458,7 +459,8 @@ class RobotAPI:
 
     def _run(self, action) -> SkillStatus:
         """Puts `action` on the request path, runs until it is answered, and returns the
-        answer (SkillFailed if none came)."""
+        answer (SkillFailed if none came; ArmFault, once the run has ended, if the station
+        reported a fault)."""
         if self._robot.request_input is None:
             raise RuntimeError("this robot's requests come from its agent, a system inside "
                                "the diagram; a blocking RobotAPI call cannot send one")
@@ -466,6 +468,8 @@ class RobotAPI:
         status_port = self._robot.status_output
         if not self._clock.run_until(lambda root: status_port.Eval(root).finished(request),
                                      timeout=REQUEST_TIMEOUT):
+            if self._clock.fault:
+                raise ArmFault(self._clock.fault)
             raise SkillFailed(f"{request.label}: no answer within {REQUEST_TIMEOUT:g} s of "
                               "simulated time")
         return status_port.Eval(self._clock.context)

@@ -81,11 +81,13 @@ class RobotStack:
         """The diagram's clock: an initialized simulator configured by the scenario, with
         no request on `robot.request` yet (set in the root context created here, before any
         simulator holds it): nothing changes the diagram's state from outside once it runs.
-        (A simulated world's hidden masses are its plant's model data: `body_masses`.)"""
+        (A simulated world's hidden masses are its plant's model data: `body_masses`.)
+        A fault the station reports (`piper.fault`) ends the clock's runs."""
         context = self.diagram.CreateDefaultContext()
         if self.request_input is not None:
             self.put_request(context, RobotRequest())
-        return Clock(self.diagram, self.scenario.simulator_config, context)
+        return Clock(self.diagram, self.scenario.simulator_config, context,
+                     fault=self.station.GetOutputPort(ports.ARM_FAULT))
 
     def put_request(self, root: Context, request: RobotRequest) -> None:
         """The outside client's only way in (see the design notes): `request` becomes

@@ -1,6 +1,6 @@
 """The CAN station over an emulator backed by the simulated station, in a Drake diagram:
 the same readings as the sim station, streaming while the simulator stands still, the
-watchdog and the arm's errors through the simulator, and a whole agent episode."""
+watchdog and the arm's errors on the fault port, and a whole agent episode."""
 
 from __future__ import annotations
 
@@ -22,7 +22,6 @@ from physcap_drake.cli import app
 from physcap_drake.resources import stations_dir
 from physcap_drake.scenario import load_scenario
 from physcap_drake.station import MakeStation, close_station, ports, scene_snapshot
-from physcap_drake.station.arm_fault import ArmFault
 from physcap_drake.station.can_config import PiperCan
 from physcap_drake.station.can_scene import NoScene
 from physcap_drake.station.can_session import TRIP_MARGIN
@@ -130,14 +129,16 @@ def test_streaming_goes_on_while_the_simulator_stands_still(can_station):
         atol=2e-3)
 
 
-def test_an_arm_error_state_ends_the_run_naming_it(can_station):
+def test_an_arm_error_state_is_the_fault_port_naming_it(can_station):
     simulator, context = run_to_target(can_station, 0.1, realtime=True)
+    fault = can_station.GetOutputPort(ports.ARM_FAULT)
+    assert fault.Eval(context) == ""
     can_station.GetSubsystemByName("scene").emulator.set_error(arm_status=7)
-    with pytest.raises(ArmFault, match="the arm reports: collision"):
-        simulator.AdvanceTo(context.get_time() + 0.1)
+    simulator.AdvanceTo(context.get_time() + 0.1)  # no exception: the fault is state
+    assert fault.Eval(context).startswith("the arm reports: collision (status 7")
 
 
-def test_stale_feedback_holds_the_outputs_then_ends_the_run(can_station):
+def test_stale_feedback_holds_the_outputs_then_is_a_fault(can_station):
     simulator, context = run_to_target(can_station, 0.3, realtime=True)
     interface = can_station.GetSubsystemByName("piper_can")
     interface.link.set_faults(silent=True)
@@ -150,8 +151,13 @@ def test_stale_feedback_holds_the_outputs_then_ends_the_run(can_station):
     simulator.AdvanceTo(context.get_time() + 0.05)  # still silent, within the stale limit
     np.testing.assert_array_equal(
         can_station.GetOutputPort(ports.ARM_POSITION_MEASURED).Eval(context), held)
-    with pytest.raises(ArmFault, match=r"stale for 0\.\d s .*stale_limit = 0.3 s.*no feedback"):
-        simulator.AdvanceTo(context.get_time() + 0.5)
+    assert can_station.GetOutputPort(ports.ARM_FAULT).Eval(context) == ""
+    simulator.AdvanceTo(context.get_time() + 0.5)  # no exception: the fault is state
+    assert re.fullmatch(r"arm feedback stale for 0\.\d s \(more than station\.stale_limit = "
+                        r"0\.3 s\): no feedback.*", can_station.GetOutputPort(
+                            ports.ARM_FAULT).Eval(context))
+    np.testing.assert_array_equal(
+        can_station.GetOutputPort(ports.ARM_POSITION_MEASURED).Eval(context), held)
     # A silent link is a fault of the link: the emulated arm's own figures do not excuse it,
     # unless its firmware loop itself happened to stall then (the machine was starved: the
     # session cannot tell the two apart and lets it go, as the episode tests rely on).

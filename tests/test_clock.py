@@ -1,5 +1,5 @@
-"""The Clock: the one place time advances (run_for, run_until with a simulator monitor) and
-paces."""
+"""The Clock: the one place time advances (run_for, run_until with a simulator monitor), paces,
+and stops at a fault its diagram's fault port reports."""
 
 from __future__ import annotations
 
@@ -8,8 +8,9 @@ import time
 from pathlib import Path
 
 import pytest
+from fault_source import FaultSource
 from pydrake.systems.analysis import SimulatorConfig
-from pydrake.systems.framework import LeafSystem
+from pydrake.systems.framework import DiagramBuilder, LeafSystem
 
 import physcap_drake
 from physcap_drake.clock import PROGRESS_PERIOD, Clock
@@ -133,3 +134,52 @@ def test_a_paced_run_keeps_the_garbage_collector_off_what_existed_before_it():
     unpaced = FreezeWatcher()
     Clock(unpaced).run_for(0.05)  # a simulation's run leaves the collector as it is
     assert max(unpaced.frozen) < len(before)
+
+
+def _counter_with_fault(at: float | None) -> tuple[Counter, Clock]:
+    """A Counter beside a FaultSource latching a fault at `at` s, the clock watching it."""
+    builder = DiagramBuilder()
+    counter = builder.AddSystem(Counter())
+    source = builder.AddSystem(FaultSource("the arm reports: emergency stop", at, TICK))
+    return counter, Clock(builder.Build(), fault=source.get_output_port())
+
+
+def test_a_fault_ends_the_run_at_the_end_of_the_step_that_latched_it():
+    counter, clock = _counter_with_fault(at=0.1)
+    seen = []
+    timing = clock.run_for(1.0, seen.append)
+    # Latched by the event at 0.1 s, reported at the end of that step (0.11 s): the run ends.
+    assert clock.time == pytest.approx(0.11) and timing.sim_time == pytest.approx(0.11)
+    assert clock.fault == "the arm reports: emergency stop"
+    assert seen[-1] == pytest.approx(0.11)  # the progress ends where the run did
+    # A faulted clock lets no time pass: neither a run nor a wait advances.
+    assert clock.run_for(0.5).sim_time == 0.0
+    assert not clock.run_until(lambda root: counter.count(root) > 100, timeout=1.0)
+    assert clock.time == pytest.approx(0.11)
+    assert clock.run_until(lambda root: counter.count(root) > 0, timeout=1.0)  # holds
+
+
+def test_run_until_ends_on_a_fault_before_its_condition_or_timeout():
+    counter, clock = _counter_with_fault(at=0.05)
+    assert not clock.run_until(lambda root: counter.count(root) >= 50, timeout=10.0)
+    assert clock.time == pytest.approx(0.06) and counter.count(clock.context) == 6
+    assert clock.fault.endswith("emergency stop")
+
+
+def test_without_a_fault_the_watched_run_goes_its_whole_length():
+    counter, clock = _counter_with_fault(at=None)
+    assert clock.run_for(0.3).sim_time == pytest.approx(0.3) and clock.fault == ""
+    assert clock.run_until(lambda root: counter.count(root) >= 40, timeout=1.0)
+    assert Clock(Counter()).fault == ""  # no port: no fault
+
+
+def test_the_fault_port_must_be_in_the_clock_diagram():
+    builder = DiagramBuilder()
+    builder.AddSystem(Counter())
+    elsewhere = FaultSource("x", None)
+    with pytest.raises(ValueError, match="the fault port 'piper.fault' belongs to .*, which is "
+                                         "not in the clock's diagram"):
+        Clock(builder.Build(), fault=elsewhere.get_output_port())
+    source = FaultSource("y", 0.0)  # the diagram's own port will do, as will a subsystem's
+    assert not Clock(source, fault=source.get_output_port()).run_until(
+        lambda root: False, timeout=1.0)

@@ -8,6 +8,7 @@ import time
 
 import numpy as np
 import pytest
+from fault_source import FaultSource
 from jsonschema import Draft202012Validator
 from mcap.reader import NonSeekingReader, make_reader
 from mcap.writer import Writer
@@ -42,13 +43,15 @@ ARM_V = np.array([0.0, 0.01, -0.02, 0.0, 0.0, 0.03])  # rad/s
 ARM_TAU = np.array([0.0, 3.2, -1.5, 0.1, 0.2, 0.0])  # N·m
 OPENING, EFFORT = 0.042, 0.35  # m, fraction of the maximum
 DURATION, STATE_PERIOD, IMAGE_PERIOD = 0.3, 0.04, 0.1  # s
+FAULT = "the arm reports: emergency stop"
 #: The episode a recording says it is (replay rebuilds this task's scene to pose it).
 REPLAYED_EPISODE = {"task": "identify_empty_can", "seed": "0"}
 
 
-def _recorder_diagram(sink, time_base=None):
-    """A recorder fed by constant station signals and a synthetic image; returns (diagram,
-    recorder, model, joint names, TCP frame)."""
+def _recorder_diagram(sink, time_base=None, fault_at=None):
+    """A recorder fed by constant station signals, a synthetic image and a fault latched at
+    `fault_at` s (never, with None); returns (diagram, recorder, model, joint names, TCP
+    frame)."""
     scenario = load_scenario(stations_dir() / "piper_table.yaml")
     config = scenario.station
     model = PlanningModel(scenario.directives, config.arm_model, config.gripper_model)
@@ -71,6 +74,8 @@ def _recorder_diagram(sink, time_base=None):
     image.mutable_data[:] = (200, 40, 10, 255)
     camera = builder.AddSystem(ConstantValueSource(AbstractValue.Make(image)))
     builder.Connect(camera.get_output_port(), recorder.GetInputPort(ports.CAMERA_RGB))
+    fault = builder.AddSystem(FaultSource(FAULT, fault_at))
+    builder.Connect(fault.get_output_port(), recorder.GetInputPort(ports.ARM_FAULT))
     return builder.Build(), recorder, model, joint_names, tcp
 
 
@@ -133,6 +138,27 @@ def test_images_are_jpegs_at_the_image_period_and_the_scene_is_written_once(run)
     assert [round(m.time_s, 6) for m in images] == pytest.approx([0.0, 0.1, 0.2, 0.3])
     assert images[0].value.format == "jpeg" and images[0].value.data[:2] == b"\xff\xd8"
     assert len(recording.on(topics.SCENE)) == 1
+
+
+def test_a_fault_is_written_once_at_the_end_of_the_step_that_latched_it(run, tmp_path):
+    assert run[0].on(topics.ARM_FAULT) == []  # none without a fault
+    path = tmp_path / "fault.mcap"
+    sink = McapSink(path)
+    diagram = _recorder_diagram(sink, fault_at=0.1)[0]
+    Simulator(diagram).AdvanceTo(DURATION)  # the run goes on after it: still one message
+    sink.close()
+    recording = read_recording(path)
+    faults = recording.on(topics.ARM_FAULT)
+    assert recording.topics()[topics.ARM_FAULT] == "physcap.ArmFault"
+    assert len(faults) == 1
+    # Latched by the source's event at 0.1 s, reported at the end of that step (0.105 s).
+    assert faults[0].value == {"fault": FAULT, "sim_time_s": pytest.approx(0.105)}
+    assert faults[0].time_s == pytest.approx(0.105)
+    with path.open("rb") as stream:
+        schemas = make_reader(stream).get_summary().schemas.values()
+    schema = json.loads(next(s for s in schemas if s.name == "physcap.ArmFault").data)
+    assert not list(Draft202012Validator(schema).iter_errors(faults[0].value))
+    assert list(Draft202012Validator(schema).iter_errors({**faults[0].value, "fault": ""}))
 
 
 def test_bad_periods_and_joint_counts_are_refused_by_name():

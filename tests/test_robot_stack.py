@@ -8,9 +8,11 @@ import dataclasses as dc
 
 import numpy as np
 import pytest
+from fault_source import FaultSource
 from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import LeafSystem
 
+from physcap_drake.clock import Clock
 from physcap_drake.control.requests import (
     MoveGripper,
     MoveToJoints,
@@ -21,7 +23,10 @@ from physcap_drake.control.requests import (
 )
 from physcap_drake.control.skill_executor import MONITOR_PERIOD, REQUEST_PORT, STATUS_PORT
 from physcap_drake.immutable_state import Immutable
+from physcap_drake.robot_api import RobotAPI
 from physcap_drake.robot_stack import REQUEST_INPUT, build_robot_stack
+from physcap_drake.station import ports
+from physcap_drake.station.arm_fault import ArmFault
 
 CLIENT_PERIOD = 0.02  # s, like the AgentSystem's events
 
@@ -116,3 +121,30 @@ def test_with_a_client_inside_the_diagram_an_outside_request_is_refused(table_sc
         robot.put_request(clock.mutable_context, RobotRequest("outside", 1, Wait(0.1)))
     with pytest.raises(RuntimeError, match="it has no robot.request input"):
         robot.last_request(clock.context)
+
+
+def test_a_blocking_call_ends_with_the_arm_fault_that_ended_its_run(table_scenario):
+    """The blocking RobotAPI's run ends at a fault (the clock's monitor), and the call
+    raises ArmFault after it, not SkillFailed; a faulted clock lets no further time pass.
+    (The fault comes from a synthetic source in the diagram, in place of a CAN station.)"""
+    robot = build_robot_stack(table_scenario, make_recorder=lambda station: FaultSource(
+        "the arm reports: emergency stop", at=0.05))
+
+    def api_and_clock(fault_port):
+        context = robot.diagram.CreateDefaultContext()
+        robot.put_request(context, RobotRequest())
+        clock = Clock(robot.diagram, table_scenario.simulator_config, context, fault=fault_port)
+        return RobotAPI(robot, clock), clock
+
+    api, clock = api_and_clock(robot.recorder.get_output_port())
+    with pytest.raises(ArmFault, match="^the arm reports: emergency stop$"):
+        api.open_gripper()
+    stopped_at = clock.time
+    assert 0.05 <= stopped_at < 0.05 + 0.01
+    with pytest.raises(ArmFault):
+        api.home_pose()
+    assert clock.time == stopped_at
+    # The station's own port (the simulated arm's: never a fault) lets the same call finish.
+    api, clock = api_and_clock(robot.station.GetOutputPort(ports.ARM_FAULT))
+    api.open_gripper()
+    assert clock.time > 0.05 and clock.fault == ""

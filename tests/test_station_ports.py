@@ -17,7 +17,8 @@ EXPECTED_VECTOR_OUTPUTS = {
     "gripper.position_measured": 1,
     "gripper.effort_measured": 1,
 }
-EXPECTED_ABSTRACT_OUTPUTS = {"camera.rgb", "camera.depth", "camera.label", "body_poses"}
+EXPECTED_ABSTRACT_OUTPUTS = {"camera.rgb", "camera.depth", "camera.label", "body_poses",
+                             "piper.fault"}
 
 
 @pytest.fixture(params=["sim", pytest.param("can", marks=[
@@ -46,12 +47,17 @@ def test_ports_are_exactly_the_contract(any_station):
         assert outputs[name].size() == size
     for name in EXPECTED_ABSTRACT_OUTPUTS:
         assert outputs[name].get_data_type() == PortDataType.kAbstractValued
+    # The fault: a text, "" while there is none (before any event has run, on both).
+    fault = outputs["piper.fault"]
+    assert fault.Allocate().get_value() == ""
+    assert fault.Eval(station.CreateDefaultContext()) == ""
 
 
 def test_contract_constants_match_the_expected_names():
     assert ports.VECTOR_INPUTS == EXPECTED_INPUTS
     assert ports.VECTOR_OUTPUTS == EXPECTED_VECTOR_OUTPUTS
-    assert set(ports.IMAGE_OUTPUTS) | {ports.BODY_POSES} == EXPECTED_ABSTRACT_OUTPUTS
+    assert set(ports.IMAGE_OUTPUTS) | {ports.BODY_POSES, ports.ARM_FAULT} == (
+        EXPECTED_ABSTRACT_OUTPUTS)
 
 
 def test_the_70mm_gripper_is_selectable(table_scenario):

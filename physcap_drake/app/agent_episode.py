@@ -92,21 +92,19 @@ def run_agent(clock: Clock, system: AgentSystem, context, loop: AgentLoop,
     """Runs the episode to its end: one run of the clock until the AgentSystem's mind is done
     or failed (at most `timeout` s of diagram time). Returns the final mind.
 
-    An arm fault is raised by the station from inside the simulator's advance, mid-step; it
-    ends the run where it surfaces, here: the system's `release(context, fault)` stops the
-    code block's child (or gives up on a thought in flight) and returns the mind ended with
-    kind "arm". That mind is the result; nothing is written into the Context, which the
-    fault left in the middle of a step and which no event will advance again. A run that
-    reaches `timeout` ends the same way, as a limit."""
+    A fault the station reports (`piper.fault`, latched by its own event) ends the run
+    through the clock's monitor at the end of that step: the system's `release(context,
+    fault)` then stops the code block's child (or gives up on a thought in flight) and
+    returns the mind ended with kind "arm". A run that reaches `timeout` ends as a limit.
+    Nothing is written into the Context after the run."""
     try:
         finished = clock.run_until(lambda root: system.mind(context).over, timeout=timeout)
-    except ArmFault as fault:
-        return system.release(context, fault)
     except BaseException:  # e.g. KeyboardInterrupt: no child process is left behind
         system.release(context)
         raise
-    mind = system.release(context)
-    return mind if finished else loop.time_up(mind, timeout)
+    fault = clock.fault
+    mind = system.release(context, ArmFault(fault) if fault else None)
+    return mind if finished or fault else loop.time_up(mind, timeout)
 
 
 def judge_outcome(episode: Episode, outcome: EpisodeOutcome,

@@ -15,6 +15,7 @@ from physcap_drake.clock import Clock
 from physcap_drake.resources import stations_dir
 from physcap_drake.scenario import load_scenario
 from physcap_drake.station import MakeStation, close_station, ports
+from physcap_drake.station.arm_fault import ArmFault
 from physcap_drake.station.can_config import PiperCan
 from physcap_drake.station.can_station import can_session
 from physcap_drake.station_commands import (
@@ -105,11 +106,14 @@ def run_can_loop(duration: float = 5.0, control_rate: float = 200.0, on_progress
     scenario.simulator_config.target_realtime_rate = 1.0
     diagram, station, camera = _build(scenario, duration, camera_rate)
     try:
-        clock = Clock(diagram, scenario.simulator_config)
+        clock = Clock(diagram, scenario.simulator_config,
+                      fault=station.GetOutputPort(ports.ARM_FAULT))
         link = station.GetSubsystemByName("piper_can").link
         first = len(link.cycle_starts())
         trips = link.status().stale_count
         timing = clock.run_for(duration, on_progress)
+        if clock.fault:
+            raise ArmFault(f"the bench stopped at {timing.sim_time:.2f} s: {clock.fault}")
         starts = np.array(link.cycle_starts()[first:])
         status = link.status()
         reasons = link.stale_reasons()

@@ -20,6 +20,7 @@ from physcap_drake.commands.common import (
 )
 from physcap_drake.commands.live_view import hold_open, pace_in_real_time
 from physcap_drake.commands.options import ContactForces, Hold, HtmlOut, LiveMeshcat, ScenarioText
+from physcap_drake.station import ports
 from physcap_drake.station.view import frame_on_table
 from physcap_drake.station_commands import build_commanded_station
 
@@ -56,13 +57,15 @@ def sim(
     refuse_real_arm(loaded, yes, "sim")
     seconds = loaded.simulation_duration if duration is None else duration
     viewer = make_meshcat(loaded, live=meshcat) if (meshcat or html) else None
-    diagram, _ = build_commanded_station(loaded, meshcat=viewer, sweep=wiggle, duration=seconds)
+    diagram, station = build_commanded_station(loaded, meshcat=viewer, sweep=wiggle,
+                                               duration=seconds)
     if graphviz is not None:
         graphviz.parent.mkdir(parents=True, exist_ok=True)
         graphviz.write_text(diagram.GetGraphvizString())
         console.print(f"wrote the diagram to {graphviz}")
     try:
-        clock = Clock(diagram, loaded.simulator_config)  # a CAN station starts up here
+        clock = Clock(diagram, loaded.simulator_config,  # a CAN station starts up here
+                      fault=station.GetOutputPort(ports.ARM_FAULT))
     except (ConnectionError, StartupError) as error:
         fail(str(error))
     if realtime_rate is not None or meshcat:
@@ -73,6 +76,9 @@ def sim(
     with sim_progress("Simulating" + (" (joint sweep)" if wiggle else " (holding)"),
                       seconds) as progress:
         timing = clock.run_for(seconds, progress)
+    if clock.fault:
+        fail(f"stopped at {timing.sim_time:.2f} s by an arm fault: {clock.fault}; no motion "
+             "command follows (`physcap arm status` shows the arm's state)")
     console.print(f"sim time {timing.sim_time:.3f} s, wall time {timing.wall_time:.3f} s, "
                   f"real-time factor {timing.realtime_factor:.2f}")
     if viewer is None:

@@ -107,6 +107,11 @@ _LINK = {"type": "object", "properties": {
                "arrived, s"},
     "garbled_frames": {"type": "integer", "description": "rejected so far"}},
     "required": ["stale", "watchdog_trips", "commands_sent"]}
+_ARM_FAULT = {"type": "object", "properties": {
+    "fault": {"type": "string", "minLength": 1, "description": "what stopped the arm: an "
+              "error state it reported, its feedback stale too long, or the streaming "
+              "process silent (the station's piper.fault)"}},
+    "required": ["fault"]}
 _SUMMARY = {"type": "object", "properties": {
     "task": _STRING, "agent": _STRING, "seed": {"type": "integer"},
     "success": {"type": ["boolean", "null"]}, "oi": {"type": "integer"},
@@ -128,6 +133,7 @@ def agent_schemas() -> dict[str, tuple[str, dict[str, Any]]]:
         topics.GRIPPER_STATE: ("physcap.GripperState", _GRIPPER),
         topics.ARM_STATUS: ("physcap.ArmStatus", _ARM_STATUS),
         topics.LINK: ("physcap.LinkHealth", _LINK),
+        topics.ARM_FAULT: ("physcap.ArmFault", _ARM_FAULT),
         topics.LLM_CALLS: ("physcap.LLMCall", _LLM_CALL),
         topics.AGENT_PROGRESS: ("physcap.AgentProgress", _PROGRESS),
         topics.EPISODE_SUMMARY: ("physcap.EpisodeSummary", _SUMMARY),

@@ -6,11 +6,11 @@ Design notes: docs/design/recording.md.
 from __future__ import annotations
 
 import numpy as np
-from pydrake.common.value import AbstractValue
+from pydrake.common.value import AbstractValue, Value
 from pydrake.math import RigidTransform
 from pydrake.multibody.plant import MultibodyPlant
 from pydrake.multibody.tree import BodyIndex
-from pydrake.systems.framework import Context, EventStatus, LeafSystem
+from pydrake.systems.framework import Context, EventStatus, LeafSystem, State
 from pydrake.systems.sensors import ImageRgba8U
 
 from physcap_drake.control.planning_model import TCP_FRAME, PlanningModel
@@ -30,14 +30,16 @@ GRIPPER_JOINT = "gripper"
 class McapRecorder(LeafSystem):
     """Writes the station's signals to an McapSink by periodic publish events (joint states
     and frames every `state_period`, images every `image_period`, a flush every
-    `flush_period`), so the simulation's state is untouched.
+    `flush_period`), so the simulation's state is untouched; a fault, once, by a per-step
+    publish at the end of the step in which the station reported it.
 
     Input ports (named like the station outputs they read):
         piper.position_measured (6, rad), piper.velocity_estimated (6, rad/s),
         piper.torque_measured (6, N·m), gripper.position_measured (1, m),
         gripper.effort_measured (1, 0..1), camera.rgb (ImageRgba8U),
-        body_poses (X_WB by body index; only with `plant` and without `kinematics`).
-    No outputs; no state (what it writes goes to the sink).
+        piper.fault (str, "" while none), body_poses (X_WB by body index; only with
+        `plant` and without `kinematics`).
+    No outputs. State: the fault written (str; a per-step update copies the input).
 
     Args:
         sink: where messages go (the recorder does not close it).
@@ -89,6 +91,8 @@ class McapRecorder(LeafSystem):
                          for name, size in ports.VECTOR_OUTPUTS.items()}
         self._rgb = self.DeclareAbstractInputPort(ports.CAMERA_RGB,
                                                   AbstractValue.Make(ImageRgba8U()))
+        self._fault = self.DeclareAbstractInputPort(ports.ARM_FAULT, AbstractValue.Make(""))
+        self._fault_written = self.DeclareAbstractState(Value(""))
         self._body_poses = None
         if plant is not None:
             if kinematics is None:
@@ -103,6 +107,8 @@ class McapRecorder(LeafSystem):
         if image_period > 0.0:
             self.DeclarePeriodicPublishEvent(image_period, 0.0, self._write_image)
         self.DeclarePeriodicPublishEvent(flush_period, 0.0, self._flush)
+        self.DeclarePerStepPublishEvent(self._write_fault)
+        self.DeclarePerStepUnrestrictedUpdateEvent(self._note_fault_written)
 
     @property
     def sink(self) -> McapSink:
@@ -144,6 +150,21 @@ class McapRecorder(LeafSystem):
                 frames.append((topics.FINGERTIP_FRAME, poses[body] @ X_BF))
             self._sink.transforms(at, frames)
         return EventStatus.Succeeded()
+
+    def _write_fault(self, context: Context) -> EventStatus:
+        """A new fault on the input: written (once; see `_note_fault_written`), flushed."""
+        fault = self._fault.Eval(context)
+        if not fault or fault == context.get_abstract_state(self._fault_written).get_value():
+            return EventStatus.DidNothing()
+        self._sink.json(topics.ARM_FAULT, self._sink.stamp(context.get_time()),
+                        {"fault": fault})
+        self._sink.flush()
+        return EventStatus.Succeeded()
+
+    def _note_fault_written(self, context: Context, state: State) -> None:
+        """At the start of a step: the fault the last step's end wrote (the input then)."""
+        state.get_mutable_abstract_state(self._fault_written).set_value(
+            self._fault.Eval(context))
 
     def _poses(self, context: Context, joints: dict) -> list | None:
         """World poses of the plant's bodies, by BodyIndex (None: no plant)."""

@@ -16,6 +16,9 @@ ARM_STATUS = "/piper/arm_status"
 #: physcap.LinkHealth (JSON), CAN stations only: the streaming link's watchdog (stale,
 #: why, trips so far), frames lost, late and garbled, motion commands sent.
 LINK = "/piper/link"
+#: physcap.ArmFault (JSON): what stopped the arm (`piper.fault`), written once, at the end
+#: of the step in which the station reported it.
+ARM_FAULT = "/piper/fault"
 #: foxglove.FrameTransforms: every body's pose in the world frame, and the fingertip frame.
 TRANSFORMS = "/tf"
 #: foxglove.SceneUpdate: the scene's geometry, each entity locked to its body's frame.

@@ -47,7 +47,7 @@ def MakeCanStation(scenario, meshcat=None) -> Diagram:
     interface = builder.AddNamedSystem(INTERFACE, PiperCanInterface(session, config))
     for name in ports.VECTOR_INPUTS:
         builder.ExportInput(interface.GetInputPort(name), name)
-    for name in ports.VECTOR_OUTPUTS:
+    for name in (*ports.VECTOR_OUTPUTS, ports.ARM_FAULT):
         builder.ExportOutput(interface.GetOutputPort(name), name)
     cameras.add_to(builder)
     if meshcat is not None:

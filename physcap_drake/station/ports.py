@@ -18,6 +18,9 @@ ARM_VELOCITY_ESTIMATED = "piper.velocity_estimated"  # 6: rad/s
 ARM_TORQUE_MEASURED = "piper.torque_measured"  # 6: N·m, net motor torque (noisy, quantized)
 GRIPPER_POSITION_MEASURED = "gripper.position_measured"  # 1: opening, m
 GRIPPER_EFFORT_MEASURED = "gripper.effort_measured"  # 1: normalized effort, 0..1
+# str: what stopped the arm (an error state it reports, feedback lost), "" while nothing
+# did; latched for the rest of the run. The simulated arm never faults: always "".
+ARM_FAULT = "piper.fault"
 
 # Camera outputs (images).
 CAMERA_RGB = "camera.rgb"  # ImageRgba8U

@@ -3,11 +3,18 @@
 from __future__ import annotations
 
 import numpy as np
+from pydrake.common.value import AbstractValue
 from pydrake.geometry import Meshcat
 from pydrake.multibody.plant import AddMultibodyPlant, MultibodyPlant
 from pydrake.multibody.tree import JointActuator, ModelInstanceIndex, PdControllerGains
 from pydrake.systems.framework import Diagram, DiagramBuilder
-from pydrake.systems.primitives import Adder, ConstantVectorSource, Demultiplexer, Gain
+from pydrake.systems.primitives import (
+    Adder,
+    ConstantValueSource,
+    ConstantVectorSource,
+    Demultiplexer,
+    Gain,
+)
 from pydrake.visualization import ApplyVisualizationConfig
 
 from physcap_drake.station import ports
@@ -206,6 +213,8 @@ def MakeSimStation(scenario, meshcat: Meshcat | None = None, *,
     if scenario.cameras:
         add_cameras(builder, plant, scene_graph, scenario)
     builder.ExportOutput(plant.get_body_poses_output_port(), ports.BODY_POSES)
+    no_fault = builder.AddNamedSystem("no_fault", ConstantValueSource(AbstractValue.Make("")))
+    builder.ExportOutput(no_fault.get_output_port(), ports.ARM_FAULT)
     if external_forces:
         builder.ExportInput(plant.get_applied_spatial_force_input_port(),
                             ports.APPLIED_SPATIAL_FORCE)
