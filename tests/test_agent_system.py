@@ -41,10 +41,10 @@ from physcap_drake.knowledge import SceneKnowledge
 from physcap_drake.physx.mass_probe import MassMeasurement, MeasureMass
 from physcap_drake.robot_api import RobotAPI
 from physcap_drake.station import ports
-from physcap_drake.station.arm_fault import ArmFault
 
 MOTION_S = 0.5  # s of simulated time each request takes the scripted robot
 MASS_KG = 0.35
+FAULT = "the arm reports: emergency stop"
 LIMITS = SandboxLimits(cpu_s=2, compute_wall_s=5, memory_mb=512)
 OBJECT = [0.3, 0.0, 0.05]  # where get_object_pose finds every object, m
 
@@ -59,8 +59,8 @@ class RobotMemory(Immutable):
 class ScriptedRobot(LeafSystem):
     """Takes a new request on `request` at its events (every 10 ms), answers it on `status`
     MOTION_S s later: REFUSED (nothing moves) for a target farther than 1 m, else SUCCEEDED
-    (a MeasureMass with a MassMeasurement of MASS_KG). From `fault_at` s on, its event raises
-    ArmFault, as a station does."""
+    (a MeasureMass with a MassMeasurement of MASS_KG). From `fault_at` s on, its `piper.fault`
+    output names an e-stop (as a station's does) and it takes no more requests."""
 
     def __init__(self, fault_at: float = math.inf):
         super().__init__()
@@ -73,6 +73,11 @@ class ScriptedRobot(LeafSystem):
             STATUS_PORT, lambda: AbstractValue.Make(SkillStatus()),
             lambda context, output: output.set_value(self.memory(context).status),
             {self.abstract_state_ticket(self._memory)})
+        self.DeclareAbstractOutputPort(
+            ports.ARM_FAULT, lambda: AbstractValue.Make(""),
+            lambda context, output: output.set_value(
+                FAULT if context.get_time() >= self._fault_at else ""),
+            {self.time_ticket()})
 
     def memory(self, context) -> RobotMemory:
         return context.get_abstract_state(self._memory).get_value()
@@ -80,7 +85,7 @@ class ScriptedRobot(LeafSystem):
     def _update(self, context, state):
         memory, now = self.memory(context), context.get_time()
         if now >= self._fault_at:
-            raise ArmFault("the arm reports: emergency stop")
+            return
         status = memory.status
         if status.state is SkillState.RUNNING and now >= status.started_at + MOTION_S - 1e-9:
             result = (MassMeasurement(True, MASS_KG, "", MOTION_S) if status.label == "get_mass"
@@ -201,7 +206,7 @@ def make_rig(blocks: list[str], delay: float = 0.0, fault_at: float = math.inf) 
     builder.Connect(camera.get_output_port(), agent.GetInputPort(ports.CAMERA_RGB))
     builder.Connect(agent.GetOutputPort(REQUEST_PORT), robot.GetInputPort(REQUEST_PORT))
     builder.Connect(robot.GetOutputPort(STATUS_PORT), agent.GetInputPort(STATUS_PORT))
-    clock = Clock(builder.Build())
+    clock = Clock(builder.Build(), fault=robot.GetOutputPort(ports.ARM_FAULT))
     arm, transcript, coder = PortArm(robot), Transcript(), Coder(blocks, delay)
     arm.read_from(clock)
     variant = AgentVariant(name="scripted", decider="coder", order="as_given", physx_api=True,
