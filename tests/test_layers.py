@@ -21,8 +21,10 @@ LAYERS = (
     # Plain helpers with no robot in them.
     ("scenario_errors", "scenario_layers", "config_checks", "resources", "immutable_state",
      "weak_method", "kinematics", "clock", "allocator", "blas_threads"),
-    # The arm's bus: protocol, link, emulated firmware.
+    # The arm's bus, the host's side: protocol, link, buses.
     ("can",),
+    # The PiPER's emulated firmware, on the protocol (never the host's link).
+    ("piper_emulator",),
     # The station (simulated or over CAN) and its ports.
     ("station",),
     # Skills on the arm, then the physical probes on the skills.

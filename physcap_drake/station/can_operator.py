@@ -17,10 +17,10 @@ import can
 import numpy as np
 
 from physcap_drake.can import codec
-from physcap_drake.can.emulator import PiperEmulator
 from physcap_drake.can.feedback import ArmParameters
 from physcap_drake.can.link import LinkSettings, PiperLink, StartupError
 from physcap_drake.can.link_process import open_bus
+from physcap_drake.piper_emulator.emulator import PiperEmulator
 from physcap_drake.station.can_config import PiperCan
 from physcap_drake.station.can_session import EMULATED_FIRMWARE
 from physcap_drake.station.simulated_motion import simulated_motion
