@@ -14,7 +14,6 @@ from pydrake.common.value import AbstractValue
 from pydrake.multibody.plant import MultibodyPlant
 from pydrake.systems.framework import Context, DiscreteValues, LeafSystem
 
-from physcap_drake.piper_emulator.emulator_process import FIRMWARE_RATE
 from physcap_drake.station import ports
 from physcap_drake.station.can_session import CanSession
 from physcap_drake.station.ports import camera_port
@@ -63,6 +62,9 @@ class EmulatedScene(LeafSystem):
         self._world = self.DeclareDiscreteState(
             self.plant.GetPositionsAndVelocities(self._plant_context))
         self.DeclareInitializationDiscreteUpdateEvent(self._latch)
+        # Only an emulated scene imports the emulator (for the rate it publishes at).
+        from physcap_drake.piper_emulator.emulator_process import FIRMWARE_RATE
+
         self.DeclarePeriodicDiscreteUpdateEvent(1.0 / FIRMWARE_RATE, 0.0, self._latch)
         names = [camera_port(camera, image) for camera in cameras for image in IMAGES]
         for name in (*names, ports.BODY_POSES):

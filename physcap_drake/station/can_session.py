@@ -15,7 +15,6 @@ from physcap_drake.can.faults import FaultSettings
 from physcap_drake.can.link import LinkSettings
 from physcap_drake.can.link_process import LinkProcess
 from physcap_drake.can.socket_bus import socket_pair
-from physcap_drake.piper_emulator.emulator_process import EmulatorProcess
 from physcap_drake.station.can_config import PiperCan
 from physcap_drake.station.can_gate import confirm_enabling
 
@@ -24,6 +23,7 @@ if TYPE_CHECKING:
 
     from physcap_drake.can.link import LinkStatus
     from physcap_drake.piper_emulator.emulator import EmulatorTiming
+    from physcap_drake.piper_emulator.emulator_process import EmulatorProcess
 
 #: What builds the emulated arm's world in the emulator's process, by name: it is built from
 #: the scenario, a layer above the station (see `physcap_drake.emulated_world`).
@@ -90,6 +90,9 @@ class CanSession:
         if not config.emulate:
             self.link = LinkProcess(LinkSettings.of(config))
             return self
+        # The one place a CAN station imports the emulator: `emulate: true`.
+        from physcap_drake.piper_emulator.emulator_process import EmulatorProcess
+
         emulator_end, link_end = socket_pair()
         f = config.faults
         self.link = LinkProcess(LinkSettings.of(config), link_end,
