@@ -257,6 +257,37 @@ def strongly_connected(edges: dict[str, set[str]]) -> list[list[str]]:
     return components
 
 
+def module_edges() -> dict[str, set[str]]:
+    """module -> the physcap_drake modules it imports (every import, also inside functions:
+    a deferred import is still a dependency; `if TYPE_CHECKING:` imports are left out, as
+    they never run). `from package import name` counts as importing `package.name` when
+    that is a module, else the package."""
+    paths = {module_of(path): path for path in ROOT.rglob("*.py")}
+    edges: dict[str, set[str]] = {}
+    for module, path in paths.items():
+        tree = ast.parse(path.read_text(), str(path))
+        typing_only = {node.lineno for block in tree.body if isinstance(block, ast.If)
+                       and ast.unparse(block.test) == "TYPE_CHECKING"
+                       for node in ast.walk(block) if hasattr(node, "lineno")}
+        targets = set()
+        for line, target, names in imported_modules(path):
+            if line in typing_only or not target.startswith("physcap_drake"):
+                continue
+            submodules = {f"{target}.{name}" for name in names} & set(paths)
+            targets |= submodules or {target}
+            if len(submodules) < len(names):  # names defined in the package itself
+                targets.add(target)
+        edges[module] = targets & set(paths) - {module}
+    return edges
+
+
+def test_no_import_cycles_between_modules():
+    """No two modules import each other, directly or round a cycle (see `module_edges`)."""
+    cycles = [component for component in strongly_connected(module_edges())
+              if len(component) > 1]
+    assert cycles == []
+
+
 def test_the_cycle_finder_finds_a_cycle():
     """The check above can fail: a graph with a cycle is caught."""
     assert ["a", "b"] in strongly_connected({"a": {"b"}, "b": {"a", "c"}, "c": set()})

@@ -19,6 +19,8 @@ from physcap_drake.station.can_session import CanSession
 from physcap_drake.station.ports import camera_port
 from physcap_drake.weak_method import weak_method
 
+#: The scene's name in a CAN station (the subsystem the emulated world's images come from).
+SCENE = "scene"
 SCENE_OUTPUTS = (*ports.IMAGE_OUTPUTS, ports.BODY_POSES)
 #: The images a rendered camera gives, and the name of the station's camera.
 IMAGES = ("rgb", "depth", "label")
