@@ -18,14 +18,12 @@ from typing import Any
 
 from physcap_drake.agent.llm.anthropic_backend import AnthropicClient
 from physcap_drake.agent.llm.base import LLMClient
-from physcap_drake.agent.llm.compatible import OpenAICompatibleClient
-from physcap_drake.agent.llm.deadline import DeadlineClient
+from physcap_drake.agent.llm.compatible import OpenAIClient, OpenAICompatibleClient
 from physcap_drake.agent.llm.files_backend import FilesClient
 from physcap_drake.agent.llm.gemini import GeminiClient
-from physcap_drake.agent.llm.openai_backend import OpenAIClient
 from physcap_drake.agent.llm.recording import RecordingClient
 from physcap_drake.agent.llm.replay import ReplayClient
-from physcap_drake.agent.llm.retry import RetryingClient
+from physcap_drake.agent.llm.retry import DeadlineClient, RetryingClient
 
 VALID_SPECS = (
     "reference",
