@@ -17,8 +17,6 @@ import numpy as np
 from physcap_drake.can.child_process import ChildError, ChildProcess, named_function
 from physcap_drake.can.shared_block import Layout, SharedBlock
 
-log = logging.getLogger("physcap_drake.can")
-
 #: How long the parent waits for the child to build its world and start, s.
 START_TIMEOUT = 120.0
 #: How long a reader of the world waits for the emulator to finish a publication, s.
