@@ -76,7 +76,7 @@ def paper_successes(task: str, agent: str) -> tuple[int, int] | None:
     paper = PAPER_TABLE_1.get((task, agent))
     if paper is None:
         return None
-    trials = PAPER_TRIALS.get(task, 10)
+    trials = default_trials(task)
     return round(paper[0] * trials), trials
 
 
