@@ -1,6 +1,7 @@
 """The package's layers: each subpackage (or top-level module) of physcap_drake imports only
-from its own layer or the layers below it, no two packages import each other (directly or
-round a cycle), and no module imports another module's private names.
+from its own layer or the layers below it, no two packages and no two modules import each
+other (directly or round a cycle), no module imports another module's private names, and
+the host imports the PiPER emulator only where it starts one.
 
 Every import counts, also those inside functions: a deferred import is still a dependency.
 A new package must be given a layer here; that is where its place in the design is decided.
@@ -121,24 +122,27 @@ EMULATOR_USES_OF_CAN = {"codec", "joint_profile", "socket_bus", "child_process",
 EMULATOR = "physcap_drake.piper_emulator"
 
 
+def typing_only_lines(path: Path) -> set[int]:
+    """The lines of `path`'s `if TYPE_CHECKING:` blocks (imports there never run)."""
+    tree = ast.parse(path.read_text(), str(path))
+    return {node.lineno for block in tree.body if isinstance(block, ast.If)
+            and ast.unparse(block.test) == "TYPE_CHECKING"
+            for node in ast.walk(block) if hasattr(node, "lineno")}
+
+
 def emulator_imports(path: Path) -> tuple[list[int], list[int]]:
     """(all lines, module-level lines) at which `path` imports the emulator package;
     `if TYPE_CHECKING:` imports are left out."""
     tree = ast.parse(path.read_text(), str(path))
-    typing_only = {id(node) for block in tree.body if isinstance(block, ast.If)
-                   and ast.unparse(block.test) == "TYPE_CHECKING"
-                   for node in ast.walk(block)}
-    top_level = {id(node) for node in tree.body}
+    top_level = {node.lineno for node in tree.body}
+    typing_only = typing_only_lines(path)
     lines, module_level = [], []
     for line, target, names in imported_modules(path):
         modules = [target] + [f"{target}.{name}" for name in names]
-        if any(m == EMULATOR or m.startswith(EMULATOR + ".") for m in modules):
-            node = next(n for n in ast.walk(tree) if getattr(n, "lineno", None) == line
-                        and isinstance(n, (ast.Import, ast.ImportFrom)))
-            if id(node) in typing_only:
-                continue
+        if line not in typing_only and any(
+                m == EMULATOR or m.startswith(EMULATOR + ".") for m in modules):
             lines.append(line)
-            if id(node) in top_level:
+            if line in top_level:
                 module_level.append(line)
     return lines, module_level
 
@@ -265,10 +269,7 @@ def module_edges() -> dict[str, set[str]]:
     paths = {module_of(path): path for path in ROOT.rglob("*.py")}
     edges: dict[str, set[str]] = {}
     for module, path in paths.items():
-        tree = ast.parse(path.read_text(), str(path))
-        typing_only = {node.lineno for block in tree.body if isinstance(block, ast.If)
-                       and ast.unparse(block.test) == "TYPE_CHECKING"
-                       for node in ast.walk(block) if hasattr(node, "lineno")}
+        typing_only = typing_only_lines(path)
         targets = set()
         for line, target, names in imported_modules(path):
             if line in typing_only or not target.startswith("physcap_drake"):
