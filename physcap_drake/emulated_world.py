@@ -1,6 +1,6 @@
 """The emulated arm's world, built inside the emulator's process from a scenario's YAML.
 
-The emulator (`can.emulator_process`) sits below the scenario and the station in the
+The emulator (`piper_emulator.emulator_process`) sits below the scenario and the station in the
 package's layers, so it does not import what builds its world: the station's CAN session
 names this function (`station.can_session.EMULATED_WORLD_BUILDER`) and the emulator's
 process imports it by that name.

@@ -8,10 +8,10 @@ import dataclasses as dc
 import pytest
 from conftest import unique_channel
 
-from physcap_drake.can.emulator_process import EmulatorProcess
 from physcap_drake.can.faults import FaultyBus
 from physcap_drake.can.link import PiperLink
 from physcap_drake.can.socket_bus import SocketBus, socket_pair
+from physcap_drake.piper_emulator.emulator_process import EmulatorProcess
 from physcap_drake.station.can_config import PiperCan
 
 

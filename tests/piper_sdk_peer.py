@@ -11,7 +11,7 @@ import can
 import numpy as np
 import pytest
 
-from physcap_drake.can.emulator import PiperEmulator, wait_until
+from physcap_drake.piper_emulator.emulator import PiperEmulator, wait_until
 
 piper_sdk = pytest.importorskip("piper_sdk")
 _names = itertools.count()

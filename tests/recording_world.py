@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import json
 
-from physcap_drake.can.motion import KinematicMotion
+from physcap_drake.piper_emulator.motion import KinematicMotion
 
 
 def record_start(scenario_yaml: str, gripper_max_effort: float, **world) -> KinematicMotion:

@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 from pydrake.common.yaml import yaml_dump_typed
 
-from physcap_drake.can.motion import MotionCommand
 from physcap_drake.emulated_world import build_world
+from physcap_drake.piper_emulator.motion import MotionCommand
 from physcap_drake.robot_stack import build_robot_stack
 from physcap_drake.scenario import check_scenario, load_scenario_text
 from physcap_drake.scenario_errors import ScenarioError

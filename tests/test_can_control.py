@@ -12,11 +12,11 @@ import pytest
 from conftest import unique_channel
 
 from physcap_drake.can import codec
-from physcap_drake.can.emulator import PiperEmulator, wait_until
 from physcap_drake.can.feedback import FeedbackListener
 from physcap_drake.can.link import LinkSettings, PiperLink, StartupError
-from physcap_drake.can.motion import KinematicMotion
 from physcap_drake.control.skills_config import SkillsConfig
+from physcap_drake.piper_emulator.emulator import PiperEmulator, wait_until
+from physcap_drake.piper_emulator.motion import KinematicMotion
 from physcap_drake.station.can_config import PiperCan, rig_skills
 from physcap_drake.station.can_gate import EnableRefused, allow_enabling, confirm_enabling
 

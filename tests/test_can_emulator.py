@@ -17,8 +17,8 @@ import numpy as np
 import pytest
 from piper_sdk_peer import enable, joints, piper_sdk, sdk_with_emulator, status, stream
 
-from physcap_drake.can.emulator import wait_until
-from physcap_drake.can.motion import KinematicMotion
+from physcap_drake.piper_emulator.emulator import wait_until
+from physcap_drake.piper_emulator.motion import KinematicMotion
 
 #: piper_sdk 0.6.2 opens its bus with python-can's deprecated `bustype` argument.
 pytestmark = [

@@ -14,9 +14,9 @@ import numpy as np
 import pytest
 
 from physcap_drake.can import codec
-from physcap_drake.can.emulator import wait_until
 from physcap_drake.can.faults import garbled
 from physcap_drake.can.feedback import FeedbackListener
+from physcap_drake.piper_emulator.emulator import wait_until
 
 pytestmark = [pytest.mark.emulated_hardware, pytest.mark.xdist_group("realtime")]
 

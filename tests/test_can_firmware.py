@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 from physcap_drake.can import codec
-from physcap_drake.can.firmware import Firmware
-from physcap_drake.can.motion import KinematicMotion, MotionReading
+from physcap_drake.piper_emulator.firmware import Firmware
+from physcap_drake.piper_emulator.motion import KinematicMotion, MotionReading
 
 pytestmark = pytest.mark.emulated_hardware
 

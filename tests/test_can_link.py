@@ -11,8 +11,8 @@ import pytest
 from conftest import unique_channel
 
 from physcap_drake.can import codec
-from physcap_drake.can.emulator import PiperEmulator, wait_until
 from physcap_drake.can.link import PiperLink, StartupError
+from physcap_drake.piper_emulator.emulator import PiperEmulator, wait_until
 from physcap_drake.station.can_config import PiperCan
 
 pytestmark = [pytest.mark.emulated_hardware, pytest.mark.xdist_group("realtime")]

@@ -8,18 +8,18 @@ import time
 import numpy as np
 import pytest
 
-from physcap_drake.can.arm_state import DEFAULT_MAX_SPEED
-from physcap_drake.can.emulator import PiperEmulator, wait_until
-from physcap_drake.can.lateness import LagTracker
-from physcap_drake.can.motion import KinematicMotion, MotionCommand
-from physcap_drake.can.paced_world import (
+from physcap_drake.can.socket_bus import SocketBus, socket_pair
+from physcap_drake.piper_emulator.arm_state import DEFAULT_MAX_SPEED
+from physcap_drake.piper_emulator.emulator import PiperEmulator, wait_until
+from physcap_drake.piper_emulator.lateness import LagTracker
+from physcap_drake.piper_emulator.motion import KinematicMotion, MotionCommand
+from physcap_drake.piper_emulator.paced_world import (
     MAX_LAG,
     MAX_STEP_PERIODS,
     REST,
     PacedWorld,
     along_path,
 )
-from physcap_drake.can.socket_bus import SocketBus, socket_pair
 
 pytestmark = [pytest.mark.emulated_hardware, pytest.mark.xdist_group("realtime")]
 #: The tests that pace real threads by the wall clock (their bounds tolerate a loaded machine).

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from pydrake.systems.analysis import Simulator
 
-from physcap_drake.can.emulator_process import FIRMWARE_RATE
+from physcap_drake.piper_emulator.emulator_process import FIRMWARE_RATE
 from physcap_drake.station import ports
 from physcap_drake.station.can_cameras import emulated_world
 from physcap_drake.station.can_config import PiperCan

@@ -15,10 +15,10 @@ from pydrake.systems.analysis import Simulator
 from typer.testing import CliRunner
 
 from physcap_drake.app.agent_episode import run_agent_episode
-from physcap_drake.can.emulator import wait_until
 from physcap_drake.can.link import StartupError
 from physcap_drake.can.playback import DELAY as PLAYBACK_DELAY
 from physcap_drake.cli import app
+from physcap_drake.piper_emulator.emulator import wait_until
 from physcap_drake.resources import stations_dir
 from physcap_drake.scenario import load_scenario
 from physcap_drake.station import MakeStation, close_station, ports, scene_snapshot

@@ -42,7 +42,7 @@ ALLOWED = {
         "SetFreeBodyPose": "the perception bench's oracle moves objects in the simulated "
                            "world between two looks (a benchmark, not the robot)",
     },
-    "can/arm_gravity.py": {
+    "piper_emulator/arm_gravity.py": {
         "SetPositions": "ArmGravity's own scratch context of its own plant (the kinematic "
                         "emulated arm's holding torques), never a running diagram's",
     },

@@ -12,9 +12,9 @@ import numpy as np
 import pytest
 from piper_sdk_peer import MDEG, enable, joints, piper_sdk, sdk_with_emulator, settled, status
 
-from physcap_drake.can.arm_gravity import ArmGravity
-from physcap_drake.can.emulator import wait_until
-from physcap_drake.can.motion import KinematicMotion
+from physcap_drake.piper_emulator.arm_gravity import ArmGravity
+from physcap_drake.piper_emulator.emulator import wait_until
+from physcap_drake.piper_emulator.motion import KinematicMotion
 from physcap_drake.station.simulated_motion import simulated_motion
 
 pytestmark = [pytest.mark.emulated_hardware,

@@ -14,8 +14,8 @@ from pydrake.multibody.parsing import Parser
 from pydrake.multibody.plant import MultibodyPlant
 from recording_world import RECORD_FILE
 
-from physcap_drake.can.emulator_process import EmulatorProcess
 from physcap_drake.can.socket_bus import socket_pair
+from physcap_drake.piper_emulator.emulator_process import EmulatorProcess
 from physcap_drake.resources import add_model_packages
 from physcap_drake.station.can_session import EMULATED_WORLD_BUILDER
 

@@ -12,12 +12,12 @@ import pytest
 from piper_sdk_peer import MDEG, enable, joints, sdk_with_emulator, settled, status, stream
 
 from physcap_drake.can import codec
-from physcap_drake.can.emulator import wait_until
-from physcap_drake.can.emulator_process import EmulatorProcess
-from physcap_drake.can.firmware import START_STATES, Firmware
-from physcap_drake.can.motion import KinematicMotion
 from physcap_drake.can.socket_bus import SocketBus, socket_pair
 from physcap_drake.config_checks import ConfigChecker
+from physcap_drake.piper_emulator.emulator import wait_until
+from physcap_drake.piper_emulator.emulator_process import EmulatorProcess
+from physcap_drake.piper_emulator.firmware import START_STATES, Firmware
+from physcap_drake.piper_emulator.motion import KinematicMotion
 from physcap_drake.scenario_errors import ScenarioError
 from physcap_drake.station.can_config import PiperCan
 from physcap_drake.station.can_operator import arm_report, operator_link

@@ -1,6 +1,7 @@
 """The package's layers: each subpackage (or top-level module) of physcap_drake imports only
-from its own layer or the layers below it, no two packages import each other (directly or
-round a cycle), and no module imports another module's private names.
+from its own layer or the layers below it, no two packages and no two modules import each
+other (directly or round a cycle), no module imports another module's private names, and
+the host imports the PiPER emulator only where it starts one.
 
 Every import counts, also those inside functions: a deferred import is still a dependency.
 A new package must be given a layer here; that is where its place in the design is decided.
@@ -9,6 +10,9 @@ A new package must be given a layer here; that is where its place in the design 
 from __future__ import annotations
 
 import ast
+import os
+import subprocess
+import sys
 from collections import defaultdict
 from pathlib import Path
 
@@ -21,8 +25,10 @@ LAYERS = (
     # Plain helpers with no robot in them.
     ("scenario_errors", "scenario_layers", "config_checks", "resources", "immutable_state",
      "weak_method", "kinematics", "clock", "allocator", "blas_threads"),
-    # The arm's bus: protocol, link, emulated firmware.
+    # The arm's bus, the host's side: protocol, link, buses.
     ("can",),
+    # The PiPER's emulated firmware, on the protocol (never the host's link).
+    ("piper_emulator",),
     # The station (simulated or over CAN) and its ports.
     ("station",),
     # Skills on the arm, then the physical probes on the skills.
@@ -92,6 +98,92 @@ def package_edges() -> dict[str, dict[str, list[str]]]:
             if parts[1] != source:
                 edges[source][parts[1]].append(f"{path.relative_to(ROOT)}:{line}")
     return edges
+
+
+#: The modules outside piper_emulator that import it, and when. The host imports the emulator
+#: only where it starts one: the CLI's `emulate-piper`, or a station with `emulate: true`
+#: (deferred: those imports run only then, so a real arm's run loads no emulator).
+EMULATOR_STARTERS = {
+    "commands/emulate.py": "`physcap emulate-piper` starts an emulator",
+    "station/simulated_motion.py": "the emulated arm's world (a simulated scene), built only "
+                                   "for an emulator",
+}
+EMULATOR_STARTERS_DEFERRED = {
+    "station/can_session.py": "`emulate: true`: starts the emulator's process",
+    "station/can_operator.py": "`emulate: true`: `physcap arm` on an emulated arm",
+    "station/can_scene.py": "`emulate: true`: the emulated scene reads the emulated world",
+    "station/can_config.py": "`emulate: true`: checks `emulated_start`",
+}
+#: What the emulator uses of the host's package `can`: the protocol, the joint profile both
+#: follow, and the plumbing between processes; never the link (`link`, `link_process`,
+#: `feedback`, ...), so the emulator can be reused without the host.
+EMULATOR_USES_OF_CAN = {"codec", "joint_profile", "socket_bus", "child_process",
+                        "shared_block", "realtime"}
+EMULATOR = "physcap_drake.piper_emulator"
+
+
+def typing_only_lines(path: Path) -> set[int]:
+    """The lines of `path`'s `if TYPE_CHECKING:` blocks (imports there never run)."""
+    tree = ast.parse(path.read_text(), str(path))
+    return {node.lineno for block in tree.body if isinstance(block, ast.If)
+            and ast.unparse(block.test) == "TYPE_CHECKING"
+            for node in ast.walk(block) if hasattr(node, "lineno")}
+
+
+def emulator_imports(path: Path) -> tuple[list[int], list[int]]:
+    """(all lines, module-level lines) at which `path` imports the emulator package;
+    `if TYPE_CHECKING:` imports are left out."""
+    tree = ast.parse(path.read_text(), str(path))
+    top_level = {node.lineno for node in tree.body}
+    typing_only = typing_only_lines(path)
+    lines, module_level = [], []
+    for line, target, names in imported_modules(path):
+        modules = [target] + [f"{target}.{name}" for name in names]
+        if line not in typing_only and any(
+                m == EMULATOR or m.startswith(EMULATOR + ".") for m in modules):
+            lines.append(line)
+            if line in top_level:
+                module_level.append(line)
+    return lines, module_level
+
+
+def test_only_the_emulator_starters_import_the_emulator():
+    found, eager = {}, []
+    for path in sorted(ROOT.rglob("*.py")):
+        name = str(path.relative_to(ROOT))
+        if unit_of(path) == "piper_emulator":
+            continue
+        lines, module_level = emulator_imports(path)
+        if lines:
+            found[name] = lines
+        if module_level and name in EMULATOR_STARTERS_DEFERRED:
+            eager.append(f"{name}:{module_level} (import it where emulate is true)")
+    assert sorted(found) == sorted(EMULATOR_STARTERS | EMULATOR_STARTERS_DEFERRED), found
+    assert eager == []
+
+
+def test_the_emulator_uses_the_protocol_not_the_hosts_link():
+    used = {}
+    for path in sorted((ROOT / "piper_emulator").rglob("*.py")):
+        for line, target, names in imported_modules(path):
+            parts = target.split(".")
+            if parts[:2] != ["physcap_drake", "can"]:
+                continue
+            for module in ([parts[2]] if len(parts) > 2 else list(names)):
+                used.setdefault(module, []).append(f"{path.relative_to(ROOT)}:{line}")
+    assert set(used) - EMULATOR_USES_OF_CAN == set(), used
+
+
+def test_a_real_arm_loads_no_emulator():
+    """Importing what drives a real arm (its station, session, operator commands, recorder)
+    loads none of the emulator."""
+    program = ("import sys\n"
+               "import physcap_drake.station.can_station, physcap_drake.station.can_interface\n"
+               "import physcap_drake.commands.arm, physcap_drake.recording.can_topics\n"
+               f"print([m for m in sys.modules if m.startswith({EMULATOR!r})])")
+    result = subprocess.run([sys.executable, "-c", program], capture_output=True, text=True,
+                            check=True, env={**os.environ, "PYTHONPATH": str(ROOT.parent)})
+    assert result.stdout.strip() == "[]", result.stdout
 
 
 def test_every_package_has_a_layer():
@@ -167,6 +259,34 @@ def strongly_connected(edges: dict[str, set[str]]) -> list[list[str]]:
         if node not in index:
             visit(node)
     return components
+
+
+def module_edges() -> dict[str, set[str]]:
+    """module -> the physcap_drake modules it imports (every import, also inside functions:
+    a deferred import is still a dependency; `if TYPE_CHECKING:` imports are left out, as
+    they never run). `from package import name` counts as importing `package.name` when
+    that is a module, else the package."""
+    paths = {module_of(path): path for path in ROOT.rglob("*.py")}
+    edges: dict[str, set[str]] = {}
+    for module, path in paths.items():
+        typing_only = typing_only_lines(path)
+        targets = set()
+        for line, target, names in imported_modules(path):
+            if line in typing_only or not target.startswith("physcap_drake"):
+                continue
+            submodules = {f"{target}.{name}" for name in names} & set(paths)
+            targets |= submodules or {target}
+            if len(submodules) < len(names):  # names defined in the package itself
+                targets.add(target)
+        edges[module] = targets & set(paths) - {module}
+    return edges
+
+
+def test_no_import_cycles_between_modules():
+    """No two modules import each other, directly or round a cycle (see `module_edges`)."""
+    cycles = [component for component in strongly_connected(module_edges())
+              if len(component) > 1]
+    assert cycles == []
 
 
 def test_the_cycle_finder_finds_a_cycle():

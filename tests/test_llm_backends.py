@@ -1,8 +1,10 @@
 """The language-model backends, tested offline.
 
-Each remote backend is built around its real SDK client whose HTTP goes to an
-`httpx.MockTransport`, so the tests see the exact request the SDK would send and feed it
-canned answers, rate limits, server errors and timeouts. Nothing touches the network.
+The SDK backends (Gemini, Claude) are built around their real SDK clients whose HTTP goes to
+an `httpx.MockTransport`; the Chat Completions client (OpenAI and every compatible server)
+speaks HTTP itself, so its scripted server answers over a socket on 127.0.0.1. The tests see
+the exact request sent and feed back canned answers, rate limits, server errors and
+timeouts. Nothing touches the network.
 """
 
 from __future__ import annotations
@@ -10,7 +12,9 @@ from __future__ import annotations
 import base64
 import json
 import sys
+import threading
 from collections.abc import Callable
+from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 from types import SimpleNamespace
 from typing import Any
 
@@ -19,10 +23,8 @@ import pytest
 
 pytest.importorskip("google.genai")
 pytest.importorskip("anthropic")
-pytest.importorskip("openai")
 
 import anthropic  # noqa: E402
-import openai  # noqa: E402
 from google import genai  # noqa: E402
 from google.genai import types as genai_types  # noqa: E402
 
@@ -45,6 +47,7 @@ from physcap_drake.agent.llm import (  # noqa: E402
     ReplayMiss,
     RetryingClient,
     TransientLLMError,
+    check_client,
     load_jsonl,
     make_llm,
     save_jsonl,
@@ -90,6 +93,70 @@ class Server:
     def body(self, index: int = 0) -> dict[str, Any]:
         return json.loads(self.requests[index].content)
 
+    @property
+    def hangs(self) -> bool:
+        """Whether a step never answers (`timeout()`)."""
+        return any(getattr(step, "hangs", False) for step in self.steps)
+
+
+#: The local HTTP servers started by the current test, closed after it.
+LOCAL_SERVERS: list[ThreadingHTTPServer] = []
+#: Set when a test ends: handlers that never answer (a scripted timeout) let go.
+RELEASED = threading.Event()
+
+
+@pytest.fixture(autouse=True)
+def _close_local_servers():
+    RELEASED.clear()
+    yield
+    RELEASED.set()
+    while LOCAL_SERVERS:
+        LOCAL_SERVERS.pop().shutdown()
+
+
+def over_http(server: Server) -> str:
+    """Serves `server`'s script on 127.0.0.1 over real HTTP; returns the base URL. A step
+    that raises a timeout never answers; one that raises another transport error closes the
+    connection without an answer."""
+
+    class Handler(BaseHTTPRequestHandler):
+        def log_message(self, *args) -> None:  # quiet
+            pass
+
+        def do_GET(self) -> None:
+            self._serve()
+
+        def do_POST(self) -> None:
+            self._serve()
+
+        def _serve(self) -> None:
+            body = self.rfile.read(int(self.headers.get("content-length", 0)))
+            request = httpx.Request(self.command, f"{url}{self.path}",
+                                    headers=list(self.headers.items()), content=body)
+            self.close_connection = True
+            try:
+                response = server(request)
+            except httpx.TimeoutException:
+                RELEASED.wait(30)
+                return
+            except httpx.TransportError:
+                return
+            payload = response.content
+            self.send_response(response.status_code)
+            for name, value in response.headers.items():
+                if name.lower() not in ("content-length", "transfer-encoding", "connection"):
+                    self.send_header(name, value)
+            self.send_header("Content-Length", str(len(payload)))
+            self.end_headers()
+            self.wfile.write(payload)
+
+    http = ThreadingHTTPServer(("127.0.0.1", 0), Handler)
+    http.daemon_threads = True
+    url = f"http://127.0.0.1:{http.server_address[1]}"
+    threading.Thread(target=http.serve_forever, daemon=True).start()
+    LOCAL_SERVERS.append(http)
+    return url
+
 
 def status(code: int, headers: dict[str, str] | None = None) -> Step:
     body = {"error": {"code": code, "message": f"scripted {code}", "status": "SCRIPTED",
@@ -100,6 +167,7 @@ def status(code: int, headers: dict[str, str] | None = None) -> Step:
 def timeout() -> Step:
     def raise_timeout(request: httpx.Request) -> httpx.Response:
         raise httpx.ReadTimeout("scripted read timeout", request=request)
+    raise_timeout.hangs = True  # type: ignore[attr-defined]
     return raise_timeout
 
 
@@ -155,8 +223,9 @@ def anthropic_backend(server: Server, **options: Any) -> AnthropicClient:
 
 
 def openai_backend(server: Server, **options: Any) -> OpenAIClient:
-    sdk = openai.OpenAI(api_key="test-key", http_client=server.http(), max_retries=3)
-    return OpenAIClient(client=sdk, **options)
+    # A short deadline only where the script never answers; room for a loaded machine else.
+    options.setdefault("timeout_s", 0.5 if server.hangs else 30.0)
+    return OpenAIClient(api_key="test-key", base_url=over_http(server) + "/v1", **options)
 
 
 BACKENDS = {
@@ -319,6 +388,20 @@ def test_openai_text_only_request_uses_plain_string_content():
     request = LLMRequest(role="coder", system="", prompt="Say hello.")
     assert openai_backend(server).complete(request).text == "hello"
     assert server.body()["messages"] == [{"role": "user", "content": "Say hello."}]
+
+
+def test_openai_is_the_chat_completions_client_at_openais_service(monkeypatch):
+    """One transport for OpenAI and compatible servers; OPENAI_API_KEY goes to OpenAI only,
+    and OpenAI's service is not given the start-up check (nothing is sent here)."""
+    monkeypatch.setenv("OPENAI_API_KEY", "from-env")
+    backend = OpenAIClient(model="gpt-4.1")
+    assert isinstance(backend, OpenAICompatibleClient)
+    assert (backend.name, backend.base_url) == ("openai", "https://api.openai.com/v1")
+    assert backend._headers["Authorization"] == "Bearer from-env"
+    assert check_client(make_llm("openai", model="gpt-4.1")) == ""
+    compatible = OpenAICompatibleClient("http://localhost:8000/v1", "qwen2.5-vl")
+    assert "Authorization" not in compatible._headers
+    assert compatible.checked_at_start
 
 
 def test_openai_compatible_settings_are_checked_when_built():
@@ -689,8 +772,8 @@ def test_factory_rejects_bad_specs_and_options():
 def test_factory_layers_remote_backends():
     records: list[CallRecord] = []
     server = Server(status(429), openai_ok())
-    sdk = openai.OpenAI(api_key="k", http_client=server.http())
-    client = make_llm("openai", model="gpt-4.1", client=sdk, sleep=lambda s: None,
+    client = make_llm("openai", model="gpt-4.1", api_key="k", base_url=over_http(server),
+                      sleep=lambda s: None,
                       attempts=2, on_record=records.append, timeout_s=7, temperature=0.2,
                       sampling_seed=11)
     assert isinstance(client, RecordingClient)
@@ -754,7 +837,8 @@ def test_an_html_page_or_a_cut_body_with_http_200_is_retried_then_reported(backe
     client, _ = retrying(make(server), attempts=2)
     with pytest.raises(LLMError, match="giving up after 2 attempt") as caught:
         client.complete(make_request())
-    assert backend_name in str(caught.value) and "not" in str(caught.value)
+    what = "an HTML page" if backend_name == "openai" else "not"  # the SDKs say "not JSON"
+    assert backend_name in str(caught.value) and what in str(caught.value)
 
 
 def _cut_then_whole(backend_name: str) -> list:

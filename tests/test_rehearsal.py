@@ -13,8 +13,8 @@ import time
 import pytest
 from typer.testing import CliRunner
 
-from physcap_drake.can.emulator import wait_until
 from physcap_drake.cli import app
+from physcap_drake.piper_emulator.emulator import wait_until
 from physcap_drake.resources import stations_dir
 
 pytestmark = pytest.mark.emulated_hardware

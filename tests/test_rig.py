@@ -14,13 +14,13 @@ from typer.testing import CliRunner
 
 from physcap_drake.app.agent_episode import run_agent_episode
 from physcap_drake.app.episode import make_episode
-from physcap_drake.can.emulator_process import EmulatorProcess
 from physcap_drake.can.link import LinkSettings
 from physcap_drake.can.link_process import LinkProcess
 from physcap_drake.can.socket_bus import socket_pair
 from physcap_drake.cli import app
 from physcap_drake.commands.operator_judge import ask_operator
 from physcap_drake.perception.judge import Verdict
+from physcap_drake.piper_emulator.emulator_process import EmulatorProcess
 from physcap_drake.recording import topics
 from physcap_drake.recording.mcap_recorder import make_mcap_recorder
 from physcap_drake.recording.mcap_sink import McapSink

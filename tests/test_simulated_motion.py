@@ -8,7 +8,7 @@ from pydrake.math import RigidTransform, RollPitchYaw
 from pydrake.multibody.math import SpatialVelocity
 from pydrake.multibody.tree import JacobianWrtVariable
 
-from physcap_drake.can.motion import MotionCommand
+from physcap_drake.piper_emulator.motion import MotionCommand
 from physcap_drake.resources import stations_dir
 from physcap_drake.scenario import load_scenario
 from physcap_drake.station.end_load import GRAVITY

@@ -15,8 +15,8 @@ import numpy as np
 import pytest
 from piper_sdk_peer import enable, joints, sdk_on_unix_bus, status
 
-from physcap_drake.can.emulator import wait_until
 from physcap_drake.can.unix_bus import UnixBusHub, UnixSocketBus
+from physcap_drake.piper_emulator.emulator import wait_until
 
 pytestmark = [pytest.mark.emulated_hardware,
               pytest.mark.filterwarnings("ignore:The .bustype. argument is deprecated")]

@@ -1,6 +1,6 @@
-"""The PiPER over CAN: the protocol (`codec`), the host's link (`link`, `feedback`, and the
-streaming process `link_process`), and the emulated arm (`emulator`, `firmware`,
-`firmware_settings`, `planner`, `end_pose`, `paths`, `motion`, `paced_world`, and its
-process `emulator_process`; the simulated world behind it is `station.simulated_motion`,
-built by `emulated_world`), with what joins them across processes (`socket_bus`,
-`shared_block`, `child_process`, `realtime`) and the fault drills (`faults`)."""
+"""The PiPER over CAN, the host's side: the protocol (`codec`), the host's link (`link`,
+`link_control`, `feedback`, `playback`, and the streaming process `link_process`), bringing a
+bus up (`bring_up`), the buses (`socket_bus`, `unix_bus`), what joins processes
+(`shared_block`, `child_process`, `realtime`), the joint profile both the link and the
+emulated firmware follow (`joint_profile`), and the fault drills (`faults`). The emulated arm
+is a package of its own, `physcap_drake.piper_emulator`."""

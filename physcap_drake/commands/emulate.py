@@ -11,13 +11,13 @@ import can
 import numpy as np
 import typer
 
-from physcap_drake.can.arm_gravity import ArmGravity
-from physcap_drake.can.emulator import PiperEmulator
-from physcap_drake.can.firmware import START_STATES
-from physcap_drake.can.motion import KinematicMotion
 from physcap_drake.can.unix_bus import UnixBusHub
 from physcap_drake.commands.common import console, fail, load_scenario_or_exit
 from physcap_drake.commands.options import ScenarioText
+from physcap_drake.piper_emulator.arm_gravity import ArmGravity
+from physcap_drake.piper_emulator.emulator import PiperEmulator
+from physcap_drake.piper_emulator.firmware import START_STATES
+from physcap_drake.piper_emulator.motion import KinematicMotion
 from physcap_drake.station.can_cameras import emulated_world
 from physcap_drake.station.simulated_motion import simulated_motion
 

@@ -17,9 +17,8 @@ import typer
 
 from physcap_drake.agent.llm import LLMClient, LLMError, ModelSettings, check_client
 from physcap_drake.agent.llm.chat_format import SCHEMA_MODES
-from physcap_drake.agent.llm.factory import VALID_SPECS
+from physcap_drake.agent.llm.factory import DEFAULT_RETRIES, DEFAULT_TIMEOUT_S, VALID_SPECS
 from physcap_drake.agent.llm.gemini import API_KEY_VARIABLES
-from physcap_drake.agent.llm.settings import DEFAULT_RETRIES, DEFAULT_TIMEOUT_S
 from physcap_drake.commands.common import MODEL_FAILURE, describe_error, fail
 
 PANEL = "Language model"

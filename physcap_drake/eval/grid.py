@@ -14,6 +14,7 @@ import dataclasses as dc
 from pathlib import Path
 
 from physcap_drake.agent.variant import variant_names
+from physcap_drake.eval.paper_figures import PAPER_TABLE_1
 from physcap_drake.tasks.registry import TASKS
 
 #: The paper's order of the variants (weakest first), used for rows of the tables.
@@ -68,6 +69,15 @@ def all_tasks() -> list[str]:
 def default_trials(task: str) -> int:
     """Trials per cell of `task` in the paper's protocol (ten for a task it did not run)."""
     return PAPER_TRIALS.get(task, 10)
+
+
+def paper_successes(task: str, agent: str) -> tuple[int, int] | None:
+    """The paper's (successes, trials) of a cell, from its success rate and protocol."""
+    paper = PAPER_TABLE_1.get((task, agent))
+    if paper is None:
+        return None
+    trials = default_trials(task)
+    return round(paper[0] * trials), trials
 
 
 def make_grid(tasks: list[str], agents: list[str], trials: int | None = None,

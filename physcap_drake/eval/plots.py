@@ -11,6 +11,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from physcap_drake.eval.grid import paper_successes
 from physcap_drake.eval.paper_figures import PAPER_TABLE_1
 from physcap_drake.eval.statistics import wilson_interval
 
@@ -29,8 +30,6 @@ def _errorbar(axes, x: float, value, interval, colour: str, hollow: bool) -> Non
 
 def _paper(task: str, agent: str):
     """(SR, its Wilson interval, OI, time, time ± std interval) of the paper, or None."""
-    from physcap_drake.eval.tables import paper_successes  # noqa: PLC0415 (cycle)
-
     figures = PAPER_TABLE_1.get((task, agent))
     if figures is None:
         return None

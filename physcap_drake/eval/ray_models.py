@@ -10,8 +10,8 @@ import ray
 
 from physcap_drake.agent.llm import make_llm
 from physcap_drake.agent.llm.base import LLMClient, LLMRequest, LLMResponse
+from physcap_drake.agent.llm.factory import ModelSettings
 from physcap_drake.agent.llm.recording import RecordingClient
-from physcap_drake.agent.llm.settings import ModelSettings
 
 #: Backends that answer in the task's own process (no network wait to overlap).
 OFFLINE_BACKENDS = ("reference", "replay")

@@ -13,7 +13,7 @@ from typing import Any
 
 import ray
 
-from physcap_drake.agent.llm.settings import ModelSettings
+from physcap_drake.agent.llm.factory import ModelSettings
 from physcap_drake.app.episode_folder import (
     ERROR_FILE,
     MESHCAT_FILE,

@@ -15,7 +15,7 @@ import statistics
 from pathlib import Path
 from typing import Any
 
-from physcap_drake.eval.grid import PAPER_TRIALS, SIMULATION_TASKS, TABLE_1_TASKS
+from physcap_drake.eval.grid import SIMULATION_TASKS, TABLE_1_TASKS, paper_successes
 from physcap_drake.eval.paper_figures import PAPER_TABLE_1
 from physcap_drake.eval.statistics import ALPHA, fisher_exact, t_interval, wilson_interval
 
@@ -97,15 +97,6 @@ def _fmt_cell(cell: Cell | None) -> list[str]:
     oi = f"{cell.oi_mean:.2f}{_interval(cell.oi_ci95, '.2f')}"
     time = f"{cell.time_mean_s:.1f} ± {cell.time_std_s:.1f} s{_interval(cell.time_ci95, '.1f')}"
     return [sr, oi, time]
-
-
-def paper_successes(task: str, agent: str) -> tuple[int, int] | None:
-    """The paper's (successes, trials) of a cell, from its success rate and protocol."""
-    paper = PAPER_TABLE_1.get((task, agent))
-    if paper is None:
-        return None
-    trials = PAPER_TRIALS.get(task, 10)
-    return round(paper[0] * trials), trials
 
 
 def _fmt_paper(task: str, agent: str) -> list[str]:

@@ -50,8 +50,7 @@ def close_station(station: Diagram) -> None:
 def scene_plant(station: Diagram):
     """The plant of the simulated world behind `station`: the sim station's, or an emulated
     CAN station's copy of its emulated world. Raises RuntimeError for the real arm."""
-    from physcap_drake.station.can_scene import EmulatedScene
-    from physcap_drake.station.can_station import SCENE
+    from physcap_drake.station.can_scene import SCENE, EmulatedScene
 
     if station.HasSubsystemNamed("plant"):
         return station.GetSubsystemByName("plant")
@@ -82,7 +81,7 @@ def scene_snapshot(station: Diagram, root_context: Context):
     """(plant, plant context) of the simulated world now, to read: the sim station's live
     context (its time stands still between calls), or a copy of the emulated world's (the
     emulated arm moves on). Raises RuntimeError for the real arm."""
-    from physcap_drake.station.can_station import SCENE
+    from physcap_drake.station.can_scene import SCENE
 
     plant = scene_plant(station)
     if station.HasSubsystemNamed("plant"):

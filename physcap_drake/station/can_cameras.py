@@ -10,7 +10,7 @@ import dataclasses as dc
 from pydrake.systems.framework import DiagramBuilder, LeafSystem
 
 from physcap_drake.station import ports
-from physcap_drake.station.can_scene import IMAGES, NoScene
+from physcap_drake.station.can_scene import IMAGES, SCENE, NoScene
 from physcap_drake.station.ports import camera_port
 from physcap_drake.station.realsense.config import RealSense
 
@@ -78,7 +78,6 @@ class CanCameras:
     def add_to(self, builder: DiagramBuilder) -> None:
         """Adds the scene and the drivers to `builder` and exports every camera's
         `<name>.rgb`, `<name>.depth`, `<name>.label` and the station's body_poses."""
-        from physcap_drake.station.can_station import SCENE
         from physcap_drake.station.realsense.camera_system import RENDERED_DEPTH, RENDERED_RGB
 
         scene = builder.AddNamedSystem(SCENE, self.scene)

@@ -123,8 +123,9 @@ class PiperCan:
     # Run a PiPER emulator on the virtual channel, backed by `emulated` (see module docstring).
     emulate: bool = False
     # Step the emulated world in a thread of its own, paced by the wall clock, so a world
-    # step slower than real time never delays the emulator's feedback (can/paced_world.py);
-    # false: step it in the firmware's cycle (a slow step then delays the feedback).
+    # step slower than real time never delays the emulator's feedback
+    # (piper_emulator/paced_world.py); false: step it in the firmware's cycle (a slow step
+    # then delays the feedback).
     pace_world: bool = True
     # Draw the emulated arm unlike its model (a rehearsal of calibrating a real arm): the
     # deviation groups of `physcap calibrate --mismatch-only` (e.g. [links, torque_gain]),
@@ -209,7 +210,7 @@ class PiperCan:
                     "emulate-piper` separately for socketcan)",
                     f"got emulate: true with interface {self.interface!r}")
         if self.emulate:
-            from physcap_drake.can.firmware import START_STATES
+            from physcap_drake.piper_emulator.firmware import START_STATES
 
             at.choice("emulated_start", self.emulated_start, list(START_STATES))
             self.emulated.check(at.child("emulated"))

@@ -17,13 +17,11 @@ import can
 import numpy as np
 
 from physcap_drake.can import codec
-from physcap_drake.can.emulator import PiperEmulator
 from physcap_drake.can.feedback import ArmParameters
 from physcap_drake.can.link import LinkSettings, PiperLink, StartupError
 from physcap_drake.can.link_process import open_bus
 from physcap_drake.station.can_config import PiperCan
 from physcap_drake.station.can_session import EMULATED_FIRMWARE
-from physcap_drake.station.simulated_motion import simulated_motion
 
 #: Driver status bits (0x261-0x266 byte 5) that are faults, in words.
 DRIVER_FAULTS = {codec.LOW_VOLTAGE: "low voltage", codec.MOTOR_OVERHEAT: "motor over-temperature",
@@ -43,7 +41,10 @@ def operator_link(scenario):
                          "!PiperCan station (the real arm, or its emulator)")
     settings = LinkSettings.of(config)
     emulator = None
-    if config.emulate:
+    if config.emulate:  # the one place `physcap arm` imports the emulator
+        from physcap_drake.piper_emulator.emulator import PiperEmulator
+        from physcap_drake.station.simulated_motion import simulated_motion
+
         emulator_bus = can.Bus(interface="virtual", channel=config.channel)
         emulator = PiperEmulator(emulator_bus, firmware=config.firmware or EMULATED_FIRMWARE,
                                  motion=simulated_motion(scenario),

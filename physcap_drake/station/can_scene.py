@@ -14,12 +14,13 @@ from pydrake.common.value import AbstractValue
 from pydrake.multibody.plant import MultibodyPlant
 from pydrake.systems.framework import Context, DiscreteValues, LeafSystem
 
-from physcap_drake.can.emulator_process import FIRMWARE_RATE
 from physcap_drake.station import ports
 from physcap_drake.station.can_session import CanSession
 from physcap_drake.station.ports import camera_port
 from physcap_drake.weak_method import weak_method
 
+#: The scene's name in a CAN station (the subsystem the emulated world's images come from).
+SCENE = "scene"
 SCENE_OUTPUTS = (*ports.IMAGE_OUTPUTS, ports.BODY_POSES)
 #: The images a rendered camera gives, and the name of the station's camera.
 IMAGES = ("rgb", "depth", "label")
@@ -38,12 +39,12 @@ class EmulatedScene(LeafSystem):
     Discrete state: the emulated plant's positions and velocities (`world_size` values) as
     the emulated arm last published them, latched by this system's own events: at
     initialization and every period at which the emulated arm publishes its world (1 /
-    `can.emulator_process.FIRMWARE_RATE` s; more often would read nothing new), or, once the
-    station was released, the world as it was then. The outputs read only that state: they
-    set it into this system's private copy of the scene (a scratch context no other system
-    sees) and evaluate the simulated station's port there, so rendering never holds up the
-    arm. The values are the same types as the sim station's. Body poses are in the world
-    frame, indexed by BodyIndex of `plant`; they and the label image are ground truth for
+    `piper_emulator.emulator_process.FIRMWARE_RATE` s; more often would read nothing new), or,
+    once the station was released, the world as it was then. The outputs read only that
+    state: they set it into this system's private copy of the scene (a scratch context no
+    other system sees) and evaluate the simulated station's port there, so rendering never
+    holds up the arm. The values are the same types as the sim station's. Body poses are in
+    the world frame, indexed by BodyIndex of `plant`; they and the label image are ground truth for
     success checks only.
     """
 
@@ -63,6 +64,9 @@ class EmulatedScene(LeafSystem):
         self._world = self.DeclareDiscreteState(
             self.plant.GetPositionsAndVelocities(self._plant_context))
         self.DeclareInitializationDiscreteUpdateEvent(self._latch)
+        # Only an emulated scene imports the emulator (for the rate it publishes at).
+        from physcap_drake.piper_emulator.emulator_process import FIRMWARE_RATE
+
         self.DeclarePeriodicDiscreteUpdateEvent(1.0 / FIRMWARE_RATE, 0.0, self._latch)
         names = [camera_port(camera, image) for camera in cameras for image in IMAGES]
         for name in (*names, ports.BODY_POSES):
@@ -81,7 +85,7 @@ class EmulatedScene(LeafSystem):
 
     @property
     def emulator(self):
-        """The emulated arm's process handle (`can.emulator_process.EmulatorProcess`)."""
+        """The emulated arm's process handle (`piper_emulator.emulator_process.EmulatorProcess`)."""
         if self.session.emulator is None:
             raise RuntimeError("the CAN station is not started: initialize its simulator, "
                                "or call start_can_station(station)")

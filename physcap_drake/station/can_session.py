@@ -11,7 +11,6 @@ from typing import TYPE_CHECKING
 
 from pydrake.common.yaml import yaml_dump_typed
 
-from physcap_drake.can.emulator_process import EmulatorProcess
 from physcap_drake.can.faults import FaultSettings
 from physcap_drake.can.link import LinkSettings
 from physcap_drake.can.link_process import LinkProcess
@@ -22,8 +21,9 @@ from physcap_drake.station.can_gate import confirm_enabling
 if TYPE_CHECKING:
     import numpy as np
 
-    from physcap_drake.can.emulator import EmulatorTiming
     from physcap_drake.can.link import LinkStatus
+    from physcap_drake.piper_emulator.emulator import EmulatorTiming
+    from physcap_drake.piper_emulator.emulator_process import EmulatorProcess
 
 #: What builds the emulated arm's world in the emulator's process, by name: it is built from
 #: the scenario, a layer above the station (see `physcap_drake.emulated_world`).
@@ -56,7 +56,8 @@ class CanSession:
         self.last_stale_reasons: list[str] = []
         #: When (monotonic s) and why the feedback went stale, as of closing.
         self.last_stale_events: list[tuple[float, str]] = []
-        #: How the emulated arm kept its pace (`can.emulator.EmulatorTiming`) when it closed.
+        #: How the emulated arm kept its pace (`piper_emulator.emulator.EmulatorTiming`) when
+        #: it closed.
         self.last_emulator_timing: EmulatorTiming | None = None
         atexit.register(self.close)  # processes must not outlive the interpreter
 
@@ -89,6 +90,9 @@ class CanSession:
         if not config.emulate:
             self.link = LinkProcess(LinkSettings.of(config))
             return self
+        # The one place a CAN station imports the emulator: `emulate: true`.
+        from physcap_drake.piper_emulator.emulator_process import EmulatorProcess
+
         emulator_end, link_end = socket_pair()
         f = config.faults
         self.link = LinkProcess(LinkSettings.of(config), link_end,

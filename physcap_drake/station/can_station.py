@@ -17,7 +17,7 @@ from physcap_drake.station.can_scene import EmulatedScene, NoScene
 from physcap_drake.station.can_session import CanSession
 from physcap_drake.station.can_view import add_measured_view
 
-INTERFACE, SCENE = "piper_can", "scene"
+INTERFACE = "piper_can"
 
 
 def MakeCanStation(scenario, meshcat=None) -> Diagram:

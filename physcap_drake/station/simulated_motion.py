@@ -11,8 +11,8 @@ import numpy as np
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import Context, DiagramBuilder
 
-from physcap_drake.can.arm_state import DEFAULT_MAX_SPEED
-from physcap_drake.can.motion import MotionCommand, MotionReading
+from physcap_drake.piper_emulator.arm_state import DEFAULT_MAX_SPEED
+from physcap_drake.piper_emulator.motion import MotionCommand, MotionReading
 from physcap_drake.station import ports
 from physcap_drake.station.end_load import EndLoadWeight
 from physcap_drake.station.firmware_command import (
@@ -50,7 +50,7 @@ class SimulatedMotion:
     def __init__(self, scenario, *, gripper_max_effort: float):
         from physcap_drake.station.sim_station import MakeSimStation
 
-        # The emulated firmware (`can.planner`) plans the joint reference; the simulated
+        # The emulated firmware (`piper_emulator.planner`) plans the joint reference; the simulated
         # station's own joint interpolator only has to pass it on. Bounding its acceleration
         # as well would filter the reference a second time (the firmware's 5 ms steps are
         # sampled at the plant's 8 ms), so the world is built with that bound lifted.

@@ -16,16 +16,13 @@ from physcap_drake.agent.llm.base import (
     TransientLLMError,
     takes_images,
 )
-from physcap_drake.agent.llm.compatible import OpenAICompatibleClient
-from physcap_drake.agent.llm.deadline import DeadlineClient, PendingCall
-from physcap_drake.agent.llm.factory import VALID_SPECS, make_llm
+from physcap_drake.agent.llm.compatible import OpenAIClient, OpenAICompatibleClient
+from physcap_drake.agent.llm.factory import VALID_SPECS, ModelSettings, make_llm
 from physcap_drake.agent.llm.gemini import GeminiClient
-from physcap_drake.agent.llm.openai_backend import OpenAIClient
 from physcap_drake.agent.llm.recording import RecordingClient, load_jsonl, save_jsonl
 from physcap_drake.agent.llm.replay import ReplayClient, ReplayMiss
-from physcap_drake.agent.llm.retry import RetryingClient
+from physcap_drake.agent.llm.retry import DeadlineClient, PendingCall, RetryingClient
 from physcap_drake.agent.llm.server_check import check_client
-from physcap_drake.agent.llm.settings import ModelSettings
 
 __all__ = [
     "AnthropicClient",

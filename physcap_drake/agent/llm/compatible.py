@@ -1,11 +1,13 @@
-"""Any OpenAI-compatible server (vLLM, Ollama, llama.cpp, LM Studio, a hosted service),
-spoken to directly over HTTP, trusting nothing it sends.
+"""OpenAI's Chat Completions, spoken directly over HTTP and trusting nothing a server sends:
+to any OpenAI-compatible server (vLLM, Ollama, llama.cpp, LM Studio, a hosted service), and
+to OpenAI's own service (`OpenAIClient`).
 
 Design notes: docs/design/agent.md.
 """
 
 from __future__ import annotations
 
+import os
 import re
 import time
 from typing import Any
@@ -39,6 +41,8 @@ MAX_CHARS_PER_TOKEN = 5.0
 CUT_CHECK_MIN_CHARS = 4000
 #: What servers say when they refuse an image (a text-only model, or no vision projector).
 IMAGE_REFUSAL = re.compile(r"image|vision|multi-?modal|mmproj", re.IGNORECASE)
+#: OpenAI's own service.
+OPENAI_URL = "https://api.openai.com/v1"
 
 
 class OpenAICompatibleClient:
@@ -53,6 +57,8 @@ class OpenAICompatibleClient:
     """
 
     name = "openai-compatible"
+    #: Whether `server_check.check_client` checks the server before an episode.
+    checked_at_start = True
 
     def __init__(self, base_url: str, model: str, *, api_key: str | None = None,
                  timeout_s: float = 120.0,
@@ -167,3 +173,26 @@ class OpenAICompatibleClient:
                 "cut the prompt to fit a small context window; give the model a larger one "
                 "(Ollama: OLLAMA_CONTEXT_LENGTH=16384 or num_ctx; llama.cpp: --ctx-size; "
                 "vLLM: --max-model-len)")
+
+
+class OpenAIClient(OpenAICompatibleClient):
+    """An OpenAI model: the same client at `base_url` (OpenAI's service), with the key from
+    the argument or OPENAI_API_KEY. It is not checked at start (OpenAI's model list names no
+    context window)."""
+
+    name = "openai"
+    checked_at_start = False
+
+    def __init__(self, model: str = "gpt-4.1-mini", api_key: str | None = None, *,
+                 timeout_s: float = 120.0, schema_mode: str = "json_schema",
+                 temperature: float | None = None, seed: int | None = None,
+                 max_tokens: int | None = None,
+                 max_room_tokens: int = _common.MAX_ROOM_TOKENS, base_url: str = OPENAI_URL):
+        key = api_key or os.environ.get("OPENAI_API_KEY")
+        if not key:
+            raise LLMConfigError("openai needs an API key: pass api_key or set OPENAI_API_KEY "
+                                 "(for another OpenAI-compatible server use "
+                                 "openai-compatible:<base_url>)")
+        super().__init__(base_url, model, api_key=key, timeout_s=timeout_s,
+                         schema_mode=schema_mode, temperature=temperature, seed=seed,
+                         max_tokens=max_tokens, max_room_tokens=max_room_tokens)

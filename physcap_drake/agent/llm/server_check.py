@@ -38,7 +38,7 @@ def check_client(client: LLMClient, context_needed: int = CONTEXT_NEEDED) -> str
     """Checks the server behind `client` (see the design notes); returns one line
     describing what was found ("" for backends that are not checked)."""
     backend = innermost(client)
-    if not isinstance(backend, OpenAICompatibleClient):
+    if not (isinstance(backend, OpenAICompatibleClient) and backend.checked_at_start):
         return ""
     check = ServerCheck(backend, context_needed)
     retrying = _retrying_layer(client)

@@ -11,10 +11,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from physcap_drake.can.arm_state import EmulatedArm
-from physcap_drake.can.end_pose import flange_transform, is_singular, solve_ik
 from physcap_drake.can.joint_profile import step_towards
-from physcap_drake.can.paths import PathTiming, Segment
+from physcap_drake.piper_emulator.arm_state import EmulatedArm
+from physcap_drake.piper_emulator.end_pose import flange_transform, is_singular, solve_ik
+from physcap_drake.piper_emulator.paths import PathTiming, Segment
 
 #: Acceleration of the fast joint mode, rad/s² (the drivers' own, far above 0x475's).
 FAST_ACCELERATION = 50.0

@@ -11,7 +11,7 @@ import math
 
 import numpy as np
 
-from physcap_drake.can.end_pose import rotation_error
+from physcap_drake.piper_emulator.end_pose import rotation_error
 
 
 def rotation_from_vector(w: np.ndarray) -> np.ndarray:

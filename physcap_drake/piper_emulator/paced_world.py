@@ -14,11 +14,11 @@ from collections.abc import Callable
 
 import numpy as np
 
-from physcap_drake.can.arm_state import DEFAULT_MAX_SPEED
-from physcap_drake.can.lateness import LagTracker, Lateness
-from physcap_drake.can.motion import MotionCommand, MotionReading
+from physcap_drake.piper_emulator.arm_state import DEFAULT_MAX_SPEED
+from physcap_drake.piper_emulator.lateness import LagTracker, Lateness
+from physcap_drake.piper_emulator.motion import MotionCommand, MotionReading
 
-log = logging.getLogger("physcap_drake.can.emulator")
+log = logging.getLogger("physcap_drake.piper_emulator.emulator")
 
 #: Largest world step, in firmware periods (a world that is behind catches up at most this
 #: much per step; a longer step would move the reference in a visible jump).

@@ -13,7 +13,8 @@ import dataclasses as dc
 import numpy as np
 
 from physcap_drake.can import codec
-from physcap_drake.can.arm_state import (
+from physcap_drake.kinematics.piper_dh import JOINT_LOWER, JOINT_UPPER
+from physcap_drake.piper_emulator.arm_state import (
     DEFAULT_END_SPEEDS,
     DEFAULT_MAX_ACCELERATION,
     DEFAULT_MAX_SPEED,
@@ -21,7 +22,6 @@ from physcap_drake.can.arm_state import (
     MECHANICAL_UPPER,
     EmulatedArm,
 )
-from physcap_drake.kinematics.piper_dh import JOINT_LOWER, JOINT_UPPER
 
 Frames = list[tuple[int, bytes]]
 

@@ -17,8 +17,6 @@ import numpy as np
 from physcap_drake.can.child_process import ChildError, ChildProcess, named_function
 from physcap_drake.can.shared_block import Layout, SharedBlock
 
-log = logging.getLogger("physcap_drake.can")
-
 #: How long the parent waits for the child to build its world and start, s.
 START_TIMEOUT = 120.0
 #: How long a reader of the world waits for the emulator to finish a publication, s.
@@ -58,7 +56,7 @@ class EmulatorProcess:
                  world_builder: str | None = None, gripper_max_effort: float = 2.0,
                  state_size: int = 0, firmware: str = "S-V1.8-2", realtime_priority: int = 0,
                  pace_world: bool = False, start: str = "normal", joints=None):
-        from physcap_drake.can.firmware import START_STATES
+        from physcap_drake.piper_emulator.firmware import START_STATES
 
         if start not in START_STATES:
             bus_socket.close()
@@ -73,7 +71,7 @@ class EmulatorProcess:
         world_fd = None if self._world is None else self._world.fd
         fds = (bus_socket.fileno(),) + (() if world_fd is None else (world_fd,))
         self._child = ChildProcess(
-            "physcap_drake.can.emulator_process:serve",
+            "physcap_drake.piper_emulator.emulator_process:serve",
             (bus_socket.fileno(), scenario_yaml, world_builder, gripper_max_effort, firmware,
              world_fd, state_size, realtime_priority, pace_world, start,
              None if joints is None else [float(a) for a in joints]), fds,
@@ -146,12 +144,12 @@ def serve(conn, bus_fd: int, scenario_yaml: str | None, world_builder: str | Non
           realtime_priority: int, pace_world: bool = False, start: str = "normal",
           joints: list[float] | None = None) -> None:
     """The emulated arm's process: runs until the parent says close or goes away."""
-    from physcap_drake.can.arm_gravity import ArmGravity
-    from physcap_drake.can.emulator import PiperEmulator
-    from physcap_drake.can.motion import KinematicMotion
-    from physcap_drake.can.paced_world import PacedWorld
     from physcap_drake.can.realtime import use_realtime
     from physcap_drake.can.socket_bus import SocketBus
+    from physcap_drake.piper_emulator.arm_gravity import ArmGravity
+    from physcap_drake.piper_emulator.emulator import PiperEmulator
+    from physcap_drake.piper_emulator.motion import KinematicMotion
+    from physcap_drake.piper_emulator.paced_world import PacedWorld
 
     logging.basicConfig(level=logging.WARNING, format="%(message)s")
     # The firmware thread gets the interpreter back from the world thread within this.

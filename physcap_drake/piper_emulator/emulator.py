@@ -13,11 +13,11 @@ from collections.abc import Callable
 import can
 import numpy as np
 
-from physcap_drake.can.arm_state import EmulatedArm
-from physcap_drake.can.firmware import Firmware
-from physcap_drake.can.lateness import LagTracker, Lateness
-from physcap_drake.can.motion import KinematicMotion
-from physcap_drake.can.paced_world import WorldTiming
+from physcap_drake.piper_emulator.arm_state import EmulatedArm
+from physcap_drake.piper_emulator.firmware import Firmware
+from physcap_drake.piper_emulator.lateness import LagTracker, Lateness
+from physcap_drake.piper_emulator.motion import KinematicMotion
+from physcap_drake.piper_emulator.paced_world import WorldTiming
 
 #: The firmware's cycle rate, Hz (the PiPER's feedback rate).
 DEFAULT_RATE = 200.0

@@ -10,26 +10,26 @@ import logging
 import numpy as np
 
 from physcap_drake.can import codec
-from physcap_drake.can import firmware_settings as settings
-from physcap_drake.can.arm_state import (
+from physcap_drake.can.joint_profile import STALE_TARGET, target_velocity
+from physcap_drake.piper_emulator import firmware_settings as settings
+from physcap_drake.piper_emulator.arm_state import (
     ESTOP_DAMPING,
     MECHANICAL_LOWER,
     MECHANICAL_UPPER,
     EmulatedArm,
 )
-from physcap_drake.can.end_pose import (
+from physcap_drake.piper_emulator.end_pose import (
     end_pose,
     flange_transform,
     jacobian,
     pose_matrix,
     solve_ik,
 )
-from physcap_drake.can.joint_profile import STALE_TARGET, target_velocity
-from physcap_drake.can.motion import MotionCommand, MotionReading
-from physcap_drake.can.paths import Arc, Line
-from physcap_drake.can.planner import NO_SOLUTION, Planner
+from physcap_drake.piper_emulator.motion import MotionCommand, MotionReading
+from physcap_drake.piper_emulator.paths import Arc, Line
+from physcap_drake.piper_emulator.planner import NO_SOLUTION, Planner
 
-log = logging.getLogger("physcap_drake.can.emulator")
+log = logging.getLogger("physcap_drake.piper_emulator.emulator")
 
 #: arm_status codes the firmware sets itself.
 NORMAL, E_STOP, OVER_LIMIT, COLLISION, OTHER = 0, 1, 4, 7, 10

@@ -14,7 +14,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from physcap_drake.can.arm_state import GRIPPER_SPEED, MECHANICAL_LOWER, MECHANICAL_UPPER
+from physcap_drake.piper_emulator.arm_state import GRIPPER_SPEED, MECHANICAL_LOWER, MECHANICAL_UPPER
 
 
 @dc.dataclass(frozen=True)
