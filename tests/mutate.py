@@ -32,7 +32,8 @@ MODULES: dict[str, tuple[tuple[str, ...], tuple[str, ...]]] = {
                                 ("test_sandbox_forbidden_names.py", "test_sandbox_checks.py")),
     "control/skill_executor.py": (("control/skill_executor.py",),
                                   ("test_skill_executor.py",
-                                   "test_executor_gripper_boundaries.py")),
+                                   "test_executor_gripper_boundaries.py",
+                                   "test_executor_tracking_boundaries.py")),
     # Further modules of issue 46's list (run on demand; slower tests).
     "physx/mass_estimator.py": (("physx/mass_estimator.py",),
                                 ("test_mass_hand_worked.py", "test_mass_estimator.py",
