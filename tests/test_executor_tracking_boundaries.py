@@ -4,13 +4,15 @@ skills' tracking_delay, and blocked once it lags more (issue 46)."""
 
 from __future__ import annotations
 
+import re
+
 import numpy as np
 import pytest
 from fake_executor import ask, build_with_request_path
 from pydrake.systems.framework import DiagramBuilder, LeafSystem
 
 from physcap_drake.control.planning_model import PlanningModel
-from physcap_drake.control.requests import MoveToJoints, SkillState
+from physcap_drake.control.requests import MoveToJoints, RobotRequest, SkillState
 from physcap_drake.control.skill_executor import SkillExecutor
 from physcap_drake.control.skill_planner import SkillPlanner
 from physcap_drake.resources import stations_dir
@@ -27,8 +29,9 @@ LATENCY = 0.1  # s, the station's command latency given to the executor
 
 
 class LaggingArm(LeafSystem):
-    """Joints measured where they were commanded `lag` s earlier (at rest until then), still
-    by their velocity estimate; a gripper measured at 50 mm."""
+    """Joints measured where they were commanded `lag` s earlier (at rest until then), or
+    with a negative `lag` that far ahead of their command (extrapolated from its last
+    -`lag` s); still by their velocity estimate; a gripper measured at 50 mm."""
 
     def __init__(self, lag: float):
         super().__init__()
@@ -36,18 +39,21 @@ class LaggingArm(LeafSystem):
         self._command = self.DeclareVectorInputPort(ports.ARM_POSITION, n)
         self.DeclareVectorInputPort(ports.GRIPPER_POSITION, 1)
         self.DeclareVectorInputPort(ports.GRIPPER_FORCE_LIMIT, 1)
-        self._history = self.DeclareDiscreteState(np.zeros(n * (round(lag / STEP) + 1)))
+        self._lead = lag < 0
+        self._history = self.DeclareDiscreteState(np.zeros(n * (round(abs(lag) / STEP) + 1)))
         self.DeclarePeriodicDiscreteUpdateEvent(STEP, 0.0, self._record)
-        self.DeclareVectorOutputPort(
-            ports.ARM_POSITION_MEASURED, n,
-            lambda context, out: out.SetFromVector(
-                context.get_discrete_state(self._history).value()[:n]), {self.xd_ticket()})
+        self.DeclareVectorOutputPort(ports.ARM_POSITION_MEASURED, n, self._output_q,
+                                     {self.xd_ticket()})
         self.DeclareVectorOutputPort(ports.ARM_VELOCITY_ESTIMATED, n,
                                      lambda context, out: out.SetFromVector(np.zeros(n)),
                                      {self.nothing_ticket()})
         self.DeclareVectorOutputPort(ports.GRIPPER_POSITION_MEASURED, 1,
                                      lambda context, out: out.SetAtIndex(0, 0.05),
                                      {self.nothing_ticket()})
+
+    def _output_q(self, context, output):
+        history, n = context.get_discrete_state(self._history).value(), ports.NUM_ARM_JOINTS
+        output.SetFromVector(2 * history[-n:] - history[:n] if self._lead else history[:n])
 
     def _record(self, context, state):
         n = ports.NUM_ARM_JOINTS
@@ -86,3 +92,74 @@ def test_an_arm_that_lags_within_latency_and_delay_is_on_track(lag):
 def test_an_arm_that_lags_beyond_latency_and_delay_is_blocked(lag):
     status = move_with_lag(lag)
     assert status.state is SkillState.FAILED and "blocked" in status.message, status.message
+
+
+def test_an_arm_ahead_of_its_plan_along_its_path_is_on_track():
+    # Measured 50 ms ahead of its command (extrapolated: 2 q(t) - q(t - 50 ms)), up to about
+    # 0.1 rad from where the plan is now, but on the plan's path.
+    status = move_with_lag(-0.05)
+    assert status.state is SkillState.SUCCEEDED, status.message
+
+
+def _rig(**arm):
+    from test_skill_executor import Rig
+
+    rig = Rig(**arm)
+    assert rig.executor.planner.config.max_joint_acceleration == 5.0  # rad/s², the default
+    return rig
+
+
+def _measured(rig) -> np.ndarray:
+    return rig.executor.GetInputPort(ports.ARM_POSITION_MEASURED).Eval(
+        rig.executor.GetMyContextFromRoot(rig.clock.context)).copy()
+
+
+def test_a_blocked_motion_is_answered_once_the_station_has_braked():
+    """Stopped at once (the command holds where the arm is), answered after the station's
+    command latency, twice the plan's joint speed over 5 rad/s² and one 12 ms event."""
+    rig = _rig(latency=0.1, stuck_after=0.3)
+    rig.clock.run_for(0.012)
+    request = RobotRequest("test", 1, MoveToJoints(GOAL))
+    rig.send(request)
+    rig.clock.run_until(lambda root: rig.status.answers(request), timeout=1.0)
+    plan = rig.executor.planner.plan(MoveToJoints(GOAL), now=rig.status.started_at,
+                                     q_now=np.zeros(6), opening_measured=0.05,
+                                     gripper_command=(0.05, 15.0)).arm_plan
+    stopped_at = None
+    while not rig.status.finished(request):
+        rig.clock.run_for(0.004)
+        held = rig.clock.time > 0.3 and np.array_equal(rig.command(), _measured(rig))
+        if stopped_at is None and held:  # (before 0.3 s the arm is where it is told)
+            stopped_at = rig.clock.time
+        assert held or stopped_at is None  # once stopped, held until answered
+    speed = np.abs(plan.position(stopped_at) - plan.position(stopped_at - 0.001)).max() / 0.001
+    assert speed > 0.5  # stopped while moving: braking takes a while
+    braked = stopped_at + 0.1 + 2.0 * speed / 5.0 + 0.012
+    status = rig.status
+    assert status.state is SkillState.FAILED and "blocked" in status.message
+    assert braked - 0.004 - 0.02 <= status.finished_at <= braked + 0.012 + 0.02
+
+    # The next motion is judged afresh: blocked again only after it has had time to move.
+    again = RobotRequest("test", 2, MoveToJoints(np.zeros(6)))
+    rig.send(again)
+    status = rig.finish(again)
+    assert status.state is SkillState.FAILED and "blocked" in status.message
+    assert status.finished_at - status.started_at > 0.1 + 0.012
+
+
+def test_a_motion_that_does_not_arrive_is_stopped_where_the_arm_is_and_says_so():
+    rig = _rig(offset=[0.0, 0.012, 0.0, 0.0, 0.0, 0.0])  # on track, never within 5 mrad
+    request = RobotRequest("test", 1, MoveToJoints(GOAL))
+    rig.send(request)
+    status = rig.finish(request)
+    shown = re.fullmatch(r"move to joints did not arrive: joint J2 is still 0\.0120 rad from "
+                         r"its goal and moving at 0\.000 rad/s (\S+) s after the planned end; "
+                         r"the arm was stopped", status.message)
+    assert shown, status.message
+    plan = rig.executor.planner.plan(MoveToJoints(GOAL), now=status.started_at,
+                                     q_now=np.array([0.0, 0.012, 0.0, 0.0, 0.0, 0.0]),
+                                     opening_measured=0.05, gripper_command=(0.05, 15.0))
+    late = status.finished_at - status.started_at - plan.arm_plan.duration
+    assert float(shown[1]) == pytest.approx(late, abs=0.3)
+    # Held where the arm was measured then (the plan's goal and the offset), not sent on.
+    np.testing.assert_allclose(rig.command(), GOAL + [0.0, 0.012, 0.0, 0.0, 0.0, 0.0])
