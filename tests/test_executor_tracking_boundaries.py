@@ -163,3 +163,32 @@ def test_a_motion_that_does_not_arrive_is_stopped_where_the_arm_is_and_says_so()
     assert float(shown[1]) == pytest.approx(late, abs=0.3)
     # Held where the arm was measured then (the plan's goal and the offset), not sent on.
     np.testing.assert_allclose(rig.command(), GOAL + [0.0, 0.012, 0.0, 0.0, 0.0, 0.0])
+
+
+def test_a_descent_that_sets_down_what_it_holds_says_how_high_and_a_pose_says_its_note():
+    from physcap_drake.control.requests import HeldObject, MoveGripper, MoveToPose
+
+    target = np.array([0.3, 0.0, 0.06])  # m, where the fingertips were to go down to
+    requests = [MoveToPose(target + [0.0, 0.0, 0.1]),
+                MoveGripper(0.0, 10.0, "gripper", holds=HeldObject(0.03, 0.02)),
+                MoveToPose(target, None, 0.1)]
+
+    def run(rig):
+        answers = []
+        for sequence, action in enumerate(requests, 1):
+            request = RobotRequest("test", sequence, action)
+            rig.send(request)
+            answers.append(rig.finish(request))
+        return answers
+
+    started = run(_rig(object_width=0.03))[-1].started_at
+    rig = _rig(object_width=0.03, stuck_after=started + 0.15)
+    above, _, down = run(rig)
+    # No rotation asked: the pose's note says how far from straight down it planned.
+    assert re.fullmatch(r"goto_pose \(0\.300, 0\.000, 0\.160\) m \(gripper \d+\.\d° from "
+                        r"straight down\)", above.message), above.message
+    shown = re.fullmatch(r"goto_pose .*: what the fingers hold touched down (\d+) mm above "
+                         r"the target; the arm holds there", down.message)
+    assert shown, down.message
+    height = rig.executor.planner.model.tcp_pose(_measured(rig)).translation()[2] - 0.06
+    assert 0.005 < height and abs(int(shown[1]) - 1000 * height) <= 1.0  # IK: within 1 mm
