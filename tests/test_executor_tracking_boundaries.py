@@ -12,7 +12,7 @@ from fake_executor import ask, build_with_request_path
 from pydrake.systems.framework import DiagramBuilder, LeafSystem
 
 from physcap_drake.control.planning_model import PlanningModel
-from physcap_drake.control.requests import MoveToJoints, RobotRequest, SkillState
+from physcap_drake.control.requests import MoveGripper, MoveToJoints, RobotRequest, SkillState
 from physcap_drake.control.skill_executor import SkillExecutor
 from physcap_drake.control.skill_planner import SkillPlanner
 from physcap_drake.resources import stations_dir
@@ -166,7 +166,7 @@ def test_a_motion_that_does_not_arrive_is_stopped_where_the_arm_is_and_says_so()
 
 
 def test_a_descent_that_sets_down_what_it_holds_says_how_high_and_a_pose_says_its_note():
-    from physcap_drake.control.requests import HeldObject, MoveGripper, MoveToPose
+    from physcap_drake.control.requests import HeldObject, MoveToPose
 
     target = np.array([0.3, 0.0, 0.06])  # m, where the fingertips were to go down to
     requests = [MoveToPose(target + [0.0, 0.0, 0.1]),
@@ -192,3 +192,28 @@ def test_a_descent_that_sets_down_what_it_holds_says_how_high_and_a_pose_says_it
     assert shown, down.message
     height = rig.executor.planner.model.tcp_pose(_measured(rig)).translation()[2] - 0.06
     assert 0.005 < height and abs(int(shown[1]) - 1000 * height) <= 1.0  # IK: within 1 mm
+
+
+def test_feedback_that_pauses_is_judged_over_the_window_also_when_sent_late():
+    # As test_skill_executor's bursty-feedback test, but sent at 0.7 s, not at 0: the stall
+    # check's window runs from its last look, not from the start of the simulation.
+    from test_skill_executor import LATE
+
+    request = RobotRequest("test", 1, MoveGripper(0.1, 10.0, "open_gripper"))
+    for latency, outcome in ((LATE, SkillState.SUCCEEDED), (0.0, SkillState.FAILED)):
+        rig = _rig(latency=latency, burst=0.3)
+        rig.clock.run_for(0.7)
+        rig.send(request)
+        assert rig.finish(request).state is outcome, latency
+
+
+def test_fingers_that_creep_faster_than_the_stall_speed_time_out_and_say_where():
+    # The other side of the 0.95 mm/s creep that holds: 1.05 mm/s is still moving.
+    rig = _rig(object_width=0.03, creep=1.05e-3)
+    close = RobotRequest("test", 1, MoveGripper(0.0, 10.0, "close_gripper"))
+    rig.send(close)
+    status = rig.finish(close, timeout=60.0)
+    opening = rig.executor.GetInputPort(ports.GRIPPER_POSITION_MEASURED).Eval(
+        rig.executor.GetMyContextFromRoot(rig.clock.context))[0]
+    assert status.state is SkillState.FAILED
+    assert status.message == f"close_gripper to 0 mm timed out at {1000 * opening:.1f} mm"
