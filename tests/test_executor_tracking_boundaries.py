@@ -217,3 +217,26 @@ def test_fingers_that_creep_faster_than_the_stall_speed_time_out_and_say_where()
         rig.executor.GetMyContextFromRoot(rig.clock.context))[0]
     assert status.state is SkillState.FAILED
     assert status.message == f"close_gripper to 0 mm timed out at {1000 * opening:.1f} mm"
+
+
+@pytest.mark.parametrize("arm", [{"offset": [0.0, 0.0, 0.0, 0.005, 0.0, 0.0]},  # J4 at 0
+                                 {"speed": 0.05}])
+def test_an_arm_exactly_at_the_joint_tolerance_or_still_velocity_has_arrived(arm):
+    # The limits count as within: 5 mrad from the goal (J4's goal is 0, so exactly), and
+    # 0.05 rad/s (stations/piper_table.yaml leaves the defaults).
+    rig = _rig(**arm)
+    assert (rig.executor.planner.config.joint_tolerance,
+            rig.executor.planner.config.still_velocity) == (0.005, 0.05)
+    request = RobotRequest("test", 1, MoveToJoints(GOAL))
+    rig.send(request)
+    assert rig.finish(request).state is SkillState.SUCCEEDED
+
+
+def test_a_gripper_opened_fully_that_stops_exactly_at_the_limit_tolerance_has_opened():
+    # The stroke is 100 mm and gripper_limit_tolerance 2 mm: stopping at 98 mm still counts.
+    rig = _rig(widest=0.1 - 0.002)
+    assert rig.executor.planner.config.gripper_limit_tolerance == 0.002
+    request = RobotRequest("test", 1, MoveGripper(0.1, 10.0, "open_gripper"))
+    rig.send(request)
+    status = rig.finish(request)
+    assert status.state is SkillState.SUCCEEDED and "fully open" in status.message
