@@ -1,5 +1,7 @@
 """Mutation testing (mutmut) of the modules that decide safety and results: `./run mutate
-[MODULE ...]` (default: the five of the acceptance list; `--list` shows all).
+[MODULE ...]` (default: the five of the acceptance list; `--list` shows all). `./run mutate
+MODULE --mutants NAME ...` runs only the named mutants (fnmatch patterns), e.g. the survivors
+of a full run once new tests are written; the score is then over those.
 
 Each module runs alone, in a copy of the tree under the temporary directory, against its own
 tests only, one mutant at a time (a shared 2-core machine). mutmut mutates function and
@@ -32,7 +34,8 @@ MODULES: dict[str, tuple[tuple[str, ...], tuple[str, ...]]] = {
                                 ("test_sandbox_forbidden_names.py", "test_sandbox_checks.py")),
     "control/skill_executor.py": (("control/skill_executor.py",),
                                   ("test_skill_executor.py",
-                                   "test_executor_gripper_boundaries.py")),
+                                   "test_executor_gripper_boundaries.py",
+                                   "test_executor_tracking_boundaries.py")),
     # Further modules of issue 46's list (run on demand; slower tests).
     "physx/mass_estimator.py": (("physx/mass_estimator.py",),
                                 ("test_mass_hand_worked.py", "test_mass_estimator.py",
@@ -64,8 +67,9 @@ def setup_cfg(files: tuple[str, ...], tests: tuple[str, ...]) -> str:
     return "\n".join(lines) + "\n"
 
 
-def mutate(module: str) -> tuple[int, int, list[str]]:
-    """(killed, total, surviving mutant names) of one module; prints their diffs."""
+def mutate(module: str, names: tuple[str, ...] = ()) -> tuple[int, int, list[str]]:
+    """(killed, total, surviving mutant names) of one module, or of its mutants `names`;
+    prints the survivors' diffs."""
     files, tests = MODULES[module]
     with tempfile.TemporaryDirectory(prefix="physcap-mutate-") as scratch:
         tree = Path(scratch)
@@ -77,11 +81,13 @@ def mutate(module: str) -> tuple[int, int, list[str]]:
         log = Path(tempfile.gettempdir()) / f"physcap-mutate-{module.replace('/', '_')}.log"
         print(f"{module}: mutmut running, its progress in {log}", flush=True)
         with log.open("w") as output:
-            subprocess.run([*mutmut, "run", "--max-children", "1"], cwd=tree, check=False,
+            subprocess.run([*mutmut, "run", "--max-children", "1", *names], cwd=tree, check=False,
                            stdout=output, stderr=subprocess.STDOUT)
         results = subprocess.run([*mutmut, "results", "--all", "true"], cwd=tree,
                                  capture_output=True, text=True, check=True).stdout
-        states = dict(re.findall(r"^\s*(\S+): (.+)$", results, flags=re.M))
+        states = {name: state for name, state in re.findall(r"^\s*(\S+): (.+)$", results,
+                                                             flags=re.M)
+                  if state != "not checked" or not names}
         killed = sum(state in ("killed", "timeout", "segfault") for state in states.values())
         survivors = [name for name, state in states.items()
                      if state not in ("killed", "timeout", "segfault")]
@@ -96,12 +102,20 @@ def main(arguments: list[str]) -> int:
     if arguments == ["--list"]:
         print("\n".join(f"{name}{' (default)' if name in DEFAULT else ''}" for name in MODULES))
         return 0
+    names: tuple[str, ...] = ()
+    if "--mutants" in arguments:
+        at = arguments.index("--mutants")
+        arguments, names = arguments[:at], tuple(arguments[at + 1:])
+        if len(arguments) != 1 or not names:
+            print("--mutants needs one MODULE before it and mutant names after it",
+                  file=sys.stderr)
+            return 2
     unknown = [name for name in arguments if name not in MODULES]
     if unknown:
         print(f"unknown module(s) {', '.join(unknown)}; known: {', '.join(MODULES)}",
               file=sys.stderr)
         return 2
-    scores = {module: mutate(module) for module in (arguments or DEFAULT)}
+    scores = {module: mutate(module, names) for module in (arguments or DEFAULT)}
     print("\nmodule | killed / mutants | score | survivors")
     for module, (killed, total, survivors) in scores.items():
         score = 100.0 * killed / total if total else float("nan")

@@ -24,7 +24,8 @@ MASS = ["tests/test_mass_hand_worked.py", "tests/test_mass_estimator.py",
 PLACEMENT = ["tests/test_placement_boundaries.py", "tests/test_tasks.py"]
 WATCHDOG = ["tests/test_watchdog_boundaries.py", "tests/test_feedback_listener_frames.py",
             "tests/test_can_faults.py"]
-EXECUTOR = ["tests/test_executor_gripper_boundaries.py", "tests/test_skill_executor.py"]
+EXECUTOR = ["tests/test_executor_gripper_boundaries.py",
+            "tests/test_executor_tracking_boundaries.py", "tests/test_skill_executor.py"]
 SANDBOX = ["tests/test_sandbox_forbidden_names.py", "tests/test_sandbox_checks.py"]
 STIFFNESS = ["tests/test_shipped_calibration.py", "tests/test_stiffness_estimator.py",
              "tests/test_calibration_heldout.py"]
@@ -77,6 +78,21 @@ MUTANTS = {
                                   '"globals",\n        "help"', SANDBOX),
     "max_grasp_offset_doubled": ("physcap_drake/physx/mass_estimator.py",
                                  "MAX_GRASP_OFFSET = 0.02", "MAX_GRASP_OFFSET = 0.04", MASS),
+    # Five more, planted after issue 43 changed the executor and the sandbox.
+    "tracking_ignores_latency": ("physcap_drake/control/skill_executor.py",
+                                 "now - self._latency - self._planner.config.tracking_delay",
+                                 "now - self._planner.config.tracking_delay", EXECUTOR),
+    "func_prefix_allowed": ("physcap_drake/agent/sandbox/policy.py",
+                            '"f_", "func_", "gi_",', '"f_", "gi_",', SANDBOX),
+    "feedback_lower_limit_sign": ("physcap_drake/can/feedback.py",
+                                  "np.append(JOINT_LOWER[:5] - ANGLE_MARGIN",
+                                  "np.append(JOINT_LOWER[:5] + ANGLE_MARGIN", WATCHDOG),
+    "tray_rotation_ignored": ("physcap_drake/tasks/placement.py",
+                              "offset = X_tray.inverse().multiply(X_can.translation())",
+                              "offset = X_can.translation() - X_tray.translation()", PLACEMENT),
+    "joint_speed_unsigned": ("physcap_drake/can/codec/feedback.py",
+                             'struct.unpack(">hhi", check(data, "driver high-speed"))',
+                             'struct.unpack(">Hhi", check(data, "driver high-speed"))', CODEC),
 }
 
 

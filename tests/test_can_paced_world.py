@@ -9,14 +9,10 @@ import numpy as np
 import pytest
 
 from physcap_drake.can.socket_bus import SocketBus, socket_pair
-from physcap_drake.piper_emulator.arm_state import DEFAULT_MAX_SPEED
 from physcap_drake.piper_emulator.emulator import PiperEmulator, wait_until
 from physcap_drake.piper_emulator.lateness import LagTracker
 from physcap_drake.piper_emulator.motion import KinematicMotion, MotionCommand
 from physcap_drake.piper_emulator.paced_world import (
-    MAX_LAG,
-    MAX_STEP_PERIODS,
-    REST,
     PacedWorld,
     along_path,
 )
@@ -77,9 +73,9 @@ def test_a_slow_world_does_not_hold_back_the_caller_and_catches_up_in_longer_ste
     assert timing.lateness.late > 0 and timing.lateness.max_lateness >= PERIOD
     # Behind, the world covers several periods per step (at most MAX_STEP_PERIODS), so its
     # time stays within MAX_LAG of the wall clock less what it let go.
-    assert max(slow.steps) > PERIOD and max(slow.steps) <= MAX_STEP_PERIODS * PERIOD + 1e-9
+    assert max(slow.steps) > PERIOD and max(slow.steps) <= 4 * PERIOD + 1e-9
     kept = timing.wall_time - timing.slipped
-    assert kept - MAX_LAG - PERIOD <= timing.world_time <= kept + PERIOD
+    assert kept - 0.1 - PERIOD <= timing.world_time <= kept + PERIOD
 
 
 @realtime
@@ -108,7 +104,7 @@ def test_a_stalled_world_lets_the_excess_go_and_reports_the_spell_with_its_time(
         world.stop()
     timing = world.timing()
     # Behind by the stall and the rest after it, it keeps 0.1 s of that and lets go the rest.
-    assert timing.slipped == pytest.approx((1 + REST) * 0.3 - 0.1, abs=0.1)
+    assert timing.slipped == pytest.approx((1 + 0.5) * 0.3 - 0.1, abs=0.1)
     spell = timing.lateness.covering(before, time.monotonic())
     assert spell is not None and spell.max_lateness >= 0.25
     assert spell.end - spell.start >= 0.25  # it lasted as long as the stall
@@ -217,7 +213,7 @@ def test_a_world_that_is_behind_follows_the_references_it_missed_in_order():
     assert np.all((given[:, 1] <= cut) | (given[:, 0] >= 0.3 - cut))
     # No jumps: consecutive references within the top joint speed over the step's time.
     jumps = np.abs(np.diff(given, axis=0)).max(axis=1)
-    assert np.all(jumps <= DEFAULT_MAX_SPEED * np.array(slow.steps[1:]) + 1e-9)
+    assert np.all(jumps <= 3.0 * np.array(slow.steps[1:]) + 1e-9)
     # And the world got to the end of the path.
     np.testing.assert_allclose(given[-1, :2], [0.3, 0.3], atol=1e-9)
 

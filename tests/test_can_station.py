@@ -16,7 +16,6 @@ from typer.testing import CliRunner
 
 from physcap_drake.app.agent_episode import run_agent_episode
 from physcap_drake.can.link import StartupError
-from physcap_drake.can.playback import DELAY as PLAYBACK_DELAY
 from physcap_drake.cli import app
 from physcap_drake.piper_emulator.emulator import wait_until
 from physcap_drake.resources import stations_dir
@@ -109,7 +108,7 @@ def test_a_gripper_command_shows_after_the_latency_the_station_publishes(can_sta
     # latency only makes the executor wait longer than it must before judging a stall; the
     # bound that matters is that it is seen at all, and within a second.
     latency = PiperCan(emulate=True, interface="virtual").command_latency
-    assert latency == pytest.approx(PLAYBACK_DELAY + 2 / 200.0 + 0.005)
+    assert latency == pytest.approx(0.08 + 2 / 200.0 + 0.005)
     assert 0.0 < shown_after < 1.0, shown_after
     assert SimPiper().command_latency == 0.0
 

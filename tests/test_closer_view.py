@@ -6,7 +6,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from physcap_drake.agent.closer_view import MARGIN_PX, closer_view
+from physcap_drake.agent.closer_view import closer_view
 from physcap_drake.agent.observation import ObjectInView, Observation
 
 
@@ -21,8 +21,8 @@ def _observation(points: list[tuple[float, float]], size=(640, 360)) -> Observat
 
 def test_the_region_around_the_objects_is_enlarged_where_it_says():
     view = closer_view(_observation([(250.0, 140.0), (350.0, 170.0)]))
-    assert (view.left, view.right) == (250 - MARGIN_PX[0], 350 + MARGIN_PX[0] + 1)
-    assert (view.top, view.bottom) == (140 - MARGIN_PX[1], 170 + MARGIN_PX[1] + 1)
+    assert (view.left, view.right) == (250 - 60, 350 + 60 + 1)  # a 60 px margin
+    assert (view.top, view.bottom) == (140 - 60, 170 + 60 + 1)
     assert view.scale > 3.0
     enlarged = cv2.imdecode(np.frombuffer(view.jpeg, np.uint8), cv2.IMREAD_COLOR)
     assert enlarged.shape[1] == round((view.right - view.left) * view.scale)

@@ -12,7 +12,7 @@ from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.primitives import ConstantVectorSource
 
-from physcap_drake.station.end_load import GRAVITY, EndLoadWeight
+from physcap_drake.station.end_load import EndLoadWeight
 
 HAND_MASS = 1.5  # kg: the PiPER's full end load
 
@@ -40,7 +40,7 @@ def test_the_force_is_the_loads_weight_upward_at_the_tcp():
     (force,) = weight.get_output_port().Eval(weight.GetMyContextFromRoot(context))
     assert force.body_index == hand.index()
     np.testing.assert_allclose(force.p_BoBq_B, [0.0, 0.0, 0.12])
-    np.testing.assert_allclose(force.F_Bq_W.translational(), [0.0, 0.0, 0.75 * GRAVITY])
+    np.testing.assert_allclose(force.F_Bq_W.translational(), [0.0, 0.0, 0.75 * 9.81])
     np.testing.assert_allclose(force.F_Bq_W.rotational(), np.zeros(3))
 
 
@@ -50,7 +50,7 @@ def test_no_load_no_force():
     assert weight.get_output_port().Eval(weight.GetMyContextFromRoot(context)) == []
 
 
-@pytest.mark.parametrize("load_mass, expected_vz", [(HAND_MASS, 0.0), (0.0, -GRAVITY * 0.5)])
+@pytest.mark.parametrize("load_mass, expected_vz", [(HAND_MASS, 0.0), (0.0, -9.81 * 0.5)])
 def test_the_plant_carries_a_load_as_heavy_as_the_body(load_mass, expected_vz):
     """A full end load's weight pushes up exactly what a 1.5 kg body weighs: it floats. With
     no load the same body falls freely for the 0.5 s."""

@@ -41,7 +41,6 @@ from physcap_drake.physx.mass_estimator import (
 )
 from physcap_drake.physx.mass_probe import MassProbe, MeasureMass
 from physcap_drake.physx.physx_config import MassProbeConfig
-from physcap_drake.physx.probe_sequence import OFFSET as PROBE_OFFSET
 from physcap_drake.resources import stations_dir
 from physcap_drake.scenario import load_scenario
 from physcap_drake.station import ports
@@ -153,9 +152,9 @@ def test_each_step_starts_at_the_executor_event_after_the_previous_one_ended(est
     rig.ask(MeasureMass(GRASP))
     # 13 skills of the fake robot, each started one executor period after the last ended:
     # the first at once, since the probe sends its first step straight through; the probe
-    # answers at its own event after the last one ended.
+    # answers at its own event (4 ms after the executor's) after the last one ended.
     assert rig.status().finished_at == pytest.approx(
-        9 * SKILL_TIME + WAITS + 12 * MONITOR_PERIOD + PROBE_OFFSET, abs=1e-9)
+        9 * SKILL_TIME + WAITS + 12 * MONITOR_PERIOD + 0.004, abs=1e-9)
 
 
 @pytest.mark.parametrize(("robot", "reason"), [

@@ -20,7 +20,6 @@ from physcap_drake.agent.llm import (
     check_client,
     make_llm,
 )
-from physcap_drake.agent.llm.server_check import CONTEXT_NEEDED
 from physcap_drake.agent.observation import ObjectInView, Observation
 from physcap_drake.agent.prompts import AgentContext, PromptBook
 from physcap_drake.agent.schemas import CoderAnswer, PlannerAnswer
@@ -215,8 +214,8 @@ def test_a_lasting_fault_at_the_start_up_check_gives_up_naming_the_server():
 
 def test_a_small_context_window_is_found_at_start():
     with FakeModelServer(context_window=4096) as server, server.tap():
-        with pytest.raises(LLMError, match=f"context window is 4096 tokens .*max_model_len.*"
-                                           f"need about {CONTEXT_NEEDED}"):
+        with pytest.raises(LLMError, match="context window is 4096 tokens .*max_model_len.*"
+                                           "need about 8192"):
             check_client(client_for(server))
     with FakeModelServer(context_window=32768) as server, server.tap():
         found = check_client(client_for(server))
@@ -227,8 +226,8 @@ def test_a_server_that_does_not_say_its_context_window_gets_a_warning():
     with FakeModelServer() as server, server.tap():  # as Ollama: GET /models has no window
         found = check_client(client_for(server))
     assert found.startswith(f"openai-compatible server {server.url}: model fake-vlm listed")
-    assert (f"warning: the server does not say its context window; it must hold about "
-            f"{CONTEXT_NEEDED} tokens") in found
+    assert ("warning: the server does not say its context window; it must hold about "
+            "8192 tokens") in found
     assert "OLLAMA_CONTEXT_LENGTH=16384" in found
 
 

@@ -144,13 +144,13 @@ def test_lifted_cups_get_their_own_spots_on_the_tray_whatever_the_order():
     of lifting (a large cup in the middle would stand on the tray's wall)."""
     from itertools import permutations
 
-    from physcap_drake.agent.reference.reasoner import SLOTS, SMALL_SLOT, _slot
+    from physcap_drake.agent.reference.reasoner import _slot
     in_view = [{"name": n, "size": n.split()[0]} for n in ("large cup 1", "small cup",
                                                           "large cup 2")]
     for order in permutations([o["name"] for o in in_view]):
         spots = {name: _slot(in_view, list(order[:i]), name) for i, name in enumerate(order)}
-        assert spots["small cup"] == SMALL_SLOT
-        assert {spots["large cup 1"], spots["large cup 2"]} == set(SLOTS)
+        assert spots["small cup"] == (0.0, 0.05)  # in front, the large ones behind
+        assert {spots["large cup 1"], spots["large cup 2"]} == {(-0.085, -0.045), (0.085, -0.045)}
 
 
 # -- names that changed between views ------------------------------------------------------

@@ -11,7 +11,6 @@ from pydrake.multibody.tree import JacobianWrtVariable
 from physcap_drake.piper_emulator.motion import MotionCommand
 from physcap_drake.resources import stations_dir
 from physcap_drake.scenario import load_scenario
-from physcap_drake.station.end_load import GRAVITY
 from physcap_drake.station.simulated_motion import simulated_motion
 
 
@@ -101,6 +100,6 @@ def test_the_full_end_load_setting_pushes_the_arm_up_by_its_weight_at_the_finger
     arm = plant.GetModelInstanceByName("piper")
     columns = [plant.get_joint(j).position_start() for j in plant.GetJointIndices(arm)
                if plant.get_joint(j).num_positions() == 1][:6]
-    push = J[:, columns].T @ np.array([0.0, 0.0, 1.5 * GRAVITY])
+    push = J[:, columns].T @ np.array([0.0, 0.0, 1.5 * 9.81])
     assert np.abs(push[1]) > 1.0  # the shoulder carries a real share of it
     np.testing.assert_allclose(unloaded - loaded, push, atol=0.1)
