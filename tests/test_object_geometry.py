@@ -5,6 +5,8 @@ the stated error and replaced beyond it; the prompt's line for each."""
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 import pytest
 from pydrake.math import RigidTransform, RollPitchYaw
@@ -85,6 +87,19 @@ def test_heights_are_taken_above_the_table_the_depth_shows():
     8 mm above it."""
     tray, _ = measure(*_scene(table_z=0.004), CAMERA)
     assert tray.floor_z == pytest.approx(0.008, abs=0.001)
+
+
+def test_pixels_with_no_depth_return_are_left_out_without_a_warning():
+    """A camera reports no return as nan or inf (beyond its range): those pixels count for
+    nothing, and no numeric warning reaches the operator's console."""
+    seen, depth = _scene()
+    depth[:40, :] = np.inf  # the far edge of the view, out of range
+    depth[390:, :] = np.nan
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        tray, cup = measure(seen, depth, CAMERA)
+    assert tray.floor_z == pytest.approx(0.008, abs=0.001)
+    assert cup.height == pytest.approx(0.100, abs=0.001)
 
 
 def test_a_cup_on_the_table_stands_at_z_0_and_a_lying_one_has_length_and_width():

@@ -114,7 +114,8 @@ def measure(seen: Sequence[SeenObject], depth: np.ndarray,
     the floor of the container named in its `on`. Heights are taken above the table as
     the same depth image shows it (see `table_z`), as the objects' tops are."""
     table = table_z(seen, depth, camera)
-    smooth = cv2.medianBlur(np.nan_to_num(depth, nan=0.0).astype(np.float32), SMOOTHING)
+    valid = np.where(np.isfinite(depth), depth, 0.0)  # no return (nan, inf): 0, left out
+    smooth = cv2.medianBlur(valid.astype(np.float32), SMOOTHING)
     floors: dict[str, float] = {}
     found: list[Geometry | None] = [None] * len(seen)
     for i, obj in enumerate(seen):
