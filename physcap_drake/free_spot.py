@@ -14,6 +14,11 @@ import numpy as np
 
 #: Kept free inside the container's outer rectangle: its wall and a margin, m.
 WALL_MARGIN = 0.018
+#: When the fingers go down beside the walls (set-down below the rim), the spot keeps the
+#: fingers opened to release it clear of them: half the fitted gripper's 100 mm stroke plus
+#: a finger's thickness (pad 8 mm, body 10 mm), and RIM_WALL for the wall, m.
+OPEN_REACH = 0.05 + 0.018
+RIM_WALL = 0.008
 #: Kept free between two objects' footprints, m.
 GAP = 0.012
 #: Spacing of the spots tried, m.
@@ -58,12 +63,15 @@ class Rectangle:
         return bool(np.all(np.abs(local) <= self.half))
 
 
-def free_spot(area: np.ndarray, radius: float, standing: list[Circle]) -> np.ndarray | None:
+def free_spot(area: np.ndarray, radius: float, standing: list[Circle],
+              below_rim: bool = False) -> np.ndarray | None:
     """The spot (x, y, m, world frame) for an object of footprint `radius` (m) in the
     container of `area` (4 × 2 corners) clear of its walls and of the footprints `standing`
-    in it; None if there is no room."""
+    in it; None if there is no room. `below_rim`: the fingers holding it go down beside the
+    walls, so the walls keep clear of the opened fingers (OPEN_REACH) too."""
     box = Rectangle.of(area)
-    room = box.half - WALL_MARGIN - radius
+    room = (box.half - RIM_WALL - max(radius, OPEN_REACH) if below_rim
+            else box.half - WALL_MARGIN - radius)
     if np.any(room < 0.0):
         return None
     near_end = -1.0 if box.axes[0] @ box.centre > 0.0 else 1.0  # the end nearer the base

@@ -52,6 +52,8 @@ APPROACH = 0.12
 #: (the container's floor and a clearance), or, set back where it stood, this much, m.
 FLOOR_ALLOWANCE = 0.015
 SET_BACK_CLEARANCE = 0.004
+#: How much higher a container's rim may stand than perception says, m.
+RIM_ERROR = 0.02
 #: Without a destination, lift_and_look looks with the object carried this far sideways, m.
 ASIDE = 0.15
 #: lift_and_look finds what stands within the lifted object's footprint plus this, m.
@@ -174,8 +176,11 @@ class RobotAPI:
         rect = Rectangle.of(box.area)
         standing = [s for s in self._in_view() if s.name not in (box.name, item.name)
                     and rect.contains(Circle.around(s.footprint).centre)]
+        # The fingertips hold it at its grasp point and set it down FLOOR_ALLOWANCE higher;
+        # the rim is taken RIM_ERROR higher than seen (perceived heights err by about that).
+        below_rim = item.grasp_point[2] + FLOOR_ALLOWANCE < box.top_height + RIM_ERROR
         spot = free_spot(box.area, Circle.around(item.footprint).radius,
-                         [Circle.around(s.footprint) for s in standing])
+                         [Circle.around(s.footprint) for s in standing], below_rim)
         if spot is None:
             held = ", ".join(f"the {s.name}" for s in standing) or "nothing"
             raise SkillRefused(f"no room for the {item.name} in the {box.name} "

@@ -33,3 +33,27 @@ def test_circle_round_an_outline():
     circle = Circle.around(np.array([[0.0, 0.0], [0.2, 0.0], [0.2, 0.2], [0.0, 0.2]]))
     np.testing.assert_allclose(circle.centre, [0.1, 0.1])
     assert abs(circle.radius - np.hypot(0.1, 0.1)) < 1e-12
+
+
+# The basket of empty_cup as perception reports it: 0.24 × 0.18 m centred at (0.38, -0.22),
+# walls 0.07 m high: fingers that set a cup down in it go down beside the walls.
+BASKET = np.array([[0.26, -0.31], [0.50, -0.31], [0.50, -0.13], [0.26, -0.13]])
+CUP_R = 0.03
+
+
+def test_below_the_rim_the_walls_keep_clear_of_the_opened_fingers():
+    """Opened to release, each finger's outer face is 0.05 + 0.018 m from the centre
+    (the 100 mm stroke, pad and body): the spot keeps that and 8 mm for the wall from every
+    wall, not only the object's own radius (docs/robot_api_skills.md)."""
+    spot = free_spot(BASKET, CUP_R, [], below_rim=True)
+    np.testing.assert_allclose(spot, [0.26 + 0.008 + 0.068, -0.22], atol=0.004)
+    low = free_spot(BASKET, CUP_R, [])  # a low rim: only the object's radius and 18 mm
+    np.testing.assert_allclose(low, [0.26 + 0.018 + CUP_R, -0.22], atol=0.004)
+
+
+def test_below_the_rim_no_room_where_the_opened_fingers_would_not_fit():
+    half_width = 0.008 + 0.068  # just what the opened fingers need across
+    for extra, fits in ((0.001, True), (-0.001, False)):
+        narrow = np.array([[0.26, -0.22 - half_width - extra], [0.50, -0.22 - half_width - extra],
+                           [0.50, -0.22 + half_width + extra], [0.26, -0.22 + half_width + extra]])
+        assert (free_spot(narrow, CUP_R, [], below_rim=True) is not None) == fits
