@@ -40,14 +40,3 @@ def _motors_enabled_without_asking():
     allow_enabling(True)
     yield
     allow_enabling(True)
-
-
-@pytest.hookimpl(tryfirst=True)
-def pytest_collection_modifyitems(config, items):
-    """Emulated-hardware tests outside the `realtime` group run one at a time in the
-    `emulated` group, beside the real-time one: at most two emulated arms at once, whatever
-    the number of workers (docs/development.md)."""
-    for item in items:
-        if item.get_closest_marker("emulated_hardware") and not item.get_closest_marker(
-                "xdist_group"):
-            item.add_marker(pytest.mark.xdist_group("emulated"))

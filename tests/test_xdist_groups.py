@@ -28,10 +28,3 @@ def test_no_test_module_assigns_its_pytestmark_twice():
         if names.count("pytestmark") > 1:
             twice.append(path.name)
     assert twice == []
-
-
-def test_every_emulated_hardware_test_of_the_run_is_in_a_group(request):
-    """At most two emulated arms at once (the `realtime` group and the `emulated` one)."""
-    emulated = [item for item in request.session.items
-                if item.get_closest_marker("emulated_hardware")]
-    assert [item.nodeid for item in emulated if not item.get_closest_marker("xdist_group")] == []
