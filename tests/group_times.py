@@ -1,4 +1,5 @@
-"""`--group-times`: wall and CPU seconds of the suite summed per xdist group, and the tiers.
+"""`--group-times`: wall and CPU seconds of the suite summed per xdist group, per tier and
+per worker (a worker's wall sum is how long it was busy).
 
 A test's CPU time is its worker's (all threads) plus the child processes it waited for, over
 setup, call and teardown. Ungrouped tests sum under "(no group)". See docs/development.md.
@@ -71,7 +72,7 @@ class _Sums:
         self.tests[key].add(report.nodeid)
 
 
-_groups, _tiers = _Sums(), _Sums()
+_groups, _tiers, _workers = _Sums(), _Sums(), _Sums()
 
 
 def pytest_runtest_logreport(report):
@@ -80,14 +81,16 @@ def pytest_runtest_logreport(report):
         return
     _groups.add(props["group"], report)
     _tiers.add("episode" if props["episode"] else "fast tier (not episode)", report)
+    worker = getattr(report, "node", None)  # set by xdist's controller
+    _workers.add(f"worker {worker.gateway.id}" if worker else "this process", report)
 
 
 def pytest_terminal_summary(terminalreporter, config):
     if not config.getoption("group_times") or not _groups.wall:
         return
     write = terminalreporter.write_line
-    terminalreporter.section("wall and CPU seconds per xdist group and tier")
-    for sums in (_groups, _tiers):
+    terminalreporter.section("wall and CPU seconds per xdist group, tier and worker")
+    for sums in (_groups, _tiers, _workers):
         for key in sorted(sums.wall, key=lambda k: -sums.wall[k]):
             write(f"{sums.wall[key]:8.1f} s wall {sums.cpu[key]:8.1f} s CPU "
                   f"{len(sums.tests[key]):5d} tests  {key}")
