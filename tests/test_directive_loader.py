@@ -108,8 +108,8 @@ def _model_directives(relative: str) -> list:
 
 
 def _scenarios():
-    """(label, a function giving its directives): the scenarios load when their test runs,
-    not in every worker's collection (1.5 s of CPU each)."""
+    """(label, a function giving its directives): each scenario loads when its case runs,
+    not in every worker's collection (docs/development.md, "Test time")."""
     for path in sorted(stations_dir().glob("*.yaml")):
         yield path.name, partial(_station_directives, path)
     for task_name in sorted(TASKS):

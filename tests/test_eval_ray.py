@@ -20,7 +20,8 @@ import pytest
 
 pytestmark = pytest.mark.xdist_group("ray")
 
-# Ray is imported by the test that calls it, not at collection (0.6 s of CPU per worker).
+# Ray is imported by the test that starts it, not in every worker's collection
+# (docs/development.md, "Test time").
 if importlib.util.find_spec("ray") is None:
     pytest.skip("ray is not installed", allow_module_level=True)
 

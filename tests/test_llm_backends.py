@@ -18,8 +18,8 @@ from typing import Any
 import httpx
 import pytest
 
-# The SDKs are imported where a test builds a client: importing all three costs each
-# collecting worker about 2.3 s of CPU (docs/development.md, "Test time").
+# The SDKs are imported where a test builds a client, not in every worker's collection
+# (docs/development.md, "Test time").
 for _sdk in ("google.genai", "anthropic", "openai"):
     if importlib.util.find_spec(_sdk) is None:
         pytest.skip(f"{_sdk} is not installed", allow_module_level=True)
