@@ -9,6 +9,8 @@ import pytest
 from physcap_drake.resources import stations_dir
 from physcap_drake.scenario import Scenario, load_scenario
 
+pytest_plugins = ["group_times"]  # --group-times (docs/development.md)
+
 
 @pytest.fixture
 def table_scenario() -> Scenario:

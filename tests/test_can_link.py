@@ -15,11 +15,11 @@ from physcap_drake.can.link import PiperLink, StartupError
 from physcap_drake.piper_emulator.emulator import PiperEmulator, wait_until
 from physcap_drake.station.can_config import PiperCan
 
-pytestmark = [pytest.mark.emulated_hardware, pytest.mark.xdist_group("realtime")]
+#: The link streams in real time on a real thread: bounds tolerate a loaded machine.
+pytestmark = [pytest.mark.emulated_hardware, pytest.mark.realtime,
+              pytest.mark.xdist_group("realtime")]
 
 can_rig = rig.can_rig  # the fixture (see tests/can_rig.py)
-#: The link streams in real time on a real thread: bounds tolerate a loaded machine.
-pytestmark = pytest.mark.realtime
 
 
 def settled(rig, target) -> bool:

@@ -231,9 +231,10 @@ def can_scenario(tmp_path, faults: str = "") -> str:
 
 
 @pytest.mark.episode
-@pytest.mark.parametrize("station", ["sim", "can", "can with 1% frame loss"])
+@pytest.mark.parametrize("station", ["sim", "can with 1% frame loss"])
 def test_the_agent_finds_the_empty_can_over_either_station(tmp_path, station):
-    """Runs in real time over CAN (about 25 s each)."""
+    """Runs in real time over CAN (about 25 s). A lossless CAN case asserted the same as the
+    lossy one, which runs the same path (docs/development.md, "Test time")."""
     scenario_file = None
     if station != "sim":
         faults = "{loss: 0.01, seed: 3}" if "loss" in station else ""

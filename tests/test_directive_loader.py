@@ -9,6 +9,7 @@ collide.
 
 from __future__ import annotations
 
+from functools import partial
 from pathlib import Path
 
 import numpy as np
@@ -90,29 +91,44 @@ def _describe(plant, scene_graph) -> dict:
     }
 
 
+def _station_directives(path: Path) -> list:
+    return load_scenario(path).directives
+
+
+def _task_directives(task_name: str, seed: int) -> list:
+    task = get_task(task_name)
+    scenario = load_scenario(stations_dir() / task.scenario_file)
+    task.instance(seed, "").add_to(scenario)
+    return scenario.directives
+
+
+def _model_directives(relative: str) -> list:
+    return [ModelDirective(add_model=AddModel(
+        name="specimen", file=f"package://physcap_models/{relative}"))]
+
+
 def _scenarios():
+    """(label, a function giving its directives): each scenario loads when its case runs,
+    not in every worker's collection (docs/development.md, "Test time")."""
     for path in sorted(stations_dir().glob("*.yaml")):
-        yield path.name, load_scenario(path).directives
+        yield path.name, partial(_station_directives, path)
     for task_name in sorted(TASKS):
-        task = get_task(task_name)
         for seed in (0, 1):
-            scenario = load_scenario(stations_dir() / task.scenario_file)
-            task.instance(seed, "").add_to(scenario)
-            yield f"{task_name} seed {seed}", scenario.directives
+            yield f"{task_name} seed {seed}", partial(_task_directives, task_name, seed)
 
 
 def _model_files():
     for path in sorted(models_dir().rglob("*.sdf")):
         relative = path.relative_to(models_dir()).as_posix()
-        yield relative, [ModelDirective(add_model=AddModel(
-            name="specimen", file=f"package://physcap_models/{relative}"))]
+        yield relative, partial(_model_directives, relative)
 
 
 CASES = [*_scenarios(), *_model_files()]
 
 
-@pytest.mark.parametrize("label, directives", CASES, ids=[c[0] for c in CASES])
-def test_the_loader_builds_what_drake_builds(label, directives):
+@pytest.mark.parametrize("label, make_directives", CASES, ids=[c[0] for c in CASES])
+def test_the_loader_builds_what_drake_builds(label, make_directives):
+    directives = make_directives()
     ours = _describe(*_plant(directives, load_directives))
     drakes = _describe(*_plant(directives, _with_drake))
     for key in drakes:

@@ -5,6 +5,7 @@ its CPU to another."""
 from __future__ import annotations
 
 import http.server
+import importlib.util
 import json
 import os
 import re
@@ -19,9 +20,10 @@ import pytest
 
 pytestmark = pytest.mark.xdist_group("ray")
 
-ray = pytest.importorskip("ray")
-# The remote functions below travel by value: Ray's workers cannot import this test module.
-ray.cloudpickle.register_pickle_by_value(sys.modules[__name__])
+# Ray is imported by the test that starts it, not in every worker's collection
+# (docs/development.md, "Test time").
+if importlib.util.find_spec("ray") is None:
+    pytest.skip("ray is not installed", allow_module_level=True)
 
 #: Summary fields that differ from run to run of the same episode.
 VARYING = ("wall_time_s", "llm_latency_s", "git_commit", "git_dirty")
@@ -138,7 +140,6 @@ class _SlowModel(http.server.BaseHTTPRequestHandler):
         pass
 
 
-@ray.remote(num_cpus=1)
 def _ask_the_model(llm: str) -> float:
     """Like an episode task: one CPU, a model call through the episode's client."""
     from physcap_drake.agent.llm.base import LLMRequest
@@ -149,23 +150,27 @@ def _ask_the_model(llm: str) -> float:
     return time.time()
 
 
-@ray.remote(num_cpus=1)
 def _other_work() -> float:
     return time.time()
 
 
 def test_a_task_waiting_for_a_model_lends_its_cpu():
+    import ray
+
+    # The remote functions travel by value: Ray's workers cannot import this test module.
+    ray.cloudpickle.register_pickle_by_value(sys.modules[__name__])
+    ask_the_model, other_work = (ray.remote(num_cpus=1)(f) for f in (_ask_the_model, _other_work))
     server = http.server.ThreadingHTTPServer(("127.0.0.1", 0), _SlowModel)
     threading.Thread(target=server.serve_forever, daemon=True).start()
     llm = f"openai-compatible:http://127.0.0.1:{server.server_address[1]}/v1"
     ray.init(address="local", num_cpus=1, include_dashboard=False,
              runtime_env={"env_vars": {"OPENAI_API_KEY": "test-key"}})
     try:
-        waiting = _ask_the_model.remote(llm)
+        waiting = ask_the_model.remote(llm)
         assert _SlowModel.asked.wait(timeout=240)
         # The only CPU is the waiting task's; the model answers only after the other task
         # ran, which it can only do on the CPU the waiting task lends.
-        other_done = ray.get(_other_work.remote(), timeout=240)
+        other_done = ray.get(other_work.remote(), timeout=240)
         _SlowModel.answer.set()
         model_done = ray.get(waiting, timeout=240)
         assert other_done < model_done

@@ -10,6 +10,7 @@ timeouts. Nothing touches the network.
 from __future__ import annotations
 
 import base64
+import importlib.util
 import json
 import sys
 import threading
@@ -21,12 +22,11 @@ from typing import Any
 import httpx
 import pytest
 
-pytest.importorskip("google.genai")
-pytest.importorskip("anthropic")
-
-import anthropic  # noqa: E402
-from google import genai  # noqa: E402
-from google.genai import types as genai_types  # noqa: E402
+# The SDKs are imported where a test builds a client, not in every worker's collection
+# (docs/development.md, "Test time").
+for _sdk in ("google.genai", "anthropic"):
+    if importlib.util.find_spec(_sdk) is None:
+        pytest.skip(f"{_sdk} is not installed", allow_module_level=True)
 
 from physcap_drake.agent.llm import (  # noqa: E402
     VALID_SPECS,
@@ -211,6 +211,9 @@ def openai_ok(text: str = ANSWER, tokens_in: int = 31, tokens_out: int = 7) -> S
 def gemini_backend(server: Server, **options: Any) -> GeminiClient:
     # The SDK client is left with its own retry policy switched ON (5 attempts): the backend
     # must override it per request, which the attempt counts below check.
+    from google import genai
+    from google.genai import types as genai_types
+
     sdk = genai.Client(api_key="test-key", http_options=genai_types.HttpOptions(
         httpx_client=server.http(), retry_options=genai_types.HttpRetryOptions(attempts=5)))
     return GeminiClient(client=sdk, **options)
@@ -218,6 +221,8 @@ def gemini_backend(server: Server, **options: Any) -> GeminiClient:
 
 def anthropic_backend(server: Server, **options: Any) -> AnthropicClient:
     # max_retries=3 on purpose: the backend must switch SDK retries off.
+    import anthropic
+
     sdk = anthropic.Anthropic(api_key="test-key", http_client=server.http(), max_retries=3)
     return AnthropicClient(client=sdk, **options)
 
