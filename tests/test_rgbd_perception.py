@@ -259,7 +259,9 @@ def test_a_footprint_is_the_outline_of_the_points_less_strays():
 
 @pytest.mark.emulated_hardware
 @pytest.mark.parametrize(("task", "seed"), [*((task, 0) for task in sorted(TASKS)),
-                                             ("empty_cup", 9)])  # a cup behind another
+                                             ("empty_cup", 9),  # a cup behind another
+                                             ("identify_empty_can", 15),  # a black can
+                                             ("empty_cup", 14)])  # a cup's edge over a lid
 def test_first_views_through_an_emulated_realsense(task, seed):
     """Every object in view is found by the name the task gives it, described as the task
     describes it (the lidded cups' 2.5 cm straws included: 3 px wide in the emulated
