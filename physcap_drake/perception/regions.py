@@ -126,11 +126,41 @@ def find_regions(geometry: SceneGeometry) -> list[Region]:
             if region is None:
                 continue
             # Nothing a task handles is this long: a container's wall, or all of one.
-            (large if footprint(region.points)[1] >= CONTAINER_SIZE else objects).append(region)
+            if footprint(region.points)[1] < CONTAINER_SIZE:
+                objects.append(region)
+                continue
+            walls, inside = _walls_and_inside(region, geometry)
+            large += walls
+            objects += inside
     containers = _containers(geometry, body.astype(bool), large)
     objects = _join_faces(objects, geometry)
     return (sorted(objects, key=lambda r: r.column)
             + sorted(containers, key=lambda r: r.column))
+
+
+def _walls_and_inside(region: Region, geometry: SceneGeometry) -> tuple[list[Region],
+                                                                         list[Region]]:
+    """A long region split into its walls (points within WALL_BAND of the edge of its
+    footprint's rectangle) and what stands inside them (an object in a basket whose wall
+    it touches in the image): ([walls], the inside's regions narrower than CONTAINER_SIZE)."""
+    corners = footprint_rectangle(region.points)
+    inner = inside_rectangle(region.points, corners, -WALL_BAND)
+    if inner.sum() < MIN_PIXELS:
+        return [region], []
+    whole = (slice(0, geometry.usable.shape[0]), slice(0, geometry.usable.shape[1]))
+    inside_pixels = np.zeros(geometry.usable.shape, dtype=bool)
+    inside_pixels[region.rows[inner], region.cols[inner]] = True
+    wall_pixels = np.zeros(geometry.usable.shape, dtype=bool)
+    wall_pixels[region.rows[~inner], region.cols[~inner]] = True
+    inside = []
+    for box, mask in _components(inside_pixels):
+        part = _region(box, mask, geometry)
+        if part is not None and footprint(part.points)[1] < CONTAINER_SIZE:
+            inside.append(part)
+        elif part is not None:
+            wall_pixels[part.rows, part.cols] = True
+    walls = _region(whole, wall_pixels, geometry)
+    return ([walls] if walls is not None else []), inside
 
 
 def is_wall_of(region: Region, container: Region) -> bool:
