@@ -1,4 +1,0 @@
-print("THOUGHT: $thought | ACTION: $action_text")
-# Grasped from above, set down at a free spot of the destination, clear of what stands there.
-place_in("$destination", "$name")
-breakpoint_code_block()
