@@ -156,3 +156,29 @@ def test_the_bench_counts_merges_phantoms_switches_and_stance_errors():
                       [basket, tray], {}, ("cup",))
     assert merged.merges == ["'brown basket' for cup a"]
     assert merged.phantoms == [] and merged.not_found == []
+
+
+def _basket(x, y):
+    """A 0.26 m x 0.20 m basket's view, its region's points spread over its floor."""
+    xy = np.random.default_rng(0).uniform([x - 0.13, y - 0.10], [x + 0.13, y + 0.10], (400, 2))
+    region = regions.Region(np.zeros((2, 2), bool), np.zeros(0, int), np.zeros(0, int),
+                            np.column_stack([xy, np.zeros(len(xy))]), np.zeros(len(xy)),
+                            column=0.0, row=0.0, container=True)
+    return ObjectView("basket", "brown", False, 0.06, (0.2, 0.26), np.array([x, y]),
+                      np.array([x, y, 0.03]), region)
+
+
+def test_a_cup_put_in_a_basket_keeps_its_name_when_the_wall_hides_part_of_it():
+    """Set down in the basket, the red cup's lower part is hidden by the wall and it is
+    judged a "red object": it is the red cup; outside a container it would be a new object."""
+    memory = ObjectMemory()
+    first = memory.recognize([_view("cup", "red", 0.35, 0.16, 0.083),
+                              _view("cup", "blue", 0.42, 0.02), _basket(0.32, -0.26)])
+    names = memory.recognize([_view("object", "red", 0.25, -0.26, 0.09, 0.05),
+                              _view("cup", "blue", 0.42, 0.02), _basket(0.32, -0.26)])
+    assert names == first and names[0].category == "cup"
+    memory = ObjectMemory()
+    memory.recognize([_view("cup", "red", 0.35, 0.16, 0.083), _basket(0.32, -0.26)])
+    names = memory.recognize([_view("object", "red", 0.25, 0.05, 0.09, 0.05),
+                              _basket(0.32, -0.26)])
+    assert names[0].name == "red object" and names[0].category == "object"

@@ -139,18 +139,24 @@ def test_the_vision_only_coder_guesses_among_the_opened_cans():
     assert guesses == {"red can", "green can"}
 
 
-def test_lifted_cups_get_their_own_spots_on_the_tray_whatever_the_order():
-    """Two large cups go to the tray's two ends, the small cup to its middle, in any order
-    of lifting (a large cup in the middle would stand on the tray's wall)."""
-    from itertools import permutations
-
-    from physcap_drake.agent.reference.reasoner import _slot
-    in_view = [{"name": n, "size": n.split()[0]} for n in ("large cup 1", "small cup",
-                                                          "large cup 2")]
-    for order in permutations([o["name"] for o in in_view]):
-        spots = {name: _slot(in_view, list(order[:i]), name) for i, name in enumerate(order)}
-        assert spots["small cup"] == (0.0, 0.05)  # in front, the large ones behind
-        assert {spots["large cup 1"], spots["large cup 2"]} == {(-0.085, -0.045), (0.085, -0.045)}
+def test_lifted_cups_go_to_a_free_spot_of_the_tray_not_a_fixed_offset():
+    """A lifted cup is set down where the robot finds room (lift_and_look with the
+    destination, which asks free_spot), whatever already stands in the tray."""
+    cups = [{"name": n, "category": "cup", "color": "white", "straw": False,
+             "size": n.split()[0], "image_x": 100.0 * i, "image_y": 120.0, "height_m": 0.1}
+            for i, n in enumerate(("large cup 1", "small cup", "large cup 2"))]
+    task = TASKS["find_blue_cube"].prompt
+    for mode in ("explore", "task"):
+        context = {"task": task, "objects_in_view": cups, "knowledge": [], "history": [],
+                   "mode": mode, "candidate": {"name": "small cup", "action": "lift_and_look",
+                                               "description": "Lift it.",
+                                               "expected_info": "what it covers"}}
+        request = LLMRequest(role="coder", system="", prompt="", context=context)
+        code = json.loads(ReferenceReasoner(seed=0).complete(request).text)["code"]
+        check_code(code)
+        lifted = "small cup" if mode == "explore" else "large cup 1"
+        assert f'lift_and_look(grasp, "{lifted}", "wooden tray")' in code, code
+        assert "goto_pose" not in code
 
 
 # -- names that changed between views ------------------------------------------------------

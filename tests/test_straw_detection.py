@@ -56,6 +56,15 @@ def test_a_straw_over_a_lid_is_seen_and_a_plain_lid_is_not():
     assert not stands_out_in_colour(plain, silhouette, no_arm(plain.shape), SCALE)
 
 
+def test_a_stripe_above_the_lid_that_stops_short_of_it_is_no_straw():
+    """The edge of a cup standing behind looks like a straw over the lid but ends above
+    it (the lid hides the rest); a straw reaching the lid is seen."""
+    behind, silhouette = cup_image(straw=(13, 3), straw_rise=14, straw_length=8)
+    assert not stands_out_in_colour(behind, silhouette, no_arm(behind.shape), SCALE)
+    reaching, silhouette = cup_image(straw=(13, 3), straw_rise=14, straw_length=14)
+    assert stands_out_in_colour(reaching, silhouette, no_arm(reaching.shape), SCALE)
+
+
 def test_a_straw_that_barely_clears_the_lid_is_seen():
     """The lidded cups' straws stand 2 to 6 px out of the lid at this scale."""
     rgb, silhouette = cup_image(straw_rise=2, straw_length=8)

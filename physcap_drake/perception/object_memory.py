@@ -10,6 +10,7 @@ import dataclasses as dc
 import numpy as np
 
 from physcap_drake.perception.describe import ObjectView
+from physcap_drake.perception.regions import footprint_rectangle, inside_rectangle
 from physcap_drake.perception.shapes import UNKNOWN, size_word
 from physcap_drake.perception.visible_objects import VisibleObject
 
@@ -18,6 +19,10 @@ from physcap_drake.perception.visible_objects import VisibleObject
 #: a neighbour in front), m; such pairs are made before any other. An object first judged
 #: of no known kind ("blue object") is named anew once it is seen as one ("blue cup").
 STAYED = 0.02
+#: A view of no known kind in a container ("red object": a cup the basket's wall hides in
+#: part) pairs with a remembered object of a known kind and its colour wherever it stands
+#: (it was put there), at this extra cost, m: after every pair of the same kind.
+HIDDEN_KIND = 0.5
 #: Pairing costs: distance on the table (m), plus this for a straw seen on one and not the
 #: other (a straw can hide behind the object or fall out of view).
 STRAW_MISMATCH = 0.3
@@ -71,19 +76,26 @@ class ObjectMemory:
 
     def _pair(self, views: list[ObjectView]) -> dict[int, Remembered]:
         costs = []
+        boxes = [footprint_rectangle(v.region.points) for v in views
+                 if v.container and len(v.region.points) >= 3]
         for i, view in enumerate(views):
+            in_box = not view.container and any(
+                inside_rectangle(view.centre[None], box, 0.0)[0] for box in boxes)
             for remembered in self.objects:
                 seen = remembered.visible
                 distance = float(np.linalg.norm(view.centre - remembered.centre))
                 stayed = (distance < STAYED and seen.color == view.color
                           and seen.category != UNKNOWN)
-                if not stayed and (seen.category, seen.color) != (view.category, view.color):
+                part_hidden = (in_box and view.category == UNKNOWN
+                               and seen.category != UNKNOWN and seen.color == view.color)
+                if not stayed and not part_hidden and (seen.category, seen.color) != (
+                        view.category, view.color):
                     continue
                 if abs(view.top_height - remembered.top_height) > HEIGHT_TOLERANCE * max(
                         remembered.top_height, 1e-3):
                     continue
-                cost = distance + (STRAW_MISMATCH if seen.straw != view.straw else 0.0) - (
-                    1.0 if stayed else 0.0)
+                cost = distance + (STRAW_MISMATCH if seen.straw != view.straw else 0.0) + (
+                    -1.0 if stayed else HIDDEN_KIND if part_hidden else 0.0)
                 costs.append((cost, i, id(remembered), remembered))
         pairs: dict[int, Remembered] = {}
         taken: set[int] = set()

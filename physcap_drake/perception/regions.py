@@ -37,6 +37,12 @@ MIN_PIXELS = 25
 #: with at least CELL_POINTS points in it.
 SPLIT_GAP = 0.02
 CELL_POINTS = 3
+#: A lower part split off an object whose points all lie within the higher part's circle
+#: grown by this is that object's own front face (a dark side that lost its depth between
+#: the top and the bottom), m.
+FACE_MARGIN = 0.015
+#: ... and comes this near it in the image (a band without depth between them), px.
+FACE_PIXELS = 15
 
 
 @dc.dataclass(frozen=True)
@@ -120,10 +126,41 @@ def find_regions(geometry: SceneGeometry) -> list[Region]:
             if region is None:
                 continue
             # Nothing a task handles is this long: a container's wall, or all of one.
-            (large if footprint(region.points)[1] >= CONTAINER_SIZE else objects).append(region)
+            if footprint(region.points)[1] < CONTAINER_SIZE:
+                objects.append(region)
+                continue
+            walls, inside = _walls_and_inside(region, geometry)
+            large += walls
+            objects += inside
     containers = _containers(geometry, body.astype(bool), large)
+    objects = _join_faces(objects, geometry)
     return (sorted(objects, key=lambda r: r.column)
             + sorted(containers, key=lambda r: r.column))
+
+
+def _walls_and_inside(region: Region, geometry: SceneGeometry) -> tuple[list[Region],
+                                                                         list[Region]]:
+    """A long region split into its walls (points within WALL_BAND of the edge of its
+    footprint's rectangle) and what stands inside them (an object in a basket whose wall
+    it touches in the image): ([walls], the inside's regions narrower than CONTAINER_SIZE)."""
+    corners = footprint_rectangle(region.points)
+    inner = inside_rectangle(region.points, corners, -WALL_BAND)
+    if inner.sum() < MIN_PIXELS:
+        return [region], []
+    whole = (slice(0, geometry.usable.shape[0]), slice(0, geometry.usable.shape[1]))
+    inside_pixels = np.zeros(geometry.usable.shape, dtype=bool)
+    inside_pixels[region.rows[inner], region.cols[inner]] = True
+    wall_pixels = np.zeros(geometry.usable.shape, dtype=bool)
+    wall_pixels[region.rows[~inner], region.cols[~inner]] = True
+    inside = []
+    for box, mask in _components(inside_pixels):
+        part = _region(box, mask, geometry)
+        if part is not None and footprint(part.points)[1] < CONTAINER_SIZE:
+            inside.append(part)
+        elif part is not None:
+            wall_pixels[part.rows, part.cols] = True
+    walls = _region(whole, wall_pixels, geometry)
+    return ([walls] if walls is not None else []), inside
 
 
 def is_wall_of(region: Region, container: Region) -> bool:
@@ -198,6 +235,39 @@ def _split_on_table(pixels: np.ndarray, box, geometry: SceneGeometry) -> list[np
         part[rows[which == label], cols[which == label]] = True
         parts.append(part)
     return parts
+
+
+def _join_faces(objects: list[Region], geometry: SceneGeometry) -> list[Region]:
+    """The regions, each lower one that lies wholly within a higher one's circle grown by
+    FACE_MARGIN and touches it in the image (FACE_PIXELS) joined to it."""
+    objects = sorted(objects, key=lambda r: -float(np.percentile(r.heights, 95)))
+    joined: list[Region] = []
+    for region in objects:
+        for index, higher in enumerate(joined):
+            if _face_of(region, higher):
+                rows = np.concatenate([higher.rows, region.rows])
+                cols = np.concatenate([higher.cols, region.cols])
+                pixels = np.zeros(geometry.usable.shape, dtype=bool)
+                pixels[rows, cols] = True
+                whole = (slice(0, pixels.shape[0]), slice(0, pixels.shape[1]))
+                joined[index] = _region(whole, pixels, geometry) or higher
+                break
+        else:
+            joined.append(region)
+    return joined
+
+
+def _face_of(lower: Region, higher: Region) -> bool:
+    """Whether `lower` is the front face of the object `higher` shows the top of."""
+    near = cv2.dilate(higher.mask.astype(np.uint8), np.ones((FACE_PIXELS, FACE_PIXELS),
+                                                             np.uint8)).astype(bool)
+    if not np.any(near & lower.mask):
+        return False
+    ring = higher.points[:, :2]
+    low_corner, high_corner = ring.min(axis=0), ring.max(axis=0)
+    centre = (low_corner + high_corner) / 2.0
+    radius = float(np.max(high_corner - low_corner)) / 2.0 + FACE_MARGIN
+    return bool(np.all(np.linalg.norm(lower.points[:, :2] - centre, axis=1) <= radius))
 
 
 def footprint_rectangle(points: np.ndarray, percent: float = 2.0) -> np.ndarray:

@@ -33,7 +33,8 @@ TOP_SHARE = 0.35
 #: units); the two sides differ from each other by at most `SIDES_ALIKE` of that.
 CONTRAST = 14.0
 SIDES_ALIKE = 0.5
-#: The run's top is at most this far below the silhouette's top edge at its columns, m.
+#: The run's top is at most this far below the silhouette's top edge at its columns, m; its
+#: bottom reaches that edge.
 TOP_SLACK = 0.006
 #: Pixels this close to the arm's own (px) are not looked at.
 ROBOT_MARGIN = 3
@@ -99,6 +100,8 @@ def stands_out_in_colour(rgb: np.ndarray, silhouette: np.ndarray, ignore: np.nda
         thickness = float(np.median(widths[widths > 0]))
         if thickness > max_width or h < 2 * thickness:
             continue
-        if y <= outline[x:x + w].min() + slack:
+        # A straw stands in the top: its run reaches down to the silhouette (an edge of
+        # something behind the object stops short of it, hidden by the object).
+        if y <= outline[x:x + w].min() + slack and y + h >= outline[x:x + w].min():
             return True
     return False

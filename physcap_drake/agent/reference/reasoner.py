@@ -20,18 +20,8 @@ from physcap_drake.agent.reference.task_reading import Goal, read_task
 from physcap_drake.resources import agents_dir
 
 MODEL = "reference-reasoner-1"
-#: Where lifted objects are set down, relative to the destination's centre (x, y), m: the
-#: two near corners of the tray for the first two objects that are not small, the middle of
-#: its far half for a small one. The tray (288 x 208 mm inside) holds two large cups
-#: (Ø 98 mm) 10 mm from its walls; a small cup (Ø 56 mm) between them keeps 50 mm from
-#: each, room for the open fingers (100 mm apart) to reach down around it.
-SLOTS = ((-0.085, -0.045), (0.085, -0.045))
-SMALL_SLOT = (0.0, 0.05)
 #: How a lifting block announces itself in its printed output.
 LIFT_PRINTED = re.compile(r"ACTION: lift the (.+?) and look under it")
-#: Lifted covers are gripped this much above their located grasp point, m (gripping higher
-#: up an upside-down cup, where it is narrower, tipped more cups over in trials).
-CUP_GRIP_RAISE = 0.0
 
 
 class ReferenceReasoner:
@@ -194,11 +184,9 @@ class ReferenceReasoner:
         if name != candidate["name"]:
             thought += f" The {candidate['name']} is now seen as the {name}."
         if action == "lift_and_look":
-            slot = _slot(context["objects_in_view"], self._explored(context, goal), name)
-            code = _code("move_to_destination", name=name, thought=thought,
-                         destination=goal.destination, dx=slot[0], dy=slot[1],
-                         action_text=f"lift the {name} and look under it",
-                         raise_by=f"{CUP_GRIP_RAISE:.3f}")
+            code = _code("lift_and_look", name=name, thought=thought,
+                         destination=goal.destination,
+                         action_text=f"lift the {name} and look under it")
         elif action in ("get_mass", "get_weight", "get_stiffness"):
             code = _code("get_stiffness" if action == "get_stiffness" else "get_mass",
                          name=name, thought=thought)
@@ -222,9 +210,8 @@ class ReferenceReasoner:
         name = current_name(name, context, goal.subject)
         thought = f"{reason}; put it on the {goal.destination}"
         return {"thought": thought, "code": _code(
-            "move_to_destination", name=name, thought=thought, destination=goal.destination,
-            dx=0.0, dy=0.0, action_text=f"put the {name} on the {goal.destination}",
-            raise_by="0.0"),
+            "put_in_middle", name=name, thought=thought, destination=goal.destination,
+            action_text=f"put the {name} on the {goal.destination}"),
             "task_complete": True}
 
     def _task_code(self, context: dict, goal: Goal) -> dict:
@@ -241,13 +228,11 @@ class ReferenceReasoner:
                 return {"thought": "nothing is left to lift", "code": _code(
                     "report", thought="nothing is left to lift"), "task_complete": True}
             target = remaining[0]["name"]
-            slot = _slot(in_view, lifted, target)
             thought = f"a {goal.sought} may be under the {target}; lift it"
             return {"thought": thought, "task_complete": False, "code": _code(
-                "move_to_destination", name=target, thought=thought,
-                destination=goal.destination, dx=slot[0], dy=slot[1],
-                action_text=f"lift the {target} and look under it",
-                raise_by=f"{CUP_GRIP_RAISE:.3f}")}
+                "lift_and_look", name=target, thought=thought,
+                destination=goal.destination,
+                action_text=f"lift the {target} and look under it")}
         subjects = self._subjects(context, goal)
         likely = [o for o in subjects if plausibility(o, goal, in_view)[0] >= IMPLAUSIBLE]
         pool = likely or subjects
@@ -264,18 +249,6 @@ class ReferenceReasoner:
         """What earlier vision-only blocks lifted, read from what they printed."""
         return [m.group(1) for step in context["history"]
                 for m in [LIFT_PRINTED.search(step["stdout"])] if m]
-
-
-def _slot(in_view: list[dict], lifted: list[str], name: str) -> tuple[float, float]:
-    """Where on the destination the object `name` goes (see SLOTS), given the objects
-    `lifted` before it."""
-    def small(n: str) -> bool:
-        obj = _find(in_view, n)
-        return obj is not None and obj["size"] == "small"
-
-    if small(name):
-        return SMALL_SLOT
-    return SLOTS[sum(not small(n) for n in lifted) % len(SLOTS)]
 
 
 def _find(in_view: list[dict], name: str) -> dict | None:
@@ -299,12 +272,4 @@ def _property_name(goal: Goal) -> str:
 
 def _code(template: str, **values) -> str:
     path = agents_dir() / "code" / f"{template}.py"
-    rendered = {k: (_offset(v) if isinstance(v, float) else str(v)) for k, v in values.items()}
-    return Template(path.read_text()).substitute(rendered)
-
-
-def _offset(value: float) -> str:
-    """An offset to append to an expression: " + 0.070", " - 0.050" or "" for zero."""
-    if abs(value) < 5e-4:
-        return ""
-    return f" {'+' if value > 0 else '-'} {abs(value):.3f}"
+    return Template(path.read_text()).substitute({k: str(v) for k, v in values.items()})
