@@ -124,8 +124,7 @@ def test_generated_code_passes_the_sandbox_check_and_weighs_by_name():
     assert 'get_mass(position, "green can")' in code
     final = _ask("final", [_mass("red can", 0.015)], reason="")
     check_code(final["code"])
-    assert final["task_complete"] and 'get_object_pose("red can")' in final["code"]
-    assert 'get_object_pose("wooden tray")' in final["code"]
+    assert final["task_complete"] and 'place_in("wooden tray", "red can")' in final["code"]
 
 
 def test_the_vision_only_coder_guesses_among_the_opened_cans():
@@ -135,7 +134,7 @@ def test_the_vision_only_coder_guesses_among_the_opened_cans():
             "task": TASK, "objects_in_view": CANS, "knowledge": [], "history": [],
             "mode": "task"})
         code = json.loads(ReferenceReasoner(seed=seed).complete(request).text)["code"]
-        guesses |= {c["name"] for c in CANS if f'get_object_pose("{c["name"]}")' in code}
+        guesses |= {c["name"] for c in CANS if f'place_in("wooden tray", "{c["name"]}")' in code}
     assert guesses == {"red can", "green can"}
 
 
@@ -194,7 +193,7 @@ def test_the_coder_names_objects_as_the_latest_view_does():
     fetches it by its new name, and the planner counts it as measured."""
     final = _ask_avocado("final", AFTER, [SQUEEZE], [RIPE], reason="")
     check_code(final["code"])
-    assert 'get_object_pose("dark object")' in final["code"]
+    assert 'place_in("wooden tray", "dark object")' in final["code"]
     assert "dark avocado 2" not in final["code"]
     assert "the dark object's stiffness is level 1" in final["thought"]
     plan = _ask_avocado("planner", AFTER, [SQUEEZE], [RIPE])

@@ -210,7 +210,7 @@ class ReferenceReasoner:
         name = current_name(name, context, goal.subject)
         thought = f"{reason}; put it on the {goal.destination}"
         return {"thought": thought, "code": _code(
-            "put_in_middle", name=name, thought=thought, destination=goal.destination,
+            "place_in", name=name, thought=thought, destination=goal.destination,
             action_text=f"put the {name} on the {goal.destination}"),
             "task_complete": True}
 
