@@ -38,6 +38,7 @@ from physcap_drake.robot_api import RobotAPI, robot_call
 from physcap_drake.robot_stack import build_robot_stack
 from physcap_drake.scenario import Scenario
 from physcap_drake.station import close_station, ports
+from physcap_drake.station.arm_fault import ArmFault
 from physcap_drake.station.can_config import (
     MAX_JOINT_SPEED,
     RIG_JOINT_ACCELERATION,
@@ -59,6 +60,9 @@ CAMERA_STAND = "camera_stand"
 #: by at most SETTLE_TOLERANCE rad on every joint; a pose that does not settle within
 #: SETTLE_TIMEOUT s is skipped.
 SETTLE_INTERVAL, SETTLE_TOLERANCE, SETTLE_TIMEOUT = 0.2, 1e-3, 6.0
+#: The carrying pose (rad): elbow up, the wrist turning the board straight up above the
+#: arm, clear of the table; the arm passes through it where a straight way collides.
+CARRY = (0.0, 0.3, -0.6, 0.0, -1.1, 0.0)
 #: Gap below which the closed gripper holds no board, m.
 EMPTY_GAP = 0.002
 
@@ -152,7 +156,8 @@ def calibrate_hand_eye_auto(scenario: Scenario, camera_name: str, views: int,
             raise HandEyeAutoError(f"the gripper closed to {1000 * gap:.1f} mm: no board "
                                    "between the fingers; put the board's tab in the open "
                                    "gripper and run again")
-        say(f"gripper closed on the board ({1000 * gap:.1f} mm)")
+        say(f"gripper closed on the board ({1000 * gap:.1f} mm); lifting it")
+        _lift(api)
         taken = _take_views(api, robot, scenario, camera_name, camera, board, targets, views,
                             _Estimate(nominal, NOMINAL_MOUNT), say)
         if len(taken) < hand_eye.MIN_VIEWS:
@@ -168,9 +173,10 @@ def calibrate_hand_eye_auto(scenario: Scenario, camera_name: str, views: int,
             raise HandEyeAutoError(f"{error}; the arm holds the board where it is") from None
         _go_home(api, say)
         return run
-    except SkillError as error:
-        raise HandEyeAutoError(f"the arm stopped: {error}; it holds where it is (`physcap "
-                               "arm status`)") from error
+    except (SkillError, ArmFault) as error:
+        raise HandEyeAutoError(f"the arm stopped: {error}; it holds where it is, with the "
+                               "board (`physcap arm status`; `physcap arm gripper open` "
+                               "releases it, then `physcap arm park`)") from error
     finally:
         close_station(robot.station)
 
@@ -221,7 +227,7 @@ def _take_views(api, robot, scenario, camera_name: str, camera: CameraGeometry, 
             say(f"{head}: skipped, {problem}")
             continue
         try:
-            _move(api, q, scenario.skills.home_position)
+            _move(api, q)
         except SkillRefused as error:
             say(f"{head}: skipped, the way there collides: {error}")
             continue
@@ -242,16 +248,21 @@ def _take_views(api, robot, scenario, camera_name: str, camera: CameraGeometry, 
     return taken
 
 
-def _move(api, q: np.ndarray, rest) -> None:
-    """To `q` straight in joint space or, if that way collides, first to `q`'s wrist and
-    base turn with the shoulder and elbow at rest (folded), then out."""
+def _move(api, q: np.ndarray) -> None:
+    """To `q` straight in joint space or, if that way collides, through the carrying pose
+    (CARRY, the base turned as it is)."""
     try:
         api.move_board(q)
     except SkillRefused:
-        via = np.array(q, dtype=float)
-        via[1:3] = np.asarray(rest, dtype=float)[1:3]
-        api.move_board(via)
+        _lift(api)
         api.move_board(q)
+
+
+def _lift(api) -> None:
+    """To the carrying pose, the base turned as it is."""
+    carry = np.array(CARRY)
+    carry[0] = api.joint_target[0]
+    api.move_board(carry)
 
 
 def _settled_joints(api, robot) -> np.ndarray | None:
