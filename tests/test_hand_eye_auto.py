@@ -69,3 +69,22 @@ def test_auto_needs_the_gripper_method_and_a_rig():
                                          str(stations_dir() / "identify_empty_can.yaml"),
                                          "--method", "gripper", "--auto", "--yes"])
     assert simulated.exit_code == 2 and "name a rig" in simulated.output
+
+
+@pytest.mark.emulated_hardware
+@pytest.mark.realtime
+def test_too_few_good_views_is_a_clear_error_and_says_why_each_pose_was_skipped():
+    from physcap_drake.app.hand_eye_auto import HandEyeAutoError, calibrate_hand_eye_auto
+    from physcap_drake.perception.hand_eye_poses import BoardTarget
+    from physcap_drake.perception.printed_boards import HAND_EYE_A4
+    from physcap_drake.scenario import load_scenario
+
+    said: list[str] = []
+    targets = (BoardTarget((0.9, 0.0, 0.25), 0.0, 0.0, 0.0),  # in view, out of reach
+               BoardTarget((0.3, 0.0, 0.02), 0.0, 0.0, 0.0))  # on the table
+    with pytest.raises(HandEyeAutoError, match="only 0 good views .* holds the board"):
+        calibrate_hand_eye_auto(load_scenario(TWIN), "camera", 3, HAND_EYE_A4.spec,
+                                ready=lambda: None, say=said.append, targets=targets)
+    assert any("pose 1/2: skipped, unreachable" in line for line in said), said
+    assert any("pose 2/2: skipped" in line and "above the table" in line
+               for line in said), said
