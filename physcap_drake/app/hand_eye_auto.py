@@ -124,7 +124,6 @@ class _Estimate:
 
     X_WC: RigidTransform
     X_GB: RigidTransform
-    refined: int = 0
 
 
 def calibrate_hand_eye_auto(scenario: Scenario, camera_name: str, views: int,
@@ -291,7 +290,6 @@ def _refine(estimate: _Estimate, taken, intrinsics) -> str:
         return ""
     moved = 1000.0 * np.linalg.norm(fit.X_WC.translation() - estimate.X_WC.translation())
     estimate.X_WC, estimate.X_GB = fit.X_WC, fit.X_GB
-    estimate.refined += 1
     return f"; camera estimate moved {moved:.1f} mm ({fit.reprojection_error_px:.2f} px)"
 
 
