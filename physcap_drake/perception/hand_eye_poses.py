@@ -26,8 +26,8 @@ NOMINAL_MOUNT = RigidTransform(RotationMatrix(np.array([[0.0, -1.0, 0.0],
                                                         [0.0, 0.0, 1.0],
                                                         [-1.0, 0.0, 0.0]])),
                                [0.0, 0.0025, 0.224])
-#: The clamped board as the planner sees it: a cylinder on the gripper's axis as wide as the
-#: board's diagonal half-width allows and reaching its far edge (0.308 m from the flange).
+#: The clamped board as the planner sees it: a cylinder on the gripper's axis, 130 mm across
+#: (the board is 112 mm wide), reaching its far edge (0.308 m from the flange).
 HELD_BOARD = HeldObject(diameter=0.13, depth=0.175)
 #: Turns about the board's normal tried, in this order, when the target's own is out of
 #: reach, rad.
