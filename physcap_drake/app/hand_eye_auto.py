@@ -195,7 +195,6 @@ def _take_views(api, robot, scenario, camera_name: str, camera: CameraGeometry, 
     model = PlanningModel(robot=robot.model)
     model.hold(HELD_BOARD)
     skills = scenario.skills
-    printed = HAND_EYE_A4
     intrinsics = (camera.fx, camera.fy, camera.cx, camera.cy)
     taken: list[hand_eye.HandView] = []
     for index, target in enumerate(targets):
@@ -203,10 +202,7 @@ def _take_views(api, robot, scenario, camera_name: str, camera: CameraGeometry, 
             break
         head = f"pose {index + 1}/{len(targets)}"
         X_WB = board_pose(target, estimate.X_WC)
-        problem = (table_clearance_problem(X_WB, printed.spec.size,
-                                           printed.clamp_tab_mm / 1000.0)
-                   or out_of_view_problem(X_WB, estimate.X_WC, intrinsics,
-                                          (camera.width, camera.height), printed.spec.size))
+        problem = _pose_problem(X_WB, estimate.X_WC, camera)
         if problem:
             say(f"{head}: skipped, {problem}")
             continue
@@ -218,10 +214,7 @@ def _take_views(api, robot, scenario, camera_name: str, camera: CameraGeometry, 
         except SkillRefused as error:
             say(f"{head}: skipped, unreachable: {error}")
             continue
-        problem = (table_clearance_problem(X_WB, printed.spec.size,
-                                           printed.clamp_tab_mm / 1000.0)
-                   or out_of_view_problem(X_WB, estimate.X_WC, intrinsics,
-                                          (camera.width, camera.height), printed.spec.size))
+        problem = _pose_problem(X_WB, estimate.X_WC, camera)
         if problem:
             say(f"{head}: skipped, {problem}")
             continue
@@ -245,6 +238,14 @@ def _take_views(api, robot, scenario, camera_name: str, camera: CameraGeometry, 
         note = _refine(estimate, taken, intrinsics)
         say(f"{head}: view {len(taken)}/{wanted}, {len(view.ids)} corners{note}")
     return taken
+
+
+def _pose_problem(X_WB: RigidTransform, X_WC: RigidTransform, camera: CameraGeometry) -> str:
+    """Why the A4 board at X_WB makes no view ("" if it may): too low, or out of view."""
+    printed = HAND_EYE_A4
+    return (table_clearance_problem(X_WB, printed.spec.size, printed.clamp_tab_mm / 1000.0)
+            or out_of_view_problem(X_WB, X_WC, (camera.fx, camera.fy, camera.cx, camera.cy),
+                                   (camera.width, camera.height), printed.spec.size))
 
 
 def _move(api, q: np.ndarray) -> None:
