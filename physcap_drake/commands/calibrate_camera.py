@@ -10,7 +10,6 @@ from typing import Annotated
 import typer
 from pydrake.math import RigidTransform
 
-from physcap_drake.app.hand_eye_auto import HandEyeAutoError, calibrate_hand_eye_auto
 from physcap_drake.commands.can_options import gate, interruptible
 from physcap_drake.commands.common import (
     console,
@@ -144,8 +143,6 @@ def calibrate_camera(
     except (CameraUnavailable, CalibrationMismatch, BoardNotSeen, StartupError,
             ConnectionError, ImportError, ValueError) as error:
         fail(str(error))
-    except HandEyeAutoError as error:
-        fail(str(error), code=1)
     save_calibration(run.calibration, output)
     X_WC = run.fit.X_WC
     figures = {"camera": camera, "views": len(run.views), "corners": run.fit.corners,
@@ -175,6 +172,11 @@ def calibrate_camera(
 
 def _hand_eye_auto(scenario, camera: str, views: int, board, yes: bool):
     """The arm moving itself with the board (app/hand_eye_auto.py), progress per pose."""
+    from physcap_drake.app.hand_eye_auto import (  # noqa: PLC0415 (the robot stack is heavy)
+        HandEyeAutoError,
+        calibrate_hand_eye_auto,
+    )
+
     gate(yes)
     interruptible()
 
@@ -188,6 +190,8 @@ def _hand_eye_auto(scenario, camera: str, views: int, board, yes: bool):
     try:
         return calibrate_hand_eye_auto(scenario, camera, views, board, ready=ready,
                                        say=console.print)
+    except HandEyeAutoError as error:
+        fail(str(error), code=1)
     except KeyboardInterrupt:
         print_error("interrupted: the arm holds where it is, with the board (`physcap arm "
                     "status`; `physcap arm gripper open` releases it, `physcap arm park`)")
