@@ -25,13 +25,14 @@ from physcap_drake.tasks.registry import get_task
 
 @dc.dataclass(frozen=True)
 class Look:
-    """One frame (rgb H × W × 3, depth H × W m), the joints J1..J6 the arm reported (rad)
-    and the objects perception found in them."""
+    """One frame (rgb H × W × 3, depth H × W m), the joints J1..J6 the arm reported (rad),
+    the objects perception found in them, and the gripper's reported opening (m)."""
 
     rgb: np.ndarray
     depth: np.ndarray
     joints: np.ndarray
     objects: tuple[SeenObject, ...]
+    gripper_opening: float = 0.0
 
 
 def _live(entry) -> bool:
@@ -58,11 +59,12 @@ def take_look(scenario: Scenario) -> Look:
             instance.add_to(scenario)
     with operator_link(scenario) as link:
         joints = steady_joint_angles(link)
+        opening = float(link.listener.snapshot().gripper_opening)
     rgb, depth = _frame(scenario, entry)
     perception = RgbdPerception(CameraGeometry.from_entry(entry), vocabulary_of(prompt))
     objects = perception.look({ports.CAMERA_RGB: rgb, ports.CAMERA_DEPTH: depth,
                                ports.ARM_POSITION_MEASURED: joints})
-    return Look(rgb, depth, joints, tuple(objects))
+    return Look(rgb, depth, joints, tuple(objects), opening)
 
 
 def _frame(scenario: Scenario, entry) -> tuple[np.ndarray, np.ndarray]:

@@ -3,16 +3,19 @@
 from __future__ import annotations
 
 import dataclasses as dc
+import sys
 from pathlib import Path
 from typing import Annotated
 
 import typer
 from pydrake.math import RigidTransform
 
+from physcap_drake.commands.can_options import gate, interruptible
 from physcap_drake.commands.common import (
     console,
     fail,
     load_scenario_or_exit,
+    print_error,
     save_json,
     trial_progress,
 )
@@ -31,6 +34,7 @@ from physcap_drake.perception.hand_eye_calibration import (
 )
 from physcap_drake.perception.printed_boards import HAND_EYE_A4, TABLE_A3, measured_board
 from physcap_drake.resources import stations_dir
+from physcap_drake.station.can_config import PiperCan
 from physcap_drake.station.can_operator import (
     StartupError,
     operator_link,
@@ -81,6 +85,12 @@ def calibrate_camera(
         "--square-mm", help="On a rig: the side of a square measured on the printed board, "
                             "mm (refused if more than 5 % off the nominal: check the print "
                             "scale).")] = None,
+    auto: Annotated[bool, typer.Option(
+        "--auto", help="With --method gripper on a rig: the arm closes on the A4 board and "
+                       "moves itself through poses facing the camera (docs/rig_calibration.md)"
+                       ".")] = False,
+    yes: Annotated[bool, typer.Option(
+        "--yes", help="With --auto: move the arm without asking on the terminal.")] = False,
 ) -> None:
     """Find the camera's pose from a ChArUco board.
 
@@ -102,8 +112,18 @@ def calibrate_camera(
         board = measured_board(printed, square_mm)
     except ValueError as error:
         fail(str(error))
+    if auto and method != "gripper":
+        fail("--auto is for --method gripper (the arm moves the board itself)")
+    if auto and not isinstance(loaded.station, PiperCan):
+        fail(f"--scenario {scenario}: --auto moves a rig's arm; name a rig (station: "
+             "!PiperCan, real or an emulated twin)")
+    if auto and not yes and not sys.stdin.isatty():
+        fail(f"{scenario}: --auto moves the arm; run it from a terminal to confirm, or pass "
+             "--yes")
     try:
-        if method == "gripper" and live:
+        if auto:
+            run = _hand_eye_auto(loaded, camera, views, board, yes)
+        elif method == "gripper" and live:
             run = _hand_eye_on_rig(loaded, entry, views, board)
         elif method == "gripper":
             with trial_progress("arm poses", len(POSES)) as advance:
@@ -148,6 +168,34 @@ def calibrate_camera(
     console.print(f"calibration written to {output}")
     if json_path is not None:
         save_json(json_path, figures)
+
+
+def _hand_eye_auto(scenario, camera: str, views: int, board, yes: bool):
+    """The arm moving itself with the board (app/hand_eye_auto.py), progress per pose."""
+    from physcap_drake.app.hand_eye_auto import (  # noqa: PLC0415 (the robot stack is heavy)
+        HandEyeAutoError,
+        calibrate_hand_eye_auto,
+    )
+
+    gate(yes)
+    interruptible()
+
+    def ready() -> None:
+        if not yes:
+            typer.confirm("The gripper is open: put the A4 board's tab between the fingers "
+                          "(printed face out), hold it there and confirm; the arm closes on "
+                          "it, then moves itself slowly through poses facing the camera. "
+                          "Ready?", abort=True)
+
+    try:
+        return calibrate_hand_eye_auto(scenario, camera, views, board, ready=ready,
+                                       say=console.print)
+    except HandEyeAutoError as error:
+        fail(str(error), code=1)
+    except KeyboardInterrupt:
+        print_error("interrupted: the arm holds where it is, with the board (`physcap arm "
+                    "status`; `physcap arm gripper open` releases it, `physcap arm park`)")
+        raise typer.Exit(code=130) from None
 
 
 def _hand_eye_on_rig(scenario, entry: RealSense, views: int, board):

@@ -8,7 +8,13 @@ from typing import Annotated
 import typer
 from rich.table import Table
 
-from physcap_drake.commands.common import console, fail, load_scenario_or_exit, save_json
+from physcap_drake.commands.common import (
+    console,
+    fail,
+    load_scenario_or_exit,
+    make_meshcat,
+    save_json,
+)
 
 
 def look(
@@ -18,6 +24,12 @@ def look(
         "--png", help="Save the frame with the objects' outlines and names here.")] = None,
     json_path: Annotated[Path | None, typer.Option(
         "--json", help="Write the objects found here.")] = None,
+    meshcat: Annotated[bool, typer.Option(
+        "--meshcat", help="Draw the point cloud and the robot at its measured joints in "
+                          "Meshcat (served until Enter on a terminal).")] = False,
+    html: Annotated[Path | None, typer.Option(
+        "--html", help="Save that Meshcat scene as a static HTML page here (no browser "
+                       "needed; implies --meshcat).")] = None,
 ) -> None:
     """Show what the robot sees, moving nothing.
 
@@ -49,3 +61,25 @@ def look(
     if json_path is not None:
         save_json(json_path, {"scenario": str(scenario), "objects": rows,
                               "joints_rad": [float(v) for v in seen.joints]})
+    if meshcat or html is not None:
+        _draw(loaded, seen, html)
+
+
+def _draw(loaded, seen, html: Path | None) -> None:
+    """The point cloud and the robot in Meshcat; the page saved to `html`, or served until
+    Enter on a terminal."""
+    import sys  # noqa: PLC0415
+
+    from physcap_drake.app.look_meshcat import draw_look  # noqa: PLC0415
+    from physcap_drake.perception.camera_geometry import CameraGeometry  # noqa: PLC0415
+    from physcap_drake.scenario import MAIN_CAMERA  # noqa: PLC0415
+
+    entry = next(c for c in loaded.cameras if c.name == MAIN_CAMERA)
+    viewer = make_meshcat(loaded, live=html is None)
+    points = draw_look(seen, loaded, CameraGeometry.from_entry(entry), viewer)
+    console.print(f"Meshcat: {points} points and the robot at its measured joints")
+    if html is not None:
+        html.write_text(viewer.StaticHtml())
+        console.print(f"saved {html}")
+    elif sys.stdin.isatty():
+        typer.prompt("press Enter to end", default="", show_default=False)

@@ -83,9 +83,10 @@ def view_at(q: Sequence[float], rgb: np.ndarray,
     return hand_eye.HandView(q, flange_pose(q), ids, pixels, board)
 
 
-def _run(views: list[hand_eye.HandView], camera: CameraGeometry, *, name: str, serial: str,
-         true_X_WC: RigidTransform | None = None,
-         true_X_GB: RigidTransform | None = None) -> HandEyeRun:
+def solve_run(views: list[hand_eye.HandView], camera: CameraGeometry, *, name: str,
+              serial: str, true_X_WC: RigidTransform | None = None,
+              true_X_GB: RigidTransform | None = None) -> HandEyeRun:
+    """Solves `views` for `camera`'s pose; the true poses (simulation) for the report."""
     fit = hand_eye.solve_eye_to_hand(views, (camera.fx, camera.fy, camera.cx, camera.cy))
     calibration = calibration_of(fit, camera, fit.views, name=name, serial=serial,
                                  method=METHOD)
@@ -118,7 +119,7 @@ def calibrate_hand_eye_in_simulation(scenario, camera_name: str = "camera",
         if on_view is not None:
             on_view(index)
     serial = "emulated" if getattr(entry, "emulate", False) else ""
-    return _run(views, camera, name=camera_name, serial=serial, true_X_WC=camera.X_WC,
+    return solve_run(views, camera, name=camera_name, serial=serial, true_X_WC=camera.X_WC,
                 true_X_GB=SIMULATED_MOUNT)
 
 
@@ -134,4 +135,4 @@ def calibrate_hand_eye_live(camera: CameraGeometry, views: int, *, name: str, se
     for index in range(views):
         ready(index)
         taken.append(view_at(joint_angles(), colour_image(), board))
-    return _run(taken, camera, name=name, serial=serial)
+    return solve_run(taken, camera, name=name, serial=serial)

@@ -1,0 +1,83 @@
+"""The automatic hand-eye calibration's board poses: they face the camera, keep the tab
+towards the arm, stay clear of the table and in view (values worked by hand)."""
+
+import numpy as np
+import pytest
+from pydrake.math import RigidTransform, RotationMatrix
+
+from physcap_drake.perception.hand_eye_poses import (
+    BoardTarget,
+    board_corners,
+    board_pose,
+    default_targets,
+    facing_angle,
+    out_of_view_problem,
+    table_clearance_problem,
+)
+
+#: A camera 1 m above (0.3, 0, 0) looking straight down: optical z = world -z, x = world -y.
+DOWN = RigidTransform(RotationMatrix(np.array([[0.0, -1.0, 0.0], [-1.0, 0.0, 0.0],
+                                               [0.0, 0.0, -1.0]])), [0.3, 0.0, 1.0])
+BOARD = (0.168, 0.112)
+
+
+def test_a_board_straight_below_the_camera_lies_flat_with_its_tab_towards_the_arm():
+    X_WB = board_pose(BoardTarget((0.3, 0.0, 0.4), 0.0, 0.0, 0.0), DOWN)
+    R = X_WB.rotation().matrix()
+    # By hand: the face looks up at the camera (z = +z); the tab (x) points at the anchor
+    # (0, 0, 0.2) projected into the face: (-0.3, 0, -0.2) -> (-1, 0, 0); y = z × x.
+    np.testing.assert_allclose(R[:, 2], [0.0, 0.0, 1.0], atol=1e-12)
+    np.testing.assert_allclose(R[:, 0], [-1.0, 0.0, 0.0], atol=1e-12)
+    np.testing.assert_allclose(R[:, 1], [0.0, -1.0, 0.0], atol=1e-12)
+    np.testing.assert_allclose(X_WB.translation(), [0.3, 0.0, 0.4])
+    assert facing_angle(DOWN, X_WB) == pytest.approx(0.0, abs=1e-9)
+
+
+def test_tilt_and_roll_turn_the_board_by_the_stated_angles():
+    tilted = board_pose(BoardTarget((0.3, 0.0, 0.4), np.radians(30.0), 0.0, 0.0), DOWN)
+    assert np.degrees(facing_angle(DOWN, tilted)) == pytest.approx(30.0)
+    # Tilted 30° about its x (world -x): its ±56 mm short side rises and sinks by
+    # 56 mm · sin 30° = 28 mm.
+    z = board_corners(tilted, BOARD, 0.0)[:, 2]
+    assert z.min() == pytest.approx(0.4 - 0.028) and z.max() == pytest.approx(0.4 + 0.028)
+    rolled = board_pose(BoardTarget((0.3, 0.0, 0.4), 0.0, 0.0, np.radians(90.0)), DOWN)
+    np.testing.assert_allclose(rolled.rotation().matrix()[:, 0], [0.0, -1.0, 0.0],
+                               atol=1e-12)
+    assert facing_angle(DOWN, rolled) == pytest.approx(0.0, abs=1e-9)
+
+
+def test_every_default_target_faces_a_camera_within_its_tilt():
+    cameras = [DOWN, RigidTransform(RotationMatrix.MakeXRotation(np.radians(-145.2)) @
+                                    RotationMatrix.MakeZRotation(0.0), [-0.3, 0.0, 0.95])]
+    for X_WC in cameras:
+        for target in default_targets():
+            X_WB = board_pose(target, X_WC)
+            assert np.degrees(facing_angle(X_WC, X_WB)) == pytest.approx(20.0, abs=1e-6)
+
+
+def test_the_table_clearance_is_the_lowest_corner_with_the_tab():
+    flat = RigidTransform([0.3, 0.0, 0.06])
+    assert table_clearance_problem(flat, BOARD, 0.04) == ""  # 60 mm >= 50 mm
+    low = RigidTransform([0.3, 0.0, 0.04])
+    assert "40 mm above the table" in table_clearance_problem(low, BOARD, 0.04)
+    # Standing on its tab edge (x down): the lowest point is the tab's end, 84 + 40 mm
+    # below the centre; at 0.17 m that is 46 mm up, refused; at 0.18 m, 56 mm, clear.
+    standing = RotationMatrix.MakeYRotation(np.radians(90.0))
+    assert "46 mm" in table_clearance_problem(RigidTransform(standing, [0.3, 0, 0.17]),
+                                              BOARD, 0.04)
+    assert table_clearance_problem(RigidTransform(standing, [0.3, 0, 0.18]), BOARD, 0.04) == ""
+
+
+def test_a_board_partly_outside_the_image_is_out_of_view():
+    intrinsics, size = (500.0, 500.0, 320.0, 240.0), (640, 480)
+    centred = board_pose(BoardTarget((0.3, 0.0, 0.4), 0.0, 0.0, 0.0), DOWN)
+    assert out_of_view_problem(centred, DOWN, intrinsics, size, BOARD) == ""
+    # 0.6 m below the camera, the image's rows (world x here) span ±0.6 · 240/500 =
+    # ±0.288 m, ±0.264 m inside the 20 px margin; the board's long side lies along x
+    # (its tab towards the arm), ±0.084 m: centred 0.17 m off it reaches 0.254 m, inside;
+    # 0.19 m off, 0.274 m, out.
+    inside = board_pose(BoardTarget((0.47, 0.0, 0.4), 0.0, 0.0, 0.0), DOWN)
+    outside = board_pose(BoardTarget((0.49, 0.0, 0.4), 0.0, 0.0, 0.0), DOWN)
+    assert out_of_view_problem(inside, DOWN, intrinsics, size, BOARD) == ""
+    assert "out of the camera's view" in out_of_view_problem(outside, DOWN, intrinsics,
+                                                              size, BOARD)
