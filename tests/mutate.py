@@ -35,7 +35,8 @@ MODULES: dict[str, tuple[tuple[str, ...], tuple[str, ...]]] = {
     "control/skill_executor.py": (("control/skill_executor.py",),
                                   ("test_skill_executor.py",
                                    "test_executor_gripper_boundaries.py",
-                                   "test_executor_tracking_boundaries.py")),
+                                   "test_executor_tracking_boundaries.py",
+                                   "test_executor_taking_requests.py")),
     # Further modules of issue 46's list (run on demand; slower tests).
     "physx/mass_estimator.py": (("physx/mass_estimator.py",),
                                 ("test_mass_hand_worked.py", "test_mass_estimator.py",
@@ -81,7 +82,7 @@ def mutate(module: str, names: tuple[str, ...] = ()) -> tuple[int, int, list[str
         log = Path(tempfile.gettempdir()) / f"physcap-mutate-{module.replace('/', '_')}.log"
         print(f"{module}: mutmut running, its progress in {log}", flush=True)
         with log.open("w") as output:
-            subprocess.run([*mutmut, "run", "--max-children", "1", *names], cwd=tree, check=False,
+            subprocess.run([*mutmut, "run", "--max-children", "2", *names], cwd=tree, check=False,
                            stdout=output, stderr=subprocess.STDOUT)
         results = subprocess.run([*mutmut, "results", "--all", "true"], cwd=tree,
                                  capture_output=True, text=True, check=True).stdout
