@@ -4,9 +4,10 @@ MODULE --mutants NAME ...` runs only the named mutants (fnmatch patterns), e.g. 
 of a full run once new tests are written; the score is then over those.
 
 Each module runs alone, in a copy of the tree under the temporary directory, against its own
-tests only, one mutant at a time (a shared 2-core machine). mutmut mutates function and
-method bodies; the module-level constants are covered by tests/planted_mutants.py. Prints
-the score per module and every surviving mutant's diff (docs/mutation_testing.md).
+tests only, two mutants at a time (one per core of a 2-core machine; `./run` nices it).
+mutmut mutates function and method bodies; the module-level constants are covered by
+tests/planted_mutants.py. Prints the score per module and every surviving mutant's diff
+(docs/mutation_testing.md).
 """
 
 from __future__ import annotations
