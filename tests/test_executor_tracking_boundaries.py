@@ -253,6 +253,7 @@ def test_a_set_down_holds_the_arm_where_it_is_once_braked_not_where_it_was_seen(
     request = descend(seen)
     while not np.array_equal(seen.command(), _measured(seen)) or seen.clock.time <= stuck:
         seen.clock.run_for(0.004)  # until the executor holds where the arm was seen
+        assert seen.clock.time < stuck + 1.0, "the stuck descent was never stopped"
     assert not seen.status.finished(request)  # braking: not answered yet
     drift = np.array([0.003, 0.0, 0.0, 0.0, 0.0, 0.0])
     rig = _rig(object_width=0.03, stuck_after=stuck, offset=drift,
