@@ -4,9 +4,10 @@ MODULE --mutants NAME ...` runs only the named mutants (fnmatch patterns), e.g. 
 of a full run once new tests are written; the score is then over those.
 
 Each module runs alone, in a copy of the tree under the temporary directory, against its own
-tests only, one mutant at a time (a shared 2-core machine). mutmut mutates function and
-method bodies; the module-level constants are covered by tests/planted_mutants.py. Prints
-the score per module and every surviving mutant's diff (docs/mutation_testing.md).
+tests only, two mutants at a time (one per core of a 2-core machine; `./run` nices it).
+mutmut mutates function and method bodies; the module-level constants are covered by
+tests/planted_mutants.py. Prints the score per module and every surviving mutant's diff
+(docs/mutation_testing.md).
 """
 
 from __future__ import annotations
@@ -35,7 +36,8 @@ MODULES: dict[str, tuple[tuple[str, ...], tuple[str, ...]]] = {
     "control/skill_executor.py": (("control/skill_executor.py",),
                                   ("test_skill_executor.py",
                                    "test_executor_gripper_boundaries.py",
-                                   "test_executor_tracking_boundaries.py")),
+                                   "test_executor_tracking_boundaries.py",
+                                   "test_executor_taking_requests.py")),
     # Further modules of issue 46's list (run on demand; slower tests).
     "physx/mass_estimator.py": (("physx/mass_estimator.py",),
                                 ("test_mass_hand_worked.py", "test_mass_estimator.py",
@@ -81,7 +83,7 @@ def mutate(module: str, names: tuple[str, ...] = ()) -> tuple[int, int, list[str
         log = Path(tempfile.gettempdir()) / f"physcap-mutate-{module.replace('/', '_')}.log"
         print(f"{module}: mutmut running, its progress in {log}", flush=True)
         with log.open("w") as output:
-            subprocess.run([*mutmut, "run", "--max-children", "1", *names], cwd=tree, check=False,
+            subprocess.run([*mutmut, "run", "--max-children", "2", *names], cwd=tree, check=False,
                            stdout=output, stderr=subprocess.STDOUT)
         results = subprocess.run([*mutmut, "results", "--all", "true"], cwd=tree,
                                  capture_output=True, text=True, check=True).stdout

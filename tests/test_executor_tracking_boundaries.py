@@ -207,6 +207,64 @@ def test_feedback_that_pauses_is_judged_over_the_window_also_when_sent_late():
         assert rig.finish(request).state is outcome, latency
 
 
+def test_a_late_station_with_bursty_feedback_opens_partway_without_a_false_stall():
+    # Commands that show 0.35 s late and an opening reported every 0.3 s: once the fingers
+    # have had the latency and the 0.3 s grace (0.65 s), they still move 30 mm between
+    # reports until they reach 90 mm, 0.75 s after the start. Judged over windows of
+    # STALL_WINDOW plus the latency (0.45 s), no window falls between two reports; judged
+    # every event, a report held for 12 ms would read as stopped, short of its target
+    # (90 mm is not the full stroke, so stopping there is a failure, not "fully open").
+    from test_skill_executor import LATE
+
+    rig = _rig(latency=LATE, delay=LATE, burst=0.3)
+    rig.clock.run_for(0.7)  # not at 0: the windows run from the skill's start
+    request = RobotRequest("test", 1, MoveGripper(0.09, 10.0, "open_gripper"))
+    rig.send(request)
+    status = rig.finish(request)
+    assert status.state is SkillState.SUCCEEDED, status.message
+    assert status.message == "open_gripper to 90 mm: reached 90.0 mm"
+
+
+def test_a_set_down_holds_the_arm_where_it_is_once_braked_not_where_it_was_seen():
+    """A descent stopped on what it holds is answered once the station has braked
+    (`_braking`); an arm that moved on meanwhile (here J1 settles 3 mrad further) is held
+    where it then is, as a blocked one is."""
+    from physcap_drake.control.requests import HeldObject, MoveToPose
+
+    target = np.array([0.3, 0.0, 0.06])
+    requests = [MoveToPose(target + [0.0, 0.0, 0.1]),
+                MoveGripper(0.0, 10.0, "gripper", holds=HeldObject(0.03, 0.02)),
+                MoveToPose(target, None, 0.1)]
+
+    def descend(rig):
+        for sequence, action in enumerate(requests[:-1], 1):
+            request = RobotRequest("test", sequence, action)
+            rig.send(request)
+            rig.finish(request)
+        request = RobotRequest("test", len(requests), requests[-1])
+        rig.send(request)
+        assert rig.clock.run_until(lambda root: rig.status.answers(request), timeout=1.0)
+        return request
+
+    free = _rig(object_width=0.03)
+    started = free.finish(descend(free)).started_at
+    stuck = started + 0.15  # the descent meets the table then
+    seen = _rig(object_width=0.03, stuck_after=stuck)
+    request = descend(seen)
+    while not np.array_equal(seen.command(), _measured(seen)) or seen.clock.time <= stuck:
+        seen.clock.run_for(0.004)  # until the executor holds where the arm was seen
+        assert seen.clock.time < stuck + 1.0, "the stuck descent was never stopped"
+    assert not seen.status.finished(request)  # braking: not answered yet
+    drift = np.array([0.003, 0.0, 0.0, 0.0, 0.0, 0.0])
+    rig = _rig(object_width=0.03, stuck_after=stuck, offset=drift,
+               offset_after=seen.clock.time + 0.004)
+    status = rig.finish(descend(rig))
+    assert status.state is SkillState.SUCCEEDED and "touched down" in status.message
+    assert status.finished_at > seen.clock.time + 0.004  # answered after the drift
+    np.testing.assert_allclose(rig.command(), _measured(rig), atol=1e-12)
+    np.testing.assert_allclose(rig.command() - seen.command(), drift, atol=1e-12)
+
+
 def test_fingers_that_creep_faster_than_the_stall_speed_time_out_and_say_where():
     # The other side of the 0.95 mm/s creep that holds: 1.05 mm/s is still moving.
     rig = _rig(object_width=0.03, creep=1.05e-3)
