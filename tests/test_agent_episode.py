@@ -120,7 +120,8 @@ class Spy(RecordingClient):
 
 
 ALLOWED_CONTEXT = {"task", "objects_in_view", "knowledge", "history", "mode", "candidates",
-                   "candidate", "functions", "reason", "repair", "failed_block"}
+                   "candidate", "functions", "reason", "repair", "failed_block",
+                   "robot_time_s", "budget_s"}
 #: Names of the hidden fields of a task's objects (see tasks/): none may reach an agent.
 HIDDEN_FIELDS = ("mass_kg", "hides_cube", "stiffness_level", '"ripe"', '"under"')
 

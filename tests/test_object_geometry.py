@@ -15,7 +15,6 @@ from physcap_drake.agent.observation import ObjectInView, Observation
 from physcap_drake.agent.prompts import objects_text
 from physcap_drake.perception.camera_geometry import CameraGeometry
 from physcap_drake.perception.object_geometry import (
-    STATED_ERROR,
     Geometry,
     SteadySizes,
     measure,
@@ -115,7 +114,6 @@ def test_a_cup_on_the_table_stands_at_z_0_and_a_lying_one_has_length_and_width()
 
 @pytest.mark.parametrize("change, kept", [(0.0095, True), (0.0105, False)])
 def test_sizes_are_held_across_looks_within_the_stated_error(change, kept):
-    assert STATED_ERROR == 0.01
     sizes = SteadySizes()
     first = Geometry(0.08, 0.08, True, 0.100, 0.0)
     assert sizes.steady("cup", first) == first

@@ -25,7 +25,6 @@ from physcap_drake.agent.schemas import Candidate, JointPlannerAnswer, PlannerAn
 from physcap_drake.agent.structured_call import ask_structured
 from physcap_drake.agent.variant import load_variant, variant_names
 from physcap_drake.agent.world_facts import WorldFacts, finger_length
-from physcap_drake.app.agent_episode import ROBOT_TIME_LIMIT
 from physcap_drake.knowledge import KnowledgeEntry
 from physcap_drake.resources import stations_dir
 from physcap_drake.robot_api import RobotAPI
@@ -36,6 +35,9 @@ from physcap_drake.tasks.registry import TASKS
 #: Words that name a container a prompt could send the robot to ("box" is left out: the
 #: workspace and a box-shaped object's faces are no container).
 CONTAINER_WORDS = ("tray", "basket", "bowl", "bin", "plate", "crate")
+
+#: The episode's robot-time limit, s (docs/agent.md: 900 s unless the task states one).
+EPISODE_LIMIT_S = 900.0
 
 
 @pytest.fixture(scope="module")
@@ -51,7 +53,7 @@ def _budget(task: str) -> float:
     """The budget the prompts must show: the one the task's prompt states ("within N s of
     robot time"), else the episode's robot-time limit."""
     stated = re.search(r"within (\d+) s of robot time", TASKS[task].prompt)
-    return float(stated.group(1)) if stated else ROBOT_TIME_LIMIT
+    return float(stated.group(1)) if stated else EPISODE_LIMIT_S
 
 
 def _observation(task: str) -> Observation:
@@ -80,7 +82,7 @@ def _requests(task: str, world: WorldFacts) -> list[LLMRequest]:
     knowledge = (KnowledgeEntry(first, "mass", 0.37, "kg", True),)
     failed = StepRecord(1, "explore", "", "", "t", "goto_pose([0.3, 0.0])", False,
                         "ValueError: position must have 3 numbers", "", (), (), 10.0)
-    budget = min(ROBOT_TIME_LIMIT, getattr(TASKS[task], "time_limit_s", None) or math.inf)
+    budget = min(EPISODE_LIMIT_S, getattr(TASKS[task], "time_limit_s", None) or math.inf)
     ctx = AgentContext(instance.prompt, observation, knowledge, (failed,), budget)
     requests = []
     for name in variant_names():

@@ -14,6 +14,7 @@ from pydrake.systems.framework import BasicVector, Context, LeafSystem, State
 
 from physcap_drake.station import ports
 from physcap_drake.station.can_session import CanSession
+from physcap_drake.weak_method import weak_method
 
 # Layout of the discrete state: the latched feedback and the watchdog's verdict.
 _Q, _V, _TAU = slice(0, 6), slice(6, 12), slice(12, 18)
@@ -71,8 +72,10 @@ class PiperCanInterface(LeafSystem):
             self.DeclareVectorOutputPort(name, size, self._output_of(part), ticket)
         self.DeclareAbstractOutputPort(
             ports.ARM_FAULT, lambda: AbstractValue.Make(""),
-            lambda context, output: output.set_value(self.fault(context)),
-            {self.abstract_state_ticket(self._fault)})
+            weak_method(self._output_fault), {self.abstract_state_ticket(self._fault)})
+
+    def _output_fault(self, context, output) -> None:
+        output.set_value(self.fault(context))
 
     @property
     def link(self):
