@@ -75,7 +75,8 @@ def test_arm_status_names_its_errors():
 def test_gripper_command_round_trips(opening, effort, code):
     g = codec.decode_gripper_command(codec.encode_gripper_command(
         codec.GripperCommand(opening, effort, code))[1])
-    assert abs(g.opening - opening) <= 0.5e-6 + 1e-12 and abs(g.effort - effort) <= 5e-4
+    # Half a step of each scale (1 µm, 0.001 of the effort), rounding half to even.
+    assert abs(g.opening - opening) <= 0.5e-6 + 1e-12 and abs(g.effort - effort) <= 5e-4 + 1e-12
     assert g.code == code
 
 
