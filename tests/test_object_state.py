@@ -8,11 +8,11 @@ import dataclasses as dc
 
 import numpy as np
 import pytest
+from perception_inputs import station_inputs
 from pydrake.math import RigidTransform, RollPitchYaw, RotationMatrix
 
 from physcap_drake.app.episode import make_episode
 from physcap_drake.perception.object_state import Stance, stance
-from physcap_drake.station import ports
 
 
 @pytest.fixture(scope="module")
@@ -24,13 +24,7 @@ def scene():
 
 def _look(episode):
     """The perception's look at the station's output ports now."""
-    perception, station = episode.api.locator.perception, episode.robot.station
-    context = station.GetMyContextFromRoot(episode.api.simulator.get_context())
-    images = {port: station.GetOutputPort(port).Eval(context) for port in
-              perception.input_ports}
-    images = {port: value if port == ports.ARM_POSITION_MEASURED else value.data
-              for port, value in images.items()}
-    return perception.look(images)
+    return episode.api.locator.perception.look(station_inputs(episode))
 
 
 def _look_at(episode, name: str, rotation: RotationMatrix, lift: float):

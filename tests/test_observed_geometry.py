@@ -9,12 +9,12 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from perception_inputs import station_inputs
 from pydrake.math import RigidTransform
 
 from physcap_drake.agent.observation import observe
 from physcap_drake.app.episode import make_episode
 from physcap_drake.perception.object_geometry import SteadySizes
-from physcap_drake.station import ports
 
 TRAY_FLOOR, TRAY_RIM, TRAY_INSIDE = 0.008, 0.023, (0.288, 0.208)
 
@@ -27,13 +27,9 @@ def scene(request):
 
 
 def _observe(episode, sizes: SteadySizes):
-    perception, station = episode.api.locator.perception, episode.robot.station
-    context = station.GetMyContextFromRoot(episode.api.simulator.get_context())
-    images = {port: station.GetOutputPort(port).Eval(context) for port in
-              perception.input_ports}
-    images = {port: value if port == ports.ARM_POSITION_MEASURED else value.data
-              for port, value in images.items()}
-    return {o.name: o for o in observe(images, perception, 0.0, sizes).objects}
+    images = station_inputs(episode)
+    return {o.name: o for o in observe(images, episode.api.locator.perception, 0.0,
+                                       sizes).objects}
 
 
 def _nearest(objects: dict, xy) -> str:
