@@ -9,21 +9,15 @@ from __future__ import annotations
 import can
 import numpy as np
 import pytest
-from fake_time import FakeTime
+import test_feedback_listener_frames as frames_tests
 
 from physcap_drake.can import codec
 from physcap_drake.can import feedback as feedback_module
 from physcap_drake.can.feedback import FeedbackListener, gripper_faults
 
-STROKE = 0.07  # m
+STROKE = frames_tests.STROKE  # m
 TIMEOUT = 0.0625  # s, a binary fraction: times at exactly the timeout are exact
-
-
-@pytest.fixture
-def clock(monkeypatch):
-    fake = FakeTime(50.0)
-    monkeypatch.setattr(feedback_module, "time", fake)
-    return fake
+clock = frames_tests.clock  # the fake clock, 50 s, in the listener's module
 
 
 @pytest.fixture
