@@ -96,6 +96,23 @@ def test_an_arm_in_drag_teach_is_refused_naming_the_state():
         assert codec.MOTOR_ENABLE not in [i for i, _ in received]
 
 
+def test_an_arm_seen_in_drag_teach_only_while_taking_control_is_named_so():
+    """The teach state may first show after the ready check (a late status on a loaded
+    machine): the arm here goes into drag-teach as the first mode frame arrives."""
+    arms = []
+
+    def into_teach(identifier, data):
+        if identifier == codec.MODE_CONTROL:
+            arms[0].ctrl_mode, arms[0].arm_status = 2, 11
+            return True
+        return False
+
+    with emulated_arm(arms.append, drop=into_teach) as (channel, _, received):
+        took = start_fails(link_on(channel), r"drag-teach \(teach record\): press the teach "
+                                             r"button")
+        assert took < 3.0 and codec.MOTOR_ENABLE not in [i for i, _ in received]
+
+
 def test_a_leader_arm_is_refused_naming_the_role():
     def leader(arm):
         arm.linkage, arm.ctrl_mode = codec.LinkageConfig(codec.LEADER), 6

@@ -94,6 +94,8 @@ class ControlSteps:
             self._wait_for(confirmed, "CAN control in MOVE J (0x2A1 after 0x151)",
                            ask=lambda: self._send(*self.mode_frame()))
         except StartupError:
+            # The arm in drag-teach or leading (seen only now, under load): named as such.
+            self._refuse_teach_or_leader()
             status = self.listener.snapshot().status
             if status is not None and status.ctrl_mode == STANDBY:
                 raise StartupError(f"the arm on {self.where} stays in standby: it took no "
