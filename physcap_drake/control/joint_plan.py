@@ -59,8 +59,11 @@ class JointPlan:
         return segment.value(local).ravel()
 
     def positions(self, times: np.ndarray) -> np.ndarray:
-        """Joint positions at the sim times `times` (s), one column each, rad."""
+        """Joint positions at the sim times `times` (s), one column each, rad. A NaN time
+        raises ValueError (it has no position)."""
         times = np.asarray(times, dtype=float)
+        if np.isnan(times).any():
+            raise ValueError(f"a joint plan has no position at a NaN time ({times.tolist()})")
         if not self.segments:
             return np.repeat(self.initial_position[:, None], len(times), axis=1)
         result = np.empty((len(self.initial_position), len(times)))
