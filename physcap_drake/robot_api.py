@@ -6,7 +6,6 @@ Design notes: docs/design/physcap_drake.md.
 from __future__ import annotations
 
 import functools
-import hashlib
 import math
 from collections.abc import Callable, Generator
 from contextlib import contextmanager
@@ -29,6 +28,7 @@ from physcap_drake.control.skill_executor import STATUS_PORT
 from physcap_drake.free_spot import Circle, Rectangle, free_spot
 from physcap_drake.knowledge import KnowledgeEntry, SceneKnowledge
 from physcap_drake.perception.object_locator import ObjectLocator
+from physcap_drake.perception.perception_system import PerceptionView
 from physcap_drake.perception.seen_object import SeenObject
 from physcap_drake.physx.mass_probe import NOTHING_GRASPED, MassMeasurement, MeasureMass
 from physcap_drake.physx.stiffness_levels import LEVEL_NAMES
@@ -122,10 +122,10 @@ class RobotAPI:
         Raises ValueError listing the visible objects if the name fits none or several.
         Asked again while nothing in view has changed, it answers from the last look.
         """
-        rgb, depth, label = self._images()
+        view = self._view()
         answers = self._look[1]
         if name not in answers:
-            answers[name] = np.array(self._locator.grasp_point(name, rgb, depth, label))
+            answers[name] = np.array(self._locator.locate(name, view).grasp_point)
         return answers[name].copy()
 
     def free_spot(self, container: str, name: str) -> np.ndarray:
@@ -136,37 +136,31 @@ class RobotAPI:
         """
         return self._spot(self._located(container), self._located(name))
 
-    def _images(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """The camera images now (RGB, depth, label); a new look (answers forgotten) when
-        they changed."""
-        if self._locator is None:
-            raise RuntimeError("this robot has no camera perception set up (no locator)")
-        station, context = self._robot.station, self._station_context
-        rgb = station.GetOutputPort(ports.CAMERA_RGB).Eval(context).data
-        depth = station.GetOutputPort(ports.CAMERA_DEPTH).Eval(context).data
-        label = station.GetOutputPort(ports.CAMERA_LABEL).Eval(context).data
-        digest = hashlib.blake2b(np.ascontiguousarray(rgb).tobytes(), digest_size=16)
-        digest.update(np.ascontiguousarray(depth).tobytes())
-        if digest.digest() != self._look[0]:
-            self._look = (digest.digest(), {})
-        return rgb, depth, label
+    def _view(self) -> PerceptionView:
+        """The objects in view now: the robot's PerceptionSystem's output in the clock's
+        Context (the view the agent sees); a new look (answers forgotten) when the frame
+        changed."""
+        perception = self._robot.perception
+        if self._locator is None or perception is None:
+            raise RuntimeError("this robot has no camera perception set up (no perception "
+                               "system or no locator)")
+        view = perception.look(perception.GetMyContextFromRoot(self._clock.context))
+        if view.frame != self._look[0]:
+            self._look = (view.frame, {})
+        return view
 
     def _located(self, name: str) -> SeenObject:
-        """The object `name` picks out in the current images (asked again while nothing in
+        """The object `name` picks out in the current view (asked again while nothing in
         view changed, from the last look)."""
-        images = self._locator.images(*self._images())
+        view = self._view()
         answers = self._look[1]
         if ("seen", name) not in answers:
-            answers["seen", name] = self._locator.locate(name, images)
+            answers["seen", name] = self._locator.locate(name, view)
         return answers["seen", name]
 
     def _in_view(self) -> list[SeenObject]:
-        """Every object in the current images."""
-        images = self._locator.images(*self._images())
-        answers = self._look[1]
-        if ("seen",) not in answers:
-            answers["seen",] = self._locator.perception.look(images)
-        return answers["seen",]
+        """Every object in the current view."""
+        return list(self._view().objects)
 
     def _spot(self, box: SeenObject, item: SeenObject) -> np.ndarray:
         """A free spot for `item` in the container `box` (SkillRefused if none)."""

@@ -72,7 +72,9 @@ class RobotStack:
     # and the measured joint velocities, one sample per plant step (VectorLogSink systems).
     command_log: VectorLogSink | None = None
     velocity_log: VectorLogSink | None = None
-    # With build_robot_stack(..., make_agent=...): the AgentSystem, fed by the camera.
+    # With build_robot_stack(..., make_perception=...): the PerceptionSystem, fed by the camera.
+    perception: LeafSystem | None = None
+    # With build_robot_stack(..., make_agent=...): the AgentSystem, fed by the perception.
     agent: LeafSystem | None = None
     # With build_robot_stack(..., make_recorder=...): the recorder of the station's outputs.
     recorder: LeafSystem | None = None
@@ -120,6 +122,7 @@ class RobotStack:
 
 def build_robot_stack(scenario: Scenario, meshcat: Meshcat | None = None, *,
                       model: RobotModel | None = None, log_joints: bool = False,
+                      make_perception: Callable[[Diagram], LeafSystem] | None = None,
                       make_agent: Callable[[Diagram], LeafSystem] | None = None,
                       make_recorder: Callable[[Diagram], LeafSystem] | None = None,
                       ) -> RobotStack:
@@ -129,9 +132,11 @@ def build_robot_stack(scenario: Scenario, meshcat: Meshcat | None = None, *,
 
     model: the robot's model of itself (default: the scenario's shared one). With
     `log_joints`, the commanded positions and measured velocities are logged every step.
-    `make_agent(station)` builds an AgentSystem each of whose input ports (the camera images
-    and what else its perception reads; `status` aside) is connected to the station output
-    of the same name; if it has a `request` output port it is the request path's client
+    `make_perception(station)` builds a PerceptionSystem each of whose input ports (the
+    camera images and what else its module reads) is connected to the station output of the
+    same name. `make_agent(station)` builds an AgentSystem each of whose input ports
+    (`status` aside) is connected to the perception's output of the same name, else to the
+    station's; if it has a `request` output port it is the request path's client
     (and its `status` input, if any, hears the answers), else the path is exported as
     robot.request / robot.status.
     `make_recorder(station)` builds a recorder (e.g. McapRecorder) each of whose input ports
@@ -193,13 +198,22 @@ def build_robot_stack(scenario: Scenario, meshcat: Meshcat | None = None, *,
     builder.Connect(stiffness_estimator.GetOutputPort(ACTIVE_PORT),
                     selector.GetInputPort("probe.active"))
 
+    perception = None
+    if make_perception is not None:
+        perception = builder.AddNamedSystem("perception", make_perception(station))
+        for index in range(perception.num_input_ports()):
+            port = perception.get_input_port(index)
+            builder.Connect(station.GetOutputPort(port.get_name()), port)
     agent = None
     if make_agent is not None:
         agent = builder.AddNamedSystem("agent", make_agent(station))
         for index in range(agent.num_input_ports()):
             port = agent.get_input_port(index)
-            if port.get_name() != STATUS_PORT:
-                builder.Connect(station.GetOutputPort(port.get_name()), port)
+            name = port.get_name()
+            if perception is not None and perception.HasOutputPort(name):
+                builder.Connect(perception.GetOutputPort(name), port)
+            elif name != STATUS_PORT:
+                builder.Connect(station.GetOutputPort(name), port)
     request_input = None
     if agent is not None and agent.HasOutputPort(REQUEST_PORT):
         builder.Connect(agent.GetOutputPort(REQUEST_PORT), mass_probe.GetInputPort(REQUEST_PORT))
@@ -228,5 +242,6 @@ def build_robot_stack(scenario: Scenario, meshcat: Meshcat | None = None, *,
         request_input = diagram.GetInputPort(REQUEST_INPUT)
     return RobotStack(scenario, model, diagram, station, executor, mass_probe, mass_estimator,
                       stiffness_probe, stiffness_estimator, request_input,
-                      diagram.GetOutputPort(STATUS_OUTPUT), *logs, agent=agent,
+                      diagram.GetOutputPort(STATUS_OUTPUT), *logs, perception=perception,
+                      agent=agent,
                       recorder=recorder)

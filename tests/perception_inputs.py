@@ -1,16 +1,29 @@
-"""What a perception module's input ports read from an episode's station now (test helper)."""
+"""An episode's PerceptionSystem read through its ports now (test helpers)."""
 
 from __future__ import annotations
 
-from physcap_drake.station import ports
+from physcap_drake.agent.observation import Observation, observation_of
+from physcap_drake.perception.perception_system import SIZES_PORT
 
 
-def station_inputs(episode) -> dict:
-    """{port name: value} of the episode perception's input ports: images as arrays, the
-    measured joints (rad) as they are."""
-    perception, station = episode.api.locator.perception, episode.robot.station
-    context = station.GetMyContextFromRoot(episode.api.simulator.get_context())
-    images = {port: station.GetOutputPort(port).Eval(context) for port in
-              perception.input_ports}
-    return {port: value if port == ports.ARM_POSITION_MEASURED else value.data
-            for port, value in images.items()}
+def perception_context(episode):
+    """The perception system's Context in the episode's simulator's."""
+    return episode.perception.GetMyContextFromRoot(episode.api.simulator.get_context())
+
+
+def look(episode) -> list:
+    """The objects in view now (SeenObject, left to right)."""
+    return list(episode.look().objects)
+
+
+def observed(episode) -> Observation:
+    """What the agent observes now: the view and its steady sizes, from the ports."""
+    context = perception_context(episode)
+    view = episode.perception.look(context)
+    sizes = episode.perception.GetOutputPort(SIZES_PORT).Eval(context)
+    return observation_of(view.objects, sizes, view.rgb, 0.0)
+
+
+def module(episode):
+    """The perception module in the perception's Context (with its memory)."""
+    return episode.perception.memory(perception_context(episode)).module

@@ -17,7 +17,6 @@ import pytest
 from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import DiagramBuilder, LeafSystem
 from pydrake.systems.primitives import ConstantValueSource
-from pydrake.systems.sensors import ImageRgba8U
 
 from physcap_drake.agent.agent_system import CLIENT, PROGRESS_PORT, AgentSystem
 from physcap_drake.agent.llm.base import LLMResponse
@@ -38,6 +37,7 @@ from physcap_drake.control.requests import (
 from physcap_drake.control.skill_executor import REQUEST_PORT, STATUS_PORT
 from physcap_drake.immutable_state import Immutable
 from physcap_drake.knowledge import SceneKnowledge
+from physcap_drake.perception.perception_system import SIZES_PORT, VIEW_PORT, PerceptionView
 from physcap_drake.physx.mass_probe import MassMeasurement, MeasureMass
 from physcap_drake.robot_api import RobotAPI
 from physcap_drake.station import ports
@@ -135,15 +135,6 @@ class PortArm(RobotAPI):
         return np.array(OBJECT)
 
 
-class NoObjects:
-    """A perception module that reads the colour image and finds nothing in it."""
-
-    input_ports = (ports.CAMERA_RGB,)
-
-    def look(self, images):
-        return []
-
-
 class Coder:
     """A coder model that writes the given blocks in turn (the last completes the task),
     taking `delay` s of wall time per answer; a block that is an exception is raised
@@ -200,10 +191,12 @@ def release_the_agents():
 
 def make_rig(blocks: list[str], delay: float = 0.0, fault_at: float = math.inf) -> Rig:
     builder = DiagramBuilder()
-    agent = builder.AddSystem(AgentSystem(NoObjects()))
+    agent = builder.AddSystem(AgentSystem())
     robot = builder.AddSystem(ScriptedRobot(fault_at))
-    camera = builder.AddSystem(ConstantValueSource(AbstractValue.Make(ImageRgba8U(8, 6))))
-    builder.Connect(camera.get_output_port(), agent.GetInputPort(ports.CAMERA_RGB))
+    nothing = PerceptionView(rgb=np.zeros((6, 8, 4), np.uint8))  # no object in view
+    for port, value in ((VIEW_PORT, nothing), (SIZES_PORT, ())):
+        source = builder.AddSystem(ConstantValueSource(AbstractValue.Make(value)))
+        builder.Connect(source.get_output_port(), agent.GetInputPort(port))
     builder.Connect(agent.GetOutputPort(REQUEST_PORT), robot.GetInputPort(REQUEST_PORT))
     builder.Connect(robot.GetOutputPort(STATUS_PORT), agent.GetInputPort(STATUS_PORT))
     clock = Clock(builder.Build(), fault=robot.GetOutputPort(ports.ARM_FAULT))

@@ -5,6 +5,7 @@ costs no new pointing."""
 from __future__ import annotations
 
 import dataclasses as dc
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -13,11 +14,13 @@ from test_agent_untrusted_blocks import LIMITS, StandInArm, make_loop, run_episo
 from physcap_drake.agent.sandbox import BlockBudget, SandboxLimits
 from physcap_drake.agent.variant import load_variant
 from physcap_drake.control.errors import SkillFailed
+from physcap_drake.perception.perception_system import PerceptionSystem
 from physcap_drake.resources import stations_dir
 from physcap_drake.robot_api import RobotAPI
 from physcap_drake.robot_stack import build_robot_stack
 from physcap_drake.scenario import load_scenario
 from physcap_drake.scenario_errors import ScenarioError
+from physcap_drake.station import ports
 
 
 @pytest.mark.parametrize(("counted_as", "field", "words"), [
@@ -84,19 +87,33 @@ def test_the_limits_come_from_the_agent_config(tmp_path):
 
 
 class CountingLocator:
-    """Stands in for a pointer: every grasp_point is one (paid) look."""
+    """Stands in for a pointer: every located object is one (paid) look."""
 
     def __init__(self):
         self.looks = 0
 
-    def grasp_point(self, phrase, rgb, depth, label=None):
+    def locate(self, phrase, view):
         self.looks += 1
-        return np.array([0.3, 0.0, 0.05 + 0.001 * self.looks])
+        return SimpleNamespace(grasp_point=np.array([0.3, 0.0, 0.05 + 0.001 * self.looks]))
+
+
+class Blind:
+    """A perception module that sees no object in the colour and depth images."""
+
+    input_ports = (ports.CAMERA_RGB, ports.CAMERA_DEPTH)
+    camera = None
+
+    def look(self, images):
+        return []
+
+    def known(self):
+        return []
 
 
 @pytest.fixture(scope="module")
 def api() -> RobotAPI:
-    stack = build_robot_stack(load_scenario(stations_dir() / "piper_table.yaml"))
+    stack = build_robot_stack(load_scenario(stations_dir() / "piper_table.yaml"),
+                              make_perception=lambda station: PerceptionSystem(Blind()))
     return RobotAPI(stack, stack.make_clock(), locator=CountingLocator())
 
 

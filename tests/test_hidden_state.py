@@ -12,7 +12,12 @@ from pydrake.multibody.tree import ModelInstanceIndex
 
 from physcap_drake.app import calibration
 from physcap_drake.app.episode import make_episode
-from physcap_drake.perception import camera_geometry, object_locator, offline_pointer
+from physcap_drake.perception import (
+    camera_geometry,
+    object_locator,
+    offline_pointer,
+    perception_system,
+)
 from physcap_drake.perception.visible_objects import VisibleObject
 from physcap_drake.resources import stations_dir
 from physcap_drake.robot_api import RobotAPI
@@ -91,14 +96,13 @@ def test_the_estimators_model_ignores_objects_added_to_the_scene():
 def test_perception_sees_only_images_and_visible_attributes():
     assert {f.name for f in dataclasses.fields(VisibleObject)} == {
         "name", "category", "color", "straw", "size"}
-    for module in (camera_geometry, object_locator, offline_pointer):
+    for module in (camera_geometry, object_locator, offline_pointer, perception_system):
         source = inspect.getsource(module)
         for forbidden in ("body_poses", "EvalBodyPose", "GetPositions", ".hidden", "mass_kg"):
             assert forbidden not in source, (module.__name__, forbidden)
-    # The robot API hands perception the depth and label images and nothing else.
-    source = inspect.getsource(RobotAPI.get_object_pose) + inspect.getsource(RobotAPI._images)
-    assert "self._images()" in source
-    assert "CAMERA_RGB" in source and "CAMERA_DEPTH" in source and "CAMERA_LABEL" in source
+    # The robot API reads the perception system's output and nothing else.
+    source = inspect.getsource(RobotAPI.get_object_pose) + inspect.getsource(RobotAPI._view)
+    assert "self._view()" in source and "perception.look(" in source
     assert "BODY_POSES" not in source and "plant" not in source
 
 

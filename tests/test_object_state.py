@@ -8,7 +8,7 @@ import dataclasses as dc
 
 import numpy as np
 import pytest
-from perception_inputs import station_inputs
+from perception_inputs import look
 from pydrake.math import RigidTransform, RollPitchYaw, RotationMatrix
 
 from physcap_drake.app.episode import make_episode
@@ -24,7 +24,7 @@ def scene():
 
 def _look(episode):
     """The perception's look at the station's output ports now."""
-    return episode.api.locator.perception.look(station_inputs(episode))
+    return look(episode)
 
 
 def _look_at(episode, name: str, rotation: RotationMatrix, lift: float):

@@ -9,12 +9,10 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from perception_inputs import station_inputs
+from perception_inputs import observed
 from pydrake.math import RigidTransform
 
-from physcap_drake.agent.observation import observe
 from physcap_drake.app.episode import make_episode
-from physcap_drake.perception.object_geometry import SteadySizes
 
 TRAY_FLOOR, TRAY_RIM, TRAY_INSIDE = 0.008, 0.023, (0.288, 0.208)
 
@@ -26,10 +24,10 @@ def scene(request):
     episode.close()
 
 
-def _observe(episode, sizes: SteadySizes):
-    images = station_inputs(episode)
-    return {o.name: o for o in observe(images, episode.api.locator.perception, 0.0,
-                                       sizes).objects}
+def _observe(episode):
+    """The objects the agent observes, through the perception's ports (the sizes steady
+    across looks, as the perception's Context keeps them)."""
+    return {o.name: o for o in observed(episode).objects}
 
 
 def _nearest(objects: dict, xy) -> str:
@@ -41,7 +39,7 @@ def _xy(obj) -> np.ndarray:
 
 
 def test_sizes_heights_and_containers_match_the_models(scene):
-    objects = _observe(scene, SteadySizes())
+    objects = _observe(scene)
     error = 0.01  # the prompt's stated error (docs/agent_prompts.md)
     tray = next(o for o in objects.values() if o.category == "tray")
     assert tray.container and tray.bottom_z_m == 0.0
@@ -72,14 +70,13 @@ def test_cups_set_in_the_tray_keep_their_names_and_heights_and_the_uncovered_cub
     that hid the third cube lifted away: every object keeps its name, the cups stand on
     the tray with their own heights unchanged, and the cube under one is a "blue cube"."""
     plant, context = scene.plant, scene.plant_context
-    sizes = SteadySizes()
-    before = _observe(scene, sizes)
+    before = _observe(scene)
     tray_xy = plant.EvalBodyPoseInWorld(context, plant.GetBodyByName("tray")).translation()
     cups = [o for o in scene.instance.objects if o.visible.size == "large"]
     places = [tray_xy[:2] + [-0.07, 0.0], tray_xy[:2] + [0.07, 0.0]]
     starts, names = {}, {}
     for cup in cups:
-        pixel = scene.api.locator.camera.project(np.array([[*cup.xy, 0.09]]))[0]
+        pixel = scene.camera.project(np.array([[*cup.xy, 0.09]]))[0]
         names[cup.visible.name] = _nearest(
             {n: o for n, o in before.items() if o.size == "large"}, pixel)
     try:
@@ -89,7 +86,7 @@ def test_cups_set_in_the_tray_keep_their_names_and_heights_and_the_uncovered_cub
             plant.SetFreeBodyPose(context, body, RigidTransform(
                 starts[body].rotation(), [*place, TRAY_FLOOR]))
         hiding = scene.instance.object(scene.instance.answer)
-        in_tray = _observe(scene, sizes)
+        in_tray = _observe(scene)
         tray_name = next(n for n, o in in_tray.items() if o.category == "tray")
         assert set(before) <= set(in_tray), sorted(set(before) - set(in_tray))
         for cup in cups:

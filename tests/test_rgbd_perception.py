@@ -37,6 +37,7 @@ from physcap_drake.perception.judge import (
     overhang,
 )
 from physcap_drake.perception.object_memory import ObjectMemory
+from physcap_drake.perception.perception_system import SIZES_PORT, VIEW_PORT
 from physcap_drake.perception.phrases import PointingError, resolve
 from physcap_drake.perception.regions import footprint_rectangle
 from physcap_drake.perception.robot_mask import RobotSelfFilter
@@ -63,16 +64,18 @@ def test_rgbd_perception_reads_no_simulator_knowledge():
         ports.CAMERA_RGB, ports.CAMERA_DEPTH, ports.ARM_POSITION_MEASURED)
 
 
-def test_the_agent_is_wired_to_what_its_perception_reads():
+def _inputs(system) -> set[str]:
+    return {system.get_input_port(i).get_name() for i in range(system.num_input_ports())}
+
+
+def test_the_perception_is_wired_to_what_its_module_reads_and_the_agent_to_it():
     episode = make_episode("identify_empty_can", 0, with_agent=True, perception="rgbd")
-    agent = episode.robot.agent
-    names = {agent.get_input_port(i).get_name() for i in range(agent.num_input_ports())}
-    # What the perception reads, and the answers of the robot's request path.
-    assert names == {ports.CAMERA_RGB, ports.CAMERA_DEPTH, ports.ARM_POSITION_MEASURED,
-                     STATUS_PORT}
-    label = make_episode("identify_empty_can", 0, with_agent=True).robot.agent
-    assert {label.get_input_port(i).get_name() for i in range(label.num_input_ports())} == {
-        ports.CAMERA_RGB, ports.CAMERA_DEPTH, ports.CAMERA_LABEL, STATUS_PORT}
+    # The agent sees through the perception system, and hears the request path's answers.
+    assert _inputs(episode.robot.agent) == {VIEW_PORT, SIZES_PORT, STATUS_PORT}
+    assert _inputs(episode.perception) == {ports.CAMERA_RGB, ports.CAMERA_DEPTH,
+                                           ports.ARM_POSITION_MEASURED}
+    label = make_episode("identify_empty_can", 0, with_agent=True).perception
+    assert _inputs(label) == {ports.CAMERA_RGB, ports.CAMERA_DEPTH, ports.CAMERA_LABEL}
 
 
 def test_the_table_plane_is_found_under_noise_and_objects():

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from perception_inputs import module
 
 from physcap_drake.app.episode import make_episode
 from physcap_drake.perception.object_locator import ObjectLocator
@@ -40,10 +41,9 @@ def test_a_model_answer_becomes_a_grasp_point():
     station = episode.robot.station
     context = station.GetMyContextFromRoot(episode.api.simulator.get_context())
     rgb = station.GetOutputPort(ports.CAMERA_RGB).Eval(context).data
-    depth = station.GetOutputPort(ports.CAMERA_DEPTH).Eval(context).data
     label = station.GetOutputPort(ports.CAMERA_LABEL).Eval(context).data
     target = episode.instance.object("green can")
-    pixel = episode.api.locator.pointer.point(label, "green can").pixel  # a "perfect" model
+    pixel = module(episode).pointer.point(label, "green can").pixel  # a "perfect" model
     requests = []
 
     def ask(jpeg: bytes, prompt: str) -> str:
@@ -54,8 +54,7 @@ def test_a_model_answer_becomes_a_grasp_point():
     jpeg, prompt = requests[0]
     assert jpeg[:2] == b"\xff\xd8" and "green can" in prompt and "[y, x]" in prompt
     assert np.hypot(pointed[0] - pixel[0], pointed[1] - pixel[1]) <= 1.5
-    locator = episode.api.locator
-    seen = locator.object_at(pointed, locator.perception.look(locator.images(rgb, depth, label)))
+    seen = ObjectLocator.object_at(pointed, list(episode.look().objects))
     assert seen.name == "green can"
     grasp = seen.grasp_point
     assert np.linalg.norm(grasp[:2] - np.array(target.xy)) < 0.015
@@ -67,14 +66,14 @@ def test_get_object_pose_works_with_a_vlm_pointer():
     station = episode.robot.station
     context = station.GetMyContextFromRoot(episode.api.simulator.get_context())
     label = station.GetOutputPort(ports.CAMERA_LABEL).Eval(context).data
-    offline = episode.api.locator.pointer
+    offline = module(episode).pointer
 
     def ask(jpeg: bytes, prompt: str) -> str:  # a model that points where the mask centre is
         phrase = prompt.split("Point at the ", 1)[1].split(" in this image", 1)[0]
         u, v = offline.point(label, phrase).pixel
         return f'<point x="{100 * (u + 0.5) / W:.2f}" y="{100 * (v + 0.5) / H:.2f}">x</point>'
 
-    episode.api.use_locator(ObjectLocator(episode.api.locator.perception, VlmPointer(ask)))
+    episode.api.use_locator(ObjectLocator(VlmPointer(ask)))
     for obj in episode.instance.objects:
         grasp = episode.api.get_object_pose(obj.visible.name)
         assert np.linalg.norm(grasp[:2] - np.array(obj.xy)) < 0.015, obj.visible.name

@@ -15,23 +15,17 @@ from concurrent.futures import Future
 
 from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import Context, EventStatus, LeafSystem, State
-from pydrake.systems.sensors import ImageDepth32F, ImageLabel16I, ImageRgba8U
 
 from physcap_drake.agent.loop import AgentLoop, AgentMind, BlockEnd
-from physcap_drake.agent.observation import Observation, observe
+from physcap_drake.agent.observation import Observation, observation_of
 from physcap_drake.agent.phases import Phase
 from physcap_drake.agent.sandbox import CallServer, CodeOutcome, SpareChild, Waiting
 from physcap_drake.control.requests import RobotRequest, SkillStatus
 from physcap_drake.control.skill_executor import MONITOR_PERIOD, REQUEST_PORT, STATUS_PORT
 from physcap_drake.immutable_state import Immutable
-from physcap_drake.perception.object_geometry import SteadySizes
-from physcap_drake.station import ports
+from physcap_drake.perception.perception_system import SIZES_PORT, VIEW_PORT, PerceptionView
 from physcap_drake.station.arm_fault import ArmFault
 from physcap_drake.weak_method import weak_method
-
-#: The value type of each image input a perception module may read.
-_IMAGE_INPUTS = {ports.CAMERA_RGB: ImageRgba8U, ports.CAMERA_DEPTH: ImageDepth32F,
-                 ports.CAMERA_LABEL: ImageLabel16I}
 
 PROGRESS_PORT = "agent.progress"
 #: This system's name on the request path.
@@ -113,17 +107,14 @@ class AgentSystem(LeafSystem):
     robot: deciding (the policy looks and writes one code block), then executing (the
     block's sandboxed child runs; each robot call becomes a request).
 
-    `perception` finds the objects in view (an RgbdPerception or the simulator's
-    LabelPerception; its `input_ports` become this system's); the policy is attached with
+    It sees the objects in view through a PerceptionSystem's outputs; the policy is attached with
     `attach` before the episode starts; `on_observe()` hears each look at the scene.
     `background`: model calls run on a worker thread while the diagram runs on (the real
     arm); otherwise inside the event, so simulated time stands still while models answer.
 
     Input ports:
-        camera.rgb, camera.depth (images): what the camera shows; depth in m.
-        camera.label (image): the simulator's segmenter, for LabelPerception only.
-        piper.position_measured (6): measured joints, rad, for RgbdPerception only (to
-            leave the arm out of the view).
+        perception.view (PerceptionView): the objects in view and the colour image.
+        perception.sizes (tuple of Geometry): their sizes, m (see PerceptionSystem).
         status (SkillStatus): the request path's answer to this system's latest request.
     Output ports:
         request (RobotRequest): the code's current robot call, client "agent", sequence
@@ -134,22 +125,15 @@ class AgentSystem(LeafSystem):
         the running block's child, the spare child and a background thought.
     """
 
-    def __init__(self, perception, period: float = PERIOD, *, background: bool = False):
+    def __init__(self, period: float = PERIOD, *, background: bool = False):
         super().__init__()
-        self._perception = perception
-        self._sizes = SteadySizes()  # the sizes stated so far, per object name
         self._background = background
         self._policy: AgentLoop | None = None
         self._start_problem = ""
         self._robot_time: Callable[[], float] = lambda: 0.0
         self._on_observe: Callable[[], None] | None = None
-        self._inputs = {}
-        for name in perception.input_ports:
-            if name in _IMAGE_INPUTS:
-                self._inputs[name] = self.DeclareAbstractInputPort(
-                    name, AbstractValue.Make(_IMAGE_INPUTS[name]()))
-            else:
-                self._inputs[name] = self.DeclareVectorInputPort(name, ports.VECTOR_OUTPUTS[name])
+        self._view = self.DeclareAbstractInputPort(VIEW_PORT, AbstractValue.Make(PerceptionView()))
+        self._sizes = self.DeclareAbstractInputPort(SIZES_PORT, AbstractValue.Make(()))
         self._status = self.DeclareAbstractInputPort(STATUS_PORT,
                                                      AbstractValue.Make(SkillStatus()))
         self._state = self.DeclareAbstractState(AbstractValue.Make(AgentState()))
@@ -186,9 +170,9 @@ class AgentSystem(LeafSystem):
         """What the camera shows now (renders the images if they are stale)."""
         if self._on_observe is not None:
             self._on_observe()
-        images = {name: (port.Eval(context).data if name in _IMAGE_INPUTS
-                         else port.Eval(context)) for name, port in self._inputs.items()}
-        return observe(images, self._perception, self._robot_time(), self._sizes)
+        view = self._view.Eval(context)
+        return observation_of(view.objects, self._sizes.Eval(context), view.rgb,
+                              self._robot_time())
 
     def state(self, context: Context) -> AgentState:
         return context.get_abstract_state(self._state).get_value()

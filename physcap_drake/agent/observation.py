@@ -5,6 +5,7 @@ ablation). Nothing here reads poses, masses or any other hidden state."""
 from __future__ import annotations
 
 import dataclasses as dc
+from collections.abc import Sequence
 
 import numpy as np
 
@@ -99,6 +100,13 @@ def observe(images: dict[str, np.ndarray], perception, robot_time_s: float,
         shapes = measure(seen, depth, perception.camera)
     if sizes is not None:
         shapes = [sizes.steady(s.name, g) for s, g in zip(seen, shapes, strict=True)]
+    return observation_of(seen, shapes, rgb, robot_time_s)
+
+
+def observation_of(seen: Sequence[SeenObject], shapes: Sequence[Geometry], rgb: np.ndarray,
+                   robot_time_s: float) -> Observation:
+    """The observation of one look: the objects `seen` with their sizes `shapes` (the same
+    order; a PerceptionSystem's view and sizes), and the colour image `rgb` as JPEG."""
     objects = tuple(_in_view(s, g) for s, g in zip(seen, shapes, strict=True))
     return Observation(objects, encode_jpeg(rgb, JPEG_QUALITY), robot_time_s)
 

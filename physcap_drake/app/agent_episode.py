@@ -169,8 +169,7 @@ def run_agent_episode(task: str, seed: int, *, agent: str = "physcap",
                            scenario_file=scenario_file, perception=perception, judge=judge,
                            scenario_text=scenario_text)
     if pointer == "vlm":
-        episode.api.use_locator(ObjectLocator(episode.api.locator.perception,
-                                              VlmPointer(pointer_ask(client))))
+        episode.api.use_locator(ObjectLocator(VlmPointer(pointer_ask(client))))
     clock, system = episode.api.clock, episode.robot.agent
     root = clock.context  # read only: the agent's state changes only in its own events
     agent_context = system.GetMyContextFromRoot(root)
@@ -201,7 +200,7 @@ def run_agent_episode(task: str, seed: int, *, agent: str = "physcap",
                      on_phase=on_phase, prompts=PromptBook(
                          images=takes_images(client), world=WorldFacts.build(
                              episode.robot.model, episode.scenario.skills.workspace,
-                             episode.api.locator.camera.X_WC if episode.api.locator else None)))
+                             episode.camera.X_WC)))
     observe = recording.on_observe if recording is not None else None
     try:
         if on_start is not None:

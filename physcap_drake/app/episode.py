@@ -17,6 +17,7 @@ from physcap_drake.perception.judge import judge_placement, judge_uncovered
 from physcap_drake.perception.label_perception import LabelPerception
 from physcap_drake.perception.object_locator import ObjectLocator
 from physcap_drake.perception.offline_pointer import OfflinePointer
+from physcap_drake.perception.perception_system import PerceptionSystem, PerceptionView
 from physcap_drake.perception.rgbd_perception import RgbdPerception
 from physcap_drake.perception.shapes import vocabulary_of
 from physcap_drake.perception.visible_objects import VisibleObject
@@ -94,17 +95,26 @@ class Episode:
         or enough of the sought objects in view (the task's goal as the reference reasoner
         reads it; the object the task is about is its pinned or drawn answer)."""
         goal = read_task(self.instance.prompt)
-        locator = self.api.locator
-        station = self.robot.station
-        context = station.GetMyContextFromRoot(self.api.simulator.get_context())
-        images = {name: station.GetOutputPort(name).Eval(context) for name in
-                  locator.perception.input_ports}
-        images = {name: getattr(value, "data", value) for name, value in images.items()}
-        seen = locator.perception.look(images)
+        view = self.look()
+        seen = list(view.objects)
         if goal.kind == "hidden":
             return judge_uncovered(seen, goal.sought, goal.count)
-        return judge_placement(seen, locator.perception.known(), self.instance.answer,
+        return judge_placement(seen, list(view.known), self.instance.answer,
                                goal.destination, goal.subject)
+
+    @property
+    def perception(self) -> PerceptionSystem:
+        """The diagram's PerceptionSystem (the camera's one route to the objects in view)."""
+        return self.robot.perception
+
+    @property
+    def camera(self) -> CameraGeometry:
+        return self.perception.camera
+
+    def look(self) -> PerceptionView:
+        """The objects in view now: the perception's output in the clock's Context."""
+        return self.perception.look(self.perception.GetMyContextFromRoot(
+            self.api.simulator.get_context()))
 
     def close(self) -> None:
         """Releases the station (a CAN station stops streaming; the arm holds)."""
@@ -155,20 +165,16 @@ def make_episode(task_name: str, seed: int, answer: str = "", meshcat=None, *,
             c, CameraConfig) else c for c in scenario.cameras]
     camera = CameraGeometry.from_entry(
         next(c for c in scenario.cameras if c.name == MAIN_CAMERA))
-    perceptions: list = []
 
     def make_perception(station):
-        if not perceptions:
-            perceptions.append(
-                RgbdPerception(camera, vocabulary_of(instance.prompt)) if perception == "rgbd"
-                else LabelPerception(camera, OfflinePointer(_catalog(instance,
-                                                                     scene_plant(station)))))
-        return perceptions[0]
+        return PerceptionSystem(
+            RgbdPerception(camera, vocabulary_of(instance.prompt)) if perception == "rgbd"
+            else LabelPerception(camera, OfflinePointer(_catalog(instance, scene_plant(station)))))
 
     robot = build_robot_stack(
-        scenario, meshcat,
+        scenario, meshcat, make_perception=make_perception,
         make_agent=(lambda station: AgentSystem(
-            make_perception(station), background=not isinstance(scenario.station, SimPiper)))
+            background=not isinstance(scenario.station, SimPiper)))
         if with_agent else None,
         make_recorder=None if sink is None else (
             lambda station: make_mcap_recorder(sink, station, scenario)))
@@ -177,13 +183,7 @@ def make_episode(task_name: str, seed: int, answer: str = "", meshcat=None, *,
     except BaseException:
         close_station(robot.station)
         raise
-    station_context = robot.station.GetMyContextFromRoot(clock.context)
-
-    def read_station(name: str):
-        return robot.station.GetOutputPort(name).Eval(station_context)
-
-    locator = ObjectLocator(make_perception(robot.station), read_inputs=read_station)
-    api = RobotAPI(robot, clock, locator=locator)
+    api = RobotAPI(robot, clock, locator=ObjectLocator())
     return Episode(instance, scenario, robot, api, judge)
 
 

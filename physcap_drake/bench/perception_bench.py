@@ -59,7 +59,7 @@ def _true_grasp_height(episode: Episode, label_index: int) -> float:
     depth = sensor.depth_image_32F_output_port().Eval(context).data[:, :, 0]
     label = sensor.label_image_output_port().Eval(context).data[:, :, 0]
     rows, cols = np.nonzero((label == label_index) & np.isfinite(depth))
-    points = episode.api.locator.camera.back_project(cols, rows, depth[rows, cols])
+    points = episode.camera.back_project(cols, rows, depth[rows, cols])
     return float(grasp_point_from_points(points)[0][2])
 
 
@@ -80,15 +80,11 @@ def bench_episode(task: str, seed: int) -> list[LocatedObject]:
     """Locates every visible object of one episode's first view (see the design notes)."""
     episode = make_episode(task, seed, perception="rgbd")
     try:
-        station = episode.robot.station
-        context = station.GetMyContextFromRoot(episode.api.simulator.get_context())
-        images = episode.api.locator.images(
-            station.GetOutputPort(ports.CAMERA_RGB).Eval(context).data,
-            station.GetOutputPort(ports.CAMERA_DEPTH).Eval(context).data, None)
+        view = episode.look()
         results = []
         for name, xy, visible, label_index in _truths(episode):
             try:
-                seen = episode.api.locator.locate(name, images)
+                seen = episode.api.locator.locate(name, view)
             except PointingError as error:
                 results.append(LocatedObject(task, seed, name, float("inf"), "",
                                              f"not found: {error}"))
@@ -169,12 +165,7 @@ def _in_view(episode) -> dict[str, tuple[np.ndarray, float]]:
 
 
 def _look(episode):
-    perception, station = episode.api.locator.perception, episode.robot.station
-    context = station.GetMyContextFromRoot(episode.api.simulator.get_context())
-    return perception.look({port: station.GetOutputPort(port).Eval(context) if
-                            port == ports.ARM_POSITION_MEASURED else
-                            station.GetOutputPort(port).Eval(context).data
-                            for port in perception.input_ports})
+    return list(episode.look().objects)
 
 
 def _compare(task, seed, moved, truths, seen, first_names, upright_kinds) -> LookAfterMoves:

@@ -69,7 +69,7 @@ def show(task: TaskName, seed: Annotated[int, typer.Option("--seed", min=0)] = 0
             continue
         console.print(f"  {obj.visible.name:18s} ({obj.visible.describe()}): grasp point "
                       f"{np.round(grasp, 3).tolist()} m")
-        u, v = episode.api.locator.camera.project(grasp)[0]
+        u, v = episode.camera.project(grasp)[0]
         cv2.circle(image, (int(u), int(v)), 3, (255, 255, 255), -1)
         text_v = 20 + 16 * index  # one line per object at the top, joined to its point
         cv2.line(image, (int(u), int(v)), (int(u), text_v + 3), (255, 255, 255), 1)
