@@ -72,11 +72,11 @@ class RobotStack:
     # and the measured joint velocities, one sample per plant step (VectorLogSink systems).
     command_log: VectorLogSink | None = None
     velocity_log: VectorLogSink | None = None
-    # With build_robot_stack(..., make_perception=...): the PerceptionSystem, fed by the camera.
+    # With build_robot_stack(..., perception=...): the PerceptionSystem, fed by the camera.
     perception: LeafSystem | None = None
-    # With build_robot_stack(..., make_agent=...): the AgentSystem, fed by the perception.
+    # With build_robot_stack(..., agent=...): the AgentSystem, fed by the perception.
     agent: LeafSystem | None = None
-    # With build_robot_stack(..., make_recorder=...): the recorder of the station's outputs.
+    # With build_robot_stack(..., recorder=...): the recorder of the station's outputs.
     recorder: LeafSystem | None = None
 
     def make_clock(self) -> Clock:
@@ -122,7 +122,8 @@ class RobotStack:
 
 def build_robot_stack(scenario: Scenario, meshcat: Meshcat | None = None, *,
                       model: RobotModel | None = None, log_joints: bool = False,
-                      make_perception: Callable[[Diagram], LeafSystem] | None = None,
+                      station: Diagram | None = None, perception: LeafSystem | None = None,
+                      agent: LeafSystem | None = None, recorder: LeafSystem | None = None,
                       make_agent: Callable[[Diagram], LeafSystem] | None = None,
                       make_recorder: Callable[[Diagram], LeafSystem] | None = None,
                       ) -> RobotStack:
@@ -132,20 +133,23 @@ def build_robot_stack(scenario: Scenario, meshcat: Meshcat | None = None, *,
 
     model: the robot's model of itself (default: the scenario's shared one). With
     `log_joints`, the commanded positions and measured velocities are logged every step.
-    `make_perception(station)` builds a PerceptionSystem each of whose input ports (the
-    camera images and what else its module reads) is connected to the station output of the
-    same name. `make_agent(station)` builds an AgentSystem each of whose input ports
-    (`status` aside) is connected to the perception's output of the same name, else to the
+    `station`: the station built from `scenario` (default: built here, `MakeStation(scenario,
+    meshcat)`). `perception` (a PerceptionSystem) has each of its input ports (the camera
+    images and what else its module reads) connected to the station output of the same
+    name. `agent` (an AgentSystem, or `make_agent(station)`) has each of its input ports
+    (`status` aside) connected to the perception's output of the same name, else to the
     station's; if it has a `request` output port it is the request path's client
     (and its `status` input, if any, hears the answers), else the path is exported as
     robot.request / robot.status.
-    `make_recorder(station)` builds a recorder (e.g. McapRecorder) each of whose input ports
-    is connected to the station output of the same name."""
+    `recorder` (or `make_recorder(station)`: e.g. McapRecorder) has each of its input ports
+    connected to the station output of the same name."""
     station_config = scenario.station
     model = model or robot_model(scenario.directives, station_config.arm_model,
                                  station_config.gripper_model, tuple(scenario.skills.furniture))
     builder = DiagramBuilder()
-    station = builder.AddNamedSystem("station", MakeStation(scenario, meshcat))
+    if station is None:
+        station = MakeStation(scenario, meshcat)
+    builder.AddNamedSystem("station", station)
     skills = rig_skills(scenario.skills, station_config)  # slow on a real arm
     planner = SkillPlanner(PlanningModel(robot=model), skills,
                            gripper_stroke=model.gripper_stroke)
@@ -198,15 +202,15 @@ def build_robot_stack(scenario: Scenario, meshcat: Meshcat | None = None, *,
     builder.Connect(stiffness_estimator.GetOutputPort(ACTIVE_PORT),
                     selector.GetInputPort("probe.active"))
 
-    perception = None
-    if make_perception is not None:
-        perception = builder.AddNamedSystem("perception", make_perception(station))
+    if perception is not None:
+        builder.AddNamedSystem("perception", perception)
         for index in range(perception.num_input_ports()):
             port = perception.get_input_port(index)
             builder.Connect(station.GetOutputPort(port.get_name()), port)
-    agent = None
-    if make_agent is not None:
-        agent = builder.AddNamedSystem("agent", make_agent(station))
+    if agent is None and make_agent is not None:
+        agent = make_agent(station)
+    if agent is not None:
+        builder.AddNamedSystem("agent", agent)
         for index in range(agent.num_input_ports()):
             port = agent.get_input_port(index)
             name = port.get_name()
@@ -224,9 +228,10 @@ def build_robot_stack(scenario: Scenario, meshcat: Meshcat | None = None, *,
         builder.ExportInput(mass_probe.GetInputPort(REQUEST_PORT), REQUEST_INPUT)
     builder.ExportOutput(mass_probe.GetOutputPort(STATUS_PORT), STATUS_OUTPUT)
 
-    recorder = None
-    if make_recorder is not None:
-        recorder = builder.AddNamedSystem("recorder", make_recorder(station))
+    if recorder is None and make_recorder is not None:
+        recorder = make_recorder(station)
+    if recorder is not None:
+        builder.AddNamedSystem("recorder", recorder)
         for index in range(recorder.num_input_ports()):
             port = recorder.get_input_port(index)
             builder.Connect(station.GetOutputPort(port.get_name()), port)

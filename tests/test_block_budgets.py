@@ -113,7 +113,7 @@ class Blind:
 @pytest.fixture(scope="module")
 def api() -> RobotAPI:
     stack = build_robot_stack(load_scenario(stations_dir() / "piper_table.yaml"),
-                              make_perception=lambda station: PerceptionSystem(Blind()))
+                              perception=PerceptionSystem(Blind()))
     return RobotAPI(stack, stack.make_clock(), locator=CountingLocator())
 
 

@@ -1,6 +1,6 @@
 """AgentSystem: the agent in the diagram, deciding and running its code at discrete events.
 
-Its inputs are exactly the station outputs its perception reads, its `request` output heads
+Its inputs are the objects a PerceptionSystem finds in view, its `request` output heads
 the robot's request path, and its mind lives in its Context.
 
 Design notes: docs/design/agent.md.
@@ -107,8 +107,8 @@ class AgentSystem(LeafSystem):
     robot: deciding (the policy looks and writes one code block), then executing (the
     block's sandboxed child runs; each robot call becomes a request).
 
-    It sees the objects in view through a PerceptionSystem's outputs; the policy is attached with
-    `attach` before the episode starts; `on_observe()` hears each look at the scene.
+    It sees the objects in view on a PerceptionSystem's outputs; the policy is attached
+    with `attach` before the episode starts; `on_observe()` hears each look at the scene.
     `background`: model calls run on a worker thread while the diagram runs on (the real
     arm); otherwise inside the event, so simulated time stands still while models answer.
 
@@ -167,7 +167,7 @@ class AgentSystem(LeafSystem):
         self._start_problem = ""
 
     def observation(self, context: Context) -> Observation:
-        """What the camera shows now (renders the images if they are stale)."""
+        """What the perception system shows now (a new look if the frame changed)."""
         if self._on_observe is not None:
             self._on_observe()
         view = self._view.Eval(context)

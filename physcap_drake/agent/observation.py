@@ -10,10 +10,9 @@ from collections.abc import Sequence
 import numpy as np
 
 from physcap_drake.perception.jpeg import encode_jpeg
-from physcap_drake.perception.object_geometry import Geometry, SteadySizes, measure
+from physcap_drake.perception.object_geometry import Geometry
 from physcap_drake.perception.seen_object import SeenObject
 from physcap_drake.perception.shapes import CONTAINERS
-from physcap_drake.station import ports
 
 #: JPEG quality of the images sent to the models.
 JPEG_QUALITY = 85
@@ -83,24 +82,6 @@ class Observation:
         if not self.objects:
             return "(the perception module finds no objects)"
         return "\n".join(f"- {obj.describe()}" for obj in self.objects)
-
-
-def observe(images: dict[str, np.ndarray], perception, robot_time_s: float,
-            sizes: SteadySizes | None = None) -> Observation:
-    """The observation from one camera frame (`images`: the station outputs the perception
-    reads, by port name): the objects the perception module finds, with their sizes from
-    the depth image (held across looks by `sizes`, see SteadySizes), and the RGB image as
-    JPEG."""
-    seen = perception.look(images)
-    rgb = images[ports.CAMERA_RGB]
-    shapes = []
-    if seen:
-        depth = np.asarray(images[ports.CAMERA_DEPTH], dtype=np.float64).reshape(
-            np.shape(rgb)[:2])
-        shapes = measure(seen, depth, perception.camera)
-    if sizes is not None:
-        shapes = [sizes.steady(s.name, g) for s, g in zip(seen, shapes, strict=True)]
-    return observation_of(seen, shapes, rgb, robot_time_s)
 
 
 def observation_of(seen: Sequence[SeenObject], shapes: Sequence[Geometry], rgb: np.ndarray,

@@ -22,6 +22,8 @@ from physcap_drake.agent.transcript import Transcript, TranscriptEntry
 from physcap_drake.agent.variant import load_variant
 from physcap_drake.agent.world_facts import WorldFacts
 from physcap_drake.app.episode import Episode, make_episode
+from physcap_drake.app.episode_description import JudgeKind
+from physcap_drake.app.judges import OperatorJudge, SimulatorJudge
 from physcap_drake.clock import Clock
 from physcap_drake.perception.judge import Verdict
 from physcap_drake.perception.object_locator import ObjectLocator
@@ -113,17 +115,15 @@ def judge_outcome(episode: Episode, outcome: EpisodeOutcome,
     """The outcome with the operator's verdict when the operator judges (asked now, the
     episode over and the arm holding; it goes into the transcript), and the simulator's
     ground truth when another judge decided and a simulated world exists (else None)."""
-    if episode.judge == "operator":
-        if operator is None:
-            raise ValueError("judge 'operator' needs someone to ask (operator=...)")
-        verdict = operator()
+    if episode.judge == JudgeKind.OPERATOR:
+        verdict = OperatorJudge(operator).verdict(episode)
         outcome = dc.replace(outcome, success=bool(verdict.success),
                              reason=f"the operator: {verdict.reason}")
         transcript.add("result", len(outcome.steps), outcome.robot_time_s,
                        f"success: {outcome.success} ({outcome.reason})")
     truth = None
-    if episode.judge != "simulator" and episode.has_world:
-        truth = episode.ground_truth()
+    if episode.judge != JudgeKind.SIMULATOR and episode.has_world:
+        truth = SimulatorJudge().verdict(episode)
     return outcome, truth
 
 

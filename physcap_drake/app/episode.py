@@ -8,12 +8,15 @@ from __future__ import annotations
 import dataclasses as dc
 from pathlib import Path
 
-from pydrake.systems.sensors import CameraConfig
-
 from physcap_drake.agent.agent_system import AgentSystem
-from physcap_drake.agent.reference.task_reading import read_task
+from physcap_drake.app.episode_description import (
+    EpisodeDescription,
+    JudgeKind,
+    PerceptionKind,
+    describe_episode,
+)
+from physcap_drake.app.judges import SimulatorJudge, judge_of
 from physcap_drake.perception.camera_geometry import CameraGeometry
-from physcap_drake.perception.judge import judge_placement, judge_uncovered
 from physcap_drake.perception.label_perception import LabelPerception
 from physcap_drake.perception.object_locator import ObjectLocator
 from physcap_drake.perception.offline_pointer import OfflinePointer
@@ -23,52 +26,49 @@ from physcap_drake.perception.shapes import vocabulary_of
 from physcap_drake.perception.visible_objects import VisibleObject
 from physcap_drake.recording.mcap_recorder import make_mcap_recorder
 from physcap_drake.recording.mcap_sink import McapSink
-from physcap_drake.resources import stations_dir
 from physcap_drake.robot_api import RobotAPI
 from physcap_drake.robot_stack import RobotStack, build_robot_stack
-from physcap_drake.scenario import MAIN_CAMERA, Scenario, load_scenario
-from physcap_drake.station import (
-    close_station,
-    scene_plant,
-    scene_snapshot,
-)
-from physcap_drake.station.realsense.config import emulated_like
+from physcap_drake.scenario import MAIN_CAMERA, Scenario
+from physcap_drake.station import MakeStation, close_station, scene_plant, scene_snapshot
 from physcap_drake.station.sim_config import SimPiper
-from physcap_drake.tasks.registry import get_task
 from physcap_drake.tasks.task_instance import TaskInstance
 from physcap_drake.tasks.tray_tasks import TRAY_NAME
 
 #: The tray every task puts things on, as the camera sees it.
 TRAY = VisibleObject(TRAY_NAME, "tray", "brown")
 BASKET = VisibleObject("basket", "basket", "brown")
-#: Who decides an episode's success: the simulator's ground truth, the final camera view, or
-#: the operator at the rig (asked when the episode ends; see app.agent_episode).
-JUDGES = ("simulator", "perception", "operator")
-#: The perception modules an episode can use: RGB-D (the default path on a real rig) and the
-#: simulator's label segmenter (an ablation).
-PERCEPTIONS = ("rgbd", "label")
+#: The choices of judge and perception, by name (see episode_description).
+JUDGES = tuple(JudgeKind)
+PERCEPTIONS = tuple(PerceptionKind)
 
 
 @dc.dataclass
 class Episode:
-    """A running episode: the task instance (with its hidden answer, for checks only), the
-    robot diagram, its simulator, and the robot API agents use."""
+    """A running episode: its description, the task instance (with its hidden answer, for
+    checks only), the robot diagram, its simulator, and the robot API agents use."""
 
+    description: EpisodeDescription
     instance: TaskInstance
-    scenario: Scenario
     robot: RobotStack
     api: RobotAPI
-    judge: str = "simulator"
+
+    @property
+    def scenario(self) -> Scenario:
+        return self.description.scenario
+
+    @property
+    def judge(self) -> JudgeKind:
+        return self.description.judge
 
     @property
     def has_world(self) -> bool:
         """Whether a simulated world stands behind the station (ground truth exists)."""
-        return has_world(self.scenario)
+        return self.description.has_world
 
     def ground_truth(self):
         """The task's success check on the simulated world's ground truth (whatever the
         judge). Raises RuntimeError on a station without a simulated world."""
-        return get_task(self.instance.task).check(self)
+        return SimulatorJudge().verdict(self)
 
     @property
     def plant(self):
@@ -81,26 +81,13 @@ class Episode:
         return scene_snapshot(self.robot.station, self.api.simulator.get_context())[1]
 
     def check(self):
-        """The task's success check: on the simulated world's ground truth, or (judge
-        "perception") from the final camera view (`perception.judge`)."""
-        if self.judge == "perception":
-            return self.judge_from_camera()
-        if self.judge == "operator":
+        """The episode's judge's verdict now (app.judges): the simulator's ground truth, or
+        the final camera view. Raises RuntimeError for the operator (asked at the end of the
+        episode, see app.agent_episode)."""
+        if self.judge == JudgeKind.OPERATOR:
             raise RuntimeError("the operator judges at the end of the episode (see "
                                "app.agent_episode); there is no check to call")
-        return self.ground_truth()
-
-    def judge_from_camera(self):
-        """The outcome as the camera sees it now: the task's object alone in its container,
-        or enough of the sought objects in view (the task's goal as the reference reasoner
-        reads it; the object the task is about is its pinned or drawn answer)."""
-        goal = read_task(self.instance.prompt)
-        view = self.look()
-        seen = list(view.objects)
-        if goal.kind == "hidden":
-            return judge_uncovered(seen, goal.sought, goal.count)
-        return judge_placement(seen, list(view.known), self.instance.answer,
-                               goal.destination, goal.subject)
+        return judge_of(self.judge).verdict(self)
 
     @property
     def perception(self) -> PerceptionSystem:
@@ -121,86 +108,51 @@ class Episode:
         close_station(self.robot.station)
 
 
-def has_world(scenario: Scenario) -> bool:
-    """Whether the scenario's station has a simulated world (the simulated arm's, or an
-    emulator's behind a CAN station): ground truth, rendered cameras, the label image."""
-    return isinstance(scenario.station, SimPiper) or scenario.station.emulate
-
-
 def make_episode(task_name: str, seed: int, answer: str = "", meshcat=None, *,
                  with_agent: bool = False, sink: McapSink | None = None,
                  scenario_file: str | Path | None = None,
                  perception: str | None = None, judge: str | None = None,
                  scenario_text: str = "") -> Episode:
-    """Loads stations/<task>.yaml (or `scenario_file`), lays out the objects for `seed`,
-    builds and initializes the simulation with the objects' hidden masses, and wires camera
-    perception (`perception`: "rgbd" or "label", see the design notes) to the API (and,
-    `with_agent`, to an AgentSystem in the diagram: the client of the robot's request path,
-    whose model calls run in the background on the real arm's station, the diagram running
-    on in real time). With a `sink`, an McapRecorder in the
-    diagram records the station's signals to it. `judge`: who decides success ("simulator",
-    "perception" or "operator", see Episode.check). `perception` and `judge` left None take
-    the scenario's `task.perception` / `task.judge`, else "label" and "simulator". Raises
-    ValueError for a choice the station cannot serve (ground truth or the label image on a
-    rig without a simulated world). Call `close()` on the episode when done.
-    `scenario_text`: YAML laid over the scenario file (as `--scenario-text`)."""
-    task = get_task(task_name)
-    scenario = load_scenario(scenario_file or stations_dir() / task.scenario_file,
-                             scenario_text)
-    perception = perception or scenario.task.perception or "label"
-    judge = judge or scenario.task.judge or "simulator"
-    if perception not in PERCEPTIONS:
-        raise ValueError(f"perception must be one of {', '.join(PERCEPTIONS)}; "
-                         f"got {perception!r}")
-    if judge not in JUDGES:
-        raise ValueError(f"judge must be one of {', '.join(JUDGES)}; got {judge!r}")
-    instance = task.instance(seed, answer or scenario.task.answer)
-    world = has_world(scenario)
-    if not world:
-        _check_rig_choices(instance, perception, judge, answer or scenario.task.answer)
-    else:  # the layout drawn from the seed; on a real rig the objects are where they are
-        instance.add_to(scenario)
-    if perception == "rgbd":
-        scenario.cameras = [emulated_like(c) if c.name == MAIN_CAMERA and isinstance(
-            c, CameraConfig) else c for c in scenario.cameras]
-    camera = CameraGeometry.from_entry(
-        next(c for c in scenario.cameras if c.name == MAIN_CAMERA))
+    """Describes the episode (`describe_episode`: the scenario, stations/<task>.yaml or
+    `scenario_file` with `scenario_text` laid over it, the objects laid out for `seed`,
+    `perception` "rgbd" or "label", `judge` "simulator", "perception" or "operator"; errors
+    name the bad field) and builds it (`build_episode`). Call `close()` when done."""
+    return build_episode(describe_episode(
+        task_name, seed, answer, scenario_file=scenario_file, scenario_text=scenario_text,
+        perception=perception, judge=judge), meshcat, with_agent=with_agent, sink=sink)
 
-    def make_perception(station):
-        return PerceptionSystem(
-            RgbdPerception(camera, vocabulary_of(instance.prompt)) if perception == "rgbd"
-            else LabelPerception(camera, OfflinePointer(_catalog(instance, scene_plant(station)))))
 
-    robot = build_robot_stack(
-        scenario, meshcat, make_perception=make_perception,
-        make_agent=(lambda station: AgentSystem(
-            background=not isinstance(scenario.station, SimPiper)))
-        if with_agent else None,
-        make_recorder=None if sink is None else (
-            lambda station: make_mcap_recorder(sink, station, scenario)))
+def build_episode(description: EpisodeDescription, meshcat=None, *, with_agent: bool = False,
+                  sink: McapSink | None = None) -> Episode:
+    """Builds and initializes the described episode: the station (its simulated world with
+    the objects' hidden masses), a PerceptionSystem feeding the robot API (and, `with_agent`,
+    an AgentSystem in the diagram: the client of the robot's request path, whose model calls
+    run in the background on the real arm's station); with a `sink`, an McapRecorder in the
+    diagram records the station's signals to it. Call `close()` on the episode when done."""
+    scenario, instance = description.scenario, description.instance()
+    station = MakeStation(scenario, meshcat)
     try:
+        perception = PerceptionSystem(_perception_module(description, instance, station))
+        agent = AgentSystem(background=not isinstance(scenario.station, SimPiper)) \
+            if with_agent else None
+        recorder = None if sink is None else make_mcap_recorder(sink, station, scenario)
+        robot = build_robot_stack(scenario, station=station, perception=perception,
+                                  agent=agent, recorder=recorder)
         clock = robot.make_clock()
     except BaseException:
-        close_station(robot.station)
+        close_station(station)
         raise
     api = RobotAPI(robot, clock, locator=ObjectLocator())
-    return Episode(instance, scenario, robot, api, judge)
+    return Episode(description, instance, robot, api)
 
 
-def _check_rig_choices(instance: TaskInstance, perception: str, judge: str,
-                       answer: str) -> None:
-    """Refuses what a rig without a simulated world cannot do (see make_episode)."""
-    if judge == "simulator":
-        raise ValueError("--judge simulator needs a simulated world, and this station is the "
-                         "real arm (station.emulate: false); use --judge operator or "
-                         "--judge perception")
-    if perception == "label":
-        raise ValueError("--perception label is the simulator's segmenter, and this station "
-                         "is the real arm (station.emulate: false); use --perception rgbd")
-    if judge == "perception" and read_task(instance.prompt).kind != "hidden" and not answer:
-        raise ValueError("--judge perception on the real arm needs task.answer in the "
-                         "scenario: which object the task is about (e.g. \"red can\"), "
-                         "as only you know it")
+def _perception_module(description: EpisodeDescription, instance: TaskInstance, station):
+    """The perception module the description names, for the built `station`."""
+    camera = CameraGeometry.from_entry(
+        next(c for c in description.scenario.cameras if c.name == MAIN_CAMERA))
+    if description.perception == PerceptionKind.RGBD:
+        return RgbdPerception(camera, vocabulary_of(instance.prompt))
+    return LabelPerception(camera, OfflinePointer(_catalog(instance, scene_plant(station))))
 
 
 def _catalog(instance: TaskInstance, plant) -> dict:
