@@ -117,7 +117,7 @@ class RobotAPI:
         world frame): the fingertip target for a top-down grasp, at the middle of the
         object's top, half its height down (at most 57 mm below its top).
 
-        name: a description that picks out one object, e.g. "red mug", "large bowl",
+        name: a description that picks out one object, e.g. "red mug", "tall bottle",
             "second from left green bottle", "dark bottle on the right", "mug with a handle".
         Raises ValueError listing the visible objects if the name fits none or several.
         Asked again while nothing in view has changed, it answers from the last look.
