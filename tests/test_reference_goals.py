@@ -39,6 +39,9 @@ FIRM_BALL = "Put a ball with a stiffness level of 4 or higher on the tray."
     ("Put the stiffest ball in the basket.", "stiffness", "max", "ball", "basket", False),
     (HOLDS, "mass", "max", "cup", "basket", True),
     ("Put the jar containing something on the tray.", "mass", "max", "jar", "tray", False),
+    ("Four white cups with lids stand on the table. One of them holds a weight; the others "
+     "are empty. Put the cup that holds the weight on the wooden tray.", "mass", "max", "cup",
+     "wooden tray", False),
 ])
 def test_comparisons_are_read(text, kind, extreme, subject, destination, one):
     goal = read_task(text)

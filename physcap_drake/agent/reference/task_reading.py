@@ -25,8 +25,8 @@ SUPERLATIVES = {"heaviest": ("mass", "max"), "lightest": ("mass", "min"),
                 "stiffest": ("stiffness", "max"), "hardest": ("stiffness", "max")}
 #: "The one that holds something": a container holding a load weighs more than its empty
 #: look-alikes, so it is the heaviest of them.
-HOLDS = re.compile(r"\b(?:holds?|holding|contains?|containing) (something|a weight|a load|"
-                   r"an object|weights?)\b")
+HOLDS = re.compile(r"\b(?:holds?|holding|contains?|containing) ((?:(?:a|an|the|some) )?"
+                   r"(?:something|weights?|loads?|objects?))\b")
 
 
 class TaskNotUnderstood(ValueError):
