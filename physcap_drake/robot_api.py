@@ -117,8 +117,8 @@ class RobotAPI:
         world frame): the fingertip target for a top-down grasp, at the middle of the
         object's top, half its height down (at most 57 mm below its top).
 
-        name: a description that picks out one object, e.g. "red can", "large cup",
-            "second from left green avocado", "dark avocado on the right", "can with a straw".
+        name: a description that picks out one object, e.g. "red mug", "tall bottle",
+            "second from left green bottle", "dark bottle on the right", "mug with a handle".
         Raises ValueError listing the visible objects if the name fits none or several.
         Asked again while nothing in view has changed, it answers from the last look.
         """
@@ -294,9 +294,9 @@ class RobotAPI:
         name: how the object is called in the scene knowledge (default: its position).
         Make sure the gripper holds nothing before calling. Takes about 15 to 25 s.
 
-        Returns the stiffness level: 1 ultra-soft (foam, a very ripe fruit), 2 soft (a ripe
-        fruit, soft rubber), 3 semi-rigid, 4 stiff (an unripe fruit, hard rubber), 5 rigid
-        (metal, wood, a full can); 0 if the measurement failed (recorded in the knowledge).
+        Returns the stiffness level: 1 ultra-soft (foam, a sponge), 2 soft (soft rubber,
+        dough), 3 semi-rigid (firm rubber), 4 stiff (hard rubber, hard plastic), 5 rigid
+        (metal, wood, glass); 0 if the measurement failed (recorded in the knowledge).
         Raises SkillFailed if no squeeze touched anything there (no contact; nothing is
         recorded: look for the object again), SkillRefused or SkillFailed if a motion could
         not be made (recorded).

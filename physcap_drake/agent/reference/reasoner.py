@@ -35,7 +35,8 @@ class ReferenceReasoner:
 
     def complete(self, request: LLMRequest) -> LLMResponse:
         context = request.context
-        goal = read_task(context["task"])
+        goal = read_task(context["task"],
+                         tuple(o["category"] for o in context["objects_in_view"]))
         handler = {"planner": self._plan, "joint_planner": self._plan,
                    "enumerator": self._plan, "prioritizer": self._prioritize,
                    "explore": self._explore_code, "final": self._final_code,
@@ -75,8 +76,17 @@ class ReferenceReasoner:
         return [step["target"] for step in context["history"]
                 if step["action"] == goal.action and step["target"]]
 
+    def _plausible(self, context: dict, goal: Goal) -> list[str]:
+        """The subjects whose look leaves them plausible (all of them if none is)."""
+        in_view, subjects = context["objects_in_view"], self._subjects(context, goal)
+        likely = [o["name"] for o in subjects
+                  if plausibility(o, goal, in_view)[0] >= IMPLAUSIBLE]
+        return likely or [o["name"] for o in subjects]
+
     def _answer(self, context: dict, goal: Goal) -> tuple[str | None, str]:
         """The object the evidence singles out (None if it does not yet) and why."""
+        if goal.extreme:
+            return self._compared(context, goal)
         measured = self._measured(context, goal)
         for name, value in measured.items():
             if goal.satisfied_by(value):
@@ -88,8 +98,7 @@ class ReferenceReasoner:
             return unmeasured[0], (f"every other {goal.subject} was measured and none has "
                                    f"the property, so it must be the {unmeasured[0]}")
         if subjects and not unmeasured:
-            pick = (min if goal.kind in ("mass", "stiffness") else max)(
-                measured, key=measured.get)
+            pick = (max if goal.seeks_high else min)(measured, key=measured.get)
             return pick, f"all were measured; the {pick} comes closest to the property"
         if not subjects:
             return None, f"no {goal.subject} is in view"
@@ -100,6 +109,26 @@ class ReferenceReasoner:
                           for name, value in measured.items())
         return None, (f"{goal.kind} measured so far: {found}, none meeting the task; still "
                       f"to measure: the {', the '.join(unmeasured)}")
+
+    def _compared(self, context: dict, goal: Goal) -> tuple[str | None, str]:
+        """A comparison is decided once every plausible subject is measured: the one with
+        the highest (lowest) value of all measured."""
+        if not self._subjects(context, goal):
+            return None, f"no {goal.subject} is in view"
+        measured = self._measured(context, goal)
+        if not measured:
+            return None, (f"the camera cannot show a {goal.subject}'s {goal.kind}, and none has "
+                          "been measured yet")
+        found = ", ".join(f"the {name}'s is {_quantity(value, goal)}"
+                          for name, value in measured.items())
+        todo = [name for name in self._plausible(context, goal) if name not in measured]
+        if todo:
+            return None, (f"{goal.kind} measured so far: {found}; the {goal.wording} cannot be "
+                          f"told before the {', the '.join(todo)} are measured too")
+        pick = (max if goal.extreme == "max" else min)(measured, key=measured.get)
+        highest = "highest" if goal.extreme == "max" else "lowest"
+        return pick, (f"every {goal.subject} that could be the {goal.wording} was measured "
+                      f"({found}): the {pick}'s {goal.kind} is the {highest}")
 
     # --- planner -------------------------------------------------------------------------
 
@@ -120,8 +149,10 @@ class ReferenceReasoner:
             answer, reason = self._answer(context, goal)
             sufficient = (not self._unmeasured(context, goal) if mode == "enumerator"
                           else answer is not None)
-            open_subjects = [o for o in subjects
-                             if o["name"] not in self._measured(context, goal)]
+            worth = (self._plausible(context, goal) if goal.extreme and mode != "enumerator"
+                     else [o["name"] for o in subjects])
+            open_subjects = [o for o in subjects if o["name"] in worth
+                             and o["name"] not in self._measured(context, goal)]
         candidates = [] if sufficient else [self._candidate(o, goal) for o in open_subjects]
         if mode == "joint_planner":
             candidates.sort(key=lambda c: (-plausibility(_find(in_view, c["name"]), goal,
@@ -233,13 +264,11 @@ class ReferenceReasoner:
                 "lift_and_look", name=target, thought=thought,
                 destination=goal.destination,
                 action_text=f"lift the {target} and look under it")}
-        subjects = self._subjects(context, goal)
-        likely = [o for o in subjects if plausibility(o, goal, in_view)[0] >= IMPLAUSIBLE]
-        pool = likely or subjects
+        pool = self._plausible(context, goal)
         if not pool:
             raise ValueError(f"no {goal.subject} is in view")
         rng = np.random.default_rng((self._seed, zlib.crc32(context["task"].encode())))
-        guess = pool[int(rng.integers(len(pool)))]["name"]
+        guess = pool[int(rng.integers(len(pool)))]
         reason = (f"the camera cannot tell which {goal.subject} it is; the {guess} looks as "
                   "likely as any")
         return self._move_answer(guess, reason, goal, context)
