@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from physcap_drake.perception.axis_fit import FAMILIES, fit_axis
+from physcap_drake.perception.axis_fit import FAMILIES, families_of, fit_axis
 from physcap_drake.perception.object_state import Stance, lies_like, stance
 
 LARGE_CUP, SMALL_CUP, _ = FAMILIES["cup"]
@@ -39,14 +39,26 @@ def _front_points(family, tilt_deg: float, heading_deg: float = 30.0,
 @pytest.mark.parametrize("tilt", [0.0, 10.0, 20.0])
 def test_the_fit_reads_the_tilt_of_a_large_cup_and_a_can(tilt):
     for family, kind in ((LARGE_CUP, "cup"), (CAN, "can")):
-        fit = fit_axis(kind, _front_points(family, tilt))
+        fit = fit_axis(FAMILIES[kind], _front_points(family, tilt))
         assert fit.family == family
         assert fit.tilt_deg == pytest.approx(tilt, abs=1.5)
 
 
 def test_the_fit_tells_a_small_cup_from_a_large_one():
-    fit = fit_axis("cup", _front_points(SMALL_CUP, 0.0))
+    fit = fit_axis(FAMILIES["cup"], _front_points(SMALL_CUP, 0.0))
     assert fit.family == SMALL_CUP
+
+
+def test_the_size_word_picks_the_family():
+    assert families_of("cup", "large") == (LARGE_CUP,)
+    assert families_of("cup", "") == (FAMILIES["cup"][2],)
+    assert families_of("cup", None) == FAMILIES["cup"]
+    assert families_of("can", "large") == (CAN,)  # no size word for cans: all of them
+    assert families_of("avocado", "") == ()
+    # A large cup's points said to be a lidded cup's: no lying large cup from them.
+    lying = _front_points(LARGE_CUP, 90.0)
+    assert stance("cup", lying, "large") == Stance("lying", 90.0)
+    assert stance("cup", lying, "").state != "lying"
 
 
 def test_a_large_cup_is_tilted_from_six_degrees():
@@ -70,7 +82,7 @@ def test_a_small_cup_gets_no_state_short_of_lying():
 def test_lying_is_read_from_the_axis_when_height_and_footprint_agree():
     for family, kind in ((LARGE_CUP, "cup"), (CAN, "can")):
         lying = _front_points(family, 90.0)
-        assert fit_axis(kind, lying, (family,)).tilt_deg == pytest.approx(90.0, abs=3.0)
+        assert fit_axis((family,), lying, (family,)).tilt_deg == pytest.approx(90.0, abs=3.0)
         assert lies_like(family, lying)
         assert stance(kind, lying) == Stance("lying", 90.0)
         assert not lies_like(family, _front_points(family, 0.0)) or family is LARGE_CUP

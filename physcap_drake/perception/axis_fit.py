@@ -14,10 +14,12 @@ import numpy as np
 @dc.dataclass(frozen=True)
 class Family:
     """A solid of revolution standing on its base: radius at the base and at the top, and
-    height (m); tilted_from: the tilt (deg) from which one of these is reported tilted,
-    above the noise measured on upright ones (None: its tilt cannot be told from noise)."""
+    height (m); size: the size word perception gives it (shapes.size_word); tilted_from:
+    the tilt (deg) from which one of these is reported tilted, above the noise measured on
+    upright ones (None: its tilt cannot be told from noise)."""
 
     name: str
+    size: str
     base_radius: float
     top_radius: float
     height: float
@@ -37,11 +39,18 @@ class Family:
 #: The families of each kind that stands on an end (the task's object models: paper cups
 #: stand upside down, mouth down). Thresholds: docs/perception_rgbd.md.
 FAMILIES: dict[str, tuple[Family, ...]] = {
-    "cup": (Family("large paper cup", 0.049, 0.039, 0.100, 6.0),
-            Family("small paper cup", 0.028, 0.022, 0.066, None),
-            Family("lidded cup", 0.028, 0.028, 0.083, None)),
-    "can": (Family("can", 0.033, 0.033, 0.1225, 12.0),),
+    "cup": (Family("large paper cup", "large", 0.049, 0.039, 0.100, 6.0),
+            Family("small paper cup", "small", 0.028, 0.022, 0.066, None),
+            Family("lidded cup", "", 0.028, 0.028, 0.083, None)),
+    "can": (Family("can", "", 0.033, 0.033, 0.1225, 12.0),),
 }
+
+
+def families_of(kind: str, size: str | None = None) -> tuple[Family, ...]:
+    """The families of `kind` with the size word `size` (all of the kind's for None, or
+    when none has it; none for a kind without an axis)."""
+    every = FAMILIES.get(kind, ())
+    return tuple(f for f in every if f.size == size) or every
 #: Where the lowest point of the fitted base's rim may be above the table, m: on it or on
 #: a tray's floor (8 mm).
 RIM_HEIGHTS = (-0.01, 0.02)
@@ -115,17 +124,17 @@ def _linearized(params, points, family) -> tuple[np.ndarray, np.ndarray]:
     return error, jacobian
 
 
-def fit_axis(kind: str, points: np.ndarray, lying: tuple[Family, ...] = ()
-             ) -> AxisFit | None:
-    """The best fitting pose of a family of `kind` (FAMILIES) for `points` (N × 3, table
-    frame, m, the object's visible surface; MAX_POINTS of them used), from upright, and
-    lying for the families in `lying`, whose base's rim stands within RIM_HEIGHTS; None
-    for another kind or when no pose fits there."""
+def fit_axis(families: tuple[Family, ...], points: np.ndarray,
+             lying: tuple[Family, ...] = ()) -> AxisFit | None:
+    """The best fitting pose of one of `families` for `points` (N × 3, table frame, m, the
+    object's visible surface; MAX_POINTS of them used), from upright, and lying for the
+    families in `lying`, whose base's rim stands within RIM_HEIGHTS; None when no pose
+    fits there."""
     points = points[::-(-len(points) // MAX_POINTS)]
     top = np.percentile(points[:, 2], 99)
     middle = np.median(points[points[:, 2] > top - 0.02, :2], axis=0)
     fits = []
-    for family in FAMILIES.get(kind, ()):
+    for family in families:
         fits.append(fit_family(points, family, [*middle, 0.0, 0.0, 0.0]))
         for heading in np.radians(LYING_STARTS) if family in lying else ():
             towards = np.array([np.cos(heading), np.sin(heading)])

@@ -9,7 +9,7 @@ import dataclasses as dc
 
 import numpy as np
 
-from physcap_drake.perception.axis_fit import FAMILIES, Family, fit_axis
+from physcap_drake.perception.axis_fit import FAMILIES, Family, families_of, fit_axis
 from physcap_drake.perception.camera_geometry import CameraGeometry
 from physcap_drake.perception.footprint import footprint_outline
 from physcap_drake.perception.object_geometry import footprint_sides
@@ -53,23 +53,26 @@ NO_STANCE = Stance("", 0.0)
 
 
 def stance_in_depth(kind: str, depth: np.ndarray, mask: np.ndarray,
-                    camera: CameraGeometry, plane: Plane) -> Stance:
-    """The stance of an object of `kind` whose pixels are `mask` (H × W bool) in the depth
-    image `depth` (H × W, m, NaN or 0 none) of `camera`, standing on the table `plane`."""
+                    camera: CameraGeometry, plane: Plane, size: str | None = None) -> Stance:
+    """The stance of an object of `kind` (and size word `size`, None unknown) whose pixels
+    are `mask` (H × W bool) in the depth image `depth` (H × W, m, NaN or 0 none) of
+    `camera`, standing on the table `plane`."""
     if kind not in STANDING_KINDS or not mask.any():
         return NO_STANCE
     points = smoothed_points(depth, mask, camera, plane)
     if len(points) < MIN_POINTS:
         return NO_STANCE
-    return stance(kind, table_frame(plane, points))
+    return stance(kind, table_frame(plane, points), size)
 
 
-def stance(kind: str, points: np.ndarray) -> Stance:
-    """The stance of an object of `kind` from its visible surface points (N × 3, table
-    frame: x y along the table, z its height above it; m)."""
+def stance(kind: str, points: np.ndarray, size: str | None = None) -> Stance:
+    """The stance of an object of `kind` (and size word `size`, None unknown) from its
+    visible surface points (N × 3, table frame: x y along the table, z its height above
+    it; m)."""
     if kind not in STANDING_KINDS or len(points) < MIN_POINTS:
         return NO_STANCE
-    fit = fit_axis(kind, points, tuple(f for f in FAMILIES[kind] if lies_like(f, points)))
+    families = families_of(kind, size)
+    fit = fit_axis(families, points, tuple(f for f in families if lies_like(f, points)))
     if fit is None:
         return NO_STANCE
     if fit.tilt_deg >= LYING_TILT:
