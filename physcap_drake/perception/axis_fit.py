@@ -51,6 +51,8 @@ def families_of(kind: str, size: str | None = None) -> tuple[Family, ...]:
     when none has it; none for a kind without an axis)."""
     every = FAMILIES.get(kind, ())
     return tuple(f for f in every if f.size == size) or every
+
+
 #: Where the lowest point of the fitted base's rim may be above the table, m: on it or on
 #: a tray's floor (8 mm).
 RIM_HEIGHTS = (-0.01, 0.02)
@@ -61,7 +63,7 @@ HUBER = 0.006
 ITERATIONS = 12
 #: Points used by a fit (every k-th of the object's).
 MAX_POINTS = 700
-#: Parameter step for the numerical Jacobian (m, or tangent of an angle).
+#: Parameter step for the numerical Jacobian (m, or rad).
 STEP = 1e-5
 
 
