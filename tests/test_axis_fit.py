@@ -111,3 +111,11 @@ def test_no_stance_for_kinds_without_an_axis():
     assert stance("avocado", points) == Stance("", 0.0)
     assert stance("cube", points) == Stance("", 0.0)
     assert stance("cup", points[:50]) == Stance("", 0.0)
+
+
+def test_a_cup_mostly_hidden_gets_no_tilt():
+    """Only a strip of its side and top seen (another cup in front): no reading."""
+    whole = _front_points(LARGE_CUP, 9.0)
+    strip = whole[whole[:, 1] > 0.12]
+    assert stance("cup", whole, "large").state == "tilted"
+    assert stance("cup", strip, "large") == Stance("", 0.0)

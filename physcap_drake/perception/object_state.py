@@ -34,6 +34,10 @@ MIN_POINTS = 100
 LYING_TILT = 60.0
 LYING_HEIGHT_MARGIN = 0.015
 LYING_LENGTH = 0.8
+#: A tilt needs the footprint (longer × shorter side) to cover at least SEEN_SHARE of the
+#: square around the family's top: cups mostly hidden behind others in a tray showed
+#: 0.20-0.41 and read up to 14 degrees standing; whole ones show 0.72 and more.
+SEEN_SHARE = 0.6
 #: A fitted tilt between this and LYING_TILT is no reading, deg: cups tilted by 20
 #: degrees read up to 33, and a lidded cup half hidden by a basket's wall, fitted as a
 #: large cup, 56-65.
@@ -77,7 +81,7 @@ def stance(kind: str, points: np.ndarray, size: str | None = None) -> Stance:
         return NO_STANCE
     if fit.tilt_deg >= LYING_TILT:
         return Stance("lying", 90.0) if lies_like(fit.family, points) else NO_STANCE
-    if fit.tilt_deg > MAX_TILT:
+    if fit.tilt_deg > MAX_TILT or seen_share(fit.family, points) < SEEN_SHARE:
         return NO_STANCE
     tilt = round(fit.tilt_deg, 1)
     if fit.family.tilted_from is None:
@@ -89,12 +93,23 @@ def lies_like(family: Family, points: np.ndarray) -> bool:
     """Whether the height and the footprint of `points` (table frame, m) both fit `family`
     lying on its side (LYING_HEIGHT_MARGIN, LYING_LENGTH)."""
     top = float(np.percentile(points[:, 2], 99))
-    high = points[points[:, 2] > MIN_HEIGHT]
-    if len(high) < MIN_POINTS:
-        return False
-    longer, _ = footprint_sides(footprint_outline(high))
+    longer, _ = _footprint(points)
     return (top <= family.lying_height + LYING_HEIGHT_MARGIN
             and longer >= LYING_LENGTH * family.height)
+
+
+def seen_share(family: Family, points: np.ndarray) -> float:
+    """The footprint of `points` (table frame, m) as a share of the square around the top
+    of `family` (see SEEN_SHARE)."""
+    longer, shorter = _footprint(points)
+    return longer * shorter / (2.0 * family.top_radius) ** 2
+
+
+def _footprint(points: np.ndarray) -> tuple[float, float]:
+    """The sides (longer, shorter; m) of the footprint of the points above MIN_HEIGHT (0
+    for too few)."""
+    high = points[points[:, 2] > MIN_HEIGHT]
+    return footprint_sides(footprint_outline(high)) if len(high) >= MIN_POINTS else (0.0, 0.0)
 
 
 def smoothed_points(depth: np.ndarray, mask: np.ndarray, camera: CameraGeometry,
