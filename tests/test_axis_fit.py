@@ -119,3 +119,24 @@ def test_a_cup_mostly_hidden_gets_no_tilt():
     strip = whole[whole[:, 1] > 0.12]
     assert stance("cup", whole, "large").state == "tilted"
     assert stance("cup", strip, "large") == Stance("", 0.0)
+
+
+def test_the_table_inside_an_objects_mask_is_left_out_before_smoothing():
+    """A flat top 10 cm above the table seen straight down, its mask 3 px too large: every
+    smoothed point stays on the top (the table pixels would pull its edge down)."""
+    from pydrake.math import RigidTransform, RollPitchYaw
+
+    from physcap_drake.perception.camera_geometry import CameraGeometry
+    from physcap_drake.perception.object_state import smoothed_points
+    from physcap_drake.perception.table_plane import Plane
+
+    down = RigidTransform(RollPitchYaw(np.pi, 0.0, 0.0), [0.0, 0.0, 1.0])
+    camera = CameraGeometry(100, 100, 500.0, 500.0, 49.5, 49.5, down)
+    depth = np.full((100, 100), 1.0)
+    depth[40:60, 40:60] = 0.9
+    mask = np.zeros((100, 100), bool)
+    mask[37:63, 37:63] = True
+    table = Plane(np.array([0.0, 0.0, 1.0]), 0.0)
+    heights = table.heights(smoothed_points(depth, mask, camera, table))
+    assert len(heights) == 400
+    assert heights == pytest.approx(0.1, abs=1e-6)
