@@ -65,7 +65,7 @@ class LabelPerception:
             grasp, top = grasp_point_from_points(points)
             area = footprint_rectangle(points) if visible.category in CONTAINERS else None
             pose = NO_STANCE if area is not None else stance_in_depth(
-                visible.category, depth_or_nan, mask, self.camera, TABLE)
+                visible.category, depth_or_nan, mask, self.camera, TABLE, visible.size)
             seen.append(SeenObject(visible, mask, column, float(mask_pixels(mask)[0].mean()),
                                    grasp, top, footprint_outline(points), area, pose.state,
                                    pose.tilt_deg))

@@ -84,7 +84,7 @@ class RgbdPerception:
         mask = upsample(view.region.mask, step, depth.shape)
         pose = NO_STANCE if view.container else stance_in_depth(
             visible.category, np.where(depth > 0, depth, np.nan), mask, self.camera,
-            geometry.plane)
+            geometry.plane, visible.size)
         return SeenObject(visible, mask, step * view.column, step * view.row, grasp,
                           view.top_height, footprint_outline(view.region.points), area,
                           pose.state, pose.tilt_deg)
