@@ -7,7 +7,6 @@ from pydrake.math import RigidTransform, RotationMatrix
 
 from physcap_drake.control.errors import SkillRefused
 from physcap_drake.control.planning_model import PlanningModel
-from physcap_drake.kinematics.piper_dh import DH_A, DH_D
 from physcap_drake.perception import hand_eye_poses
 from physcap_drake.perception.hand_eye_poses import (
     REACH_SLACK,
@@ -114,8 +113,8 @@ def test_the_wrist_reach_is_the_vendors_upper_arm_and_forearm_and_bounds_every_p
     # The vendor's DH table: shoulder 123 mm up the base axis; upper arm a2 = 285.03 mm,
     # forearm from the elbow to the wrist (a3, d4) = (-21.98, 250.75) mm: stretched out,
     # 285.03 + 251.71 = 536.74 mm.
-    np.testing.assert_allclose(reach.shoulder_W, [0.0, 0.0, DH_D[0]], atol=1e-6)
-    assert reach.farthest == pytest.approx(DH_A[2] + np.hypot(DH_A[3], DH_D[3]), abs=1e-4)
+    np.testing.assert_allclose(reach.shoulder_W, [0.0, 0.0, 0.123], atol=1e-6)
+    assert reach.farthest == pytest.approx(0.28503 + np.hypot(0.02198, 0.25075), abs=1e-4)
     rng = np.random.default_rng(7)
     for _ in range(200):  # wherever the six joints are, the wrist is within the bounds
         q = rng.uniform(rig_model.lower, rig_model.upper)
