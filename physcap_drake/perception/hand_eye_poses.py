@@ -167,21 +167,22 @@ def wrist_reach(model: PlanningModel) -> WristReach:
     if model not in _reach_of:
         plant = model.plant
         arm = plant.GetModelInstanceByName(model.robot.arm_model)
-        context = plant.CreateDefaultContext()
         shoulder = plant.GetJointByName("joint2", arm).frame_on_child()
         wrist = plant.GetJointByName("joint5", arm).frame_on_child()
-        flange = plant.GetBodyByName("link6", arm).body_frame()
-        plant.SetPositions(context, model.full_positions(np.zeros(6), 0.0))
-        wrist_G = wrist.CalcPose(context, flange).translation()
+        flange = plant.GetBodyByName("link6", arm)
+
+        def where(frame, poses) -> RigidTransform:
+            return poses[int(frame.body().index())] @ frame.GetFixedPoseInBodyFrame()
+
+        poses = model.body_poses(np.zeros(6), 0.0)
+        wrist_G = (poses[int(flange.index())].inverse() @ where(wrist, poses)).translation()
         distances = []
         for elbow in np.linspace(model.lower[2], model.upper[2], ELBOW_SAMPLES):
-            q = np.zeros(6)
-            q[2] = elbow
-            plant.SetPositions(context, model.full_positions(q, 0.0))
-            distances.append(np.linalg.norm(wrist.CalcPoseInWorld(context).translation()
-                                            - shoulder.CalcPoseInWorld(context).translation()))
-        _reach_of[model] = WristReach(shoulder.CalcPoseInWorld(context).translation(),
-                                      wrist_G, float(min(distances)), float(max(distances)))
+            poses = model.body_poses(np.array([0.0, 0.0, elbow, 0.0, 0.0, 0.0]), 0.0)
+            distances.append(np.linalg.norm(where(wrist, poses).translation()
+                                            - where(shoulder, poses).translation()))
+        _reach_of[model] = WristReach(where(shoulder, poses).translation(), wrist_G,
+                                      float(min(distances)), float(max(distances)))
     return _reach_of[model]
 
 
