@@ -5,7 +5,7 @@ from __future__ import annotations
 import signal
 import time
 from pathlib import Path
-from typing import Annotated
+from typing import Annotated, NoReturn
 
 import can
 import numpy as np
@@ -132,7 +132,7 @@ def alone(argv: list[str]) -> bool:
         arg.startswith(NEEDS_CLI) for arg in argv[1:])
 
 
-def emulate_alone(argv: list[str]) -> None:
+def emulate_alone(argv: list[str]) -> NoReturn:
     """Runs `physcap emulate-piper ARGV` (see `alone`) without importing the other
     commands, as the whole command line would (its errors, its exit codes)."""
     app = typer.Typer(pretty_exceptions_enable=False, rich_markup_mode=None,
