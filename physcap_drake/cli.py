@@ -8,7 +8,6 @@ that runs and fails exits 1; Ctrl-C exits 130.
 from __future__ import annotations
 
 import platform
-import sys
 from importlib.metadata import PackageNotFoundError, version
 from typing import Annotated
 
@@ -30,18 +29,8 @@ from physcap_drake.commands import (
     sim,
     task,
 )
-from physcap_drake.commands.common import (
-    BAD_INPUT,
-    error_console,
-    exit_2_on_bad_input,
-    needs_sandbox,
-    print_error,
-)
-
-try:  # newer typer releases carry their own copy of click
-    from typer._click.exceptions import NoArgsIsHelpError, UsageError
-except ImportError:  # pragma: no cover (older typer)
-    from click.exceptions import NoArgsIsHelpError, UsageError
+from physcap_drake.commands.common import exit_2_on_bad_input, needs_sandbox
+from physcap_drake.commands.lines import run_app
 
 #: Help is plain text, wrapped to at most 80 columns (it reads the same in a pipe).
 HELP_SETTINGS = {"help_option_names": ["-h", "--help"], "max_content_width": 80}
@@ -112,20 +101,7 @@ _guard(app)
 
 def main(argv: list[str] | None = None) -> None:
     """Runs the command line on `argv` (default: sys.argv[1:]) and exits with its code."""
-    command = typer.main.get_command(app)
-    try:
-        code = command.main(args=argv, prog_name="physcap", standalone_mode=False)
-    except NoArgsIsHelpError as error:
-        typer.echo(error.ctx.get_help())
-        code = 0
-    except UsageError as error:
-        where = f" (see '{error.ctx.command_path} --help')" if error.ctx is not None else ""
-        print_error(error.format_message() + where)
-        code = BAD_INPUT
-    except (typer.Abort, KeyboardInterrupt):
-        error_console.print("[bold red]interrupted[/]")
-        code = 130
-    sys.exit(code or 0)
+    run_app(app, argv, "physcap")
 
 
 if __name__ == "__main__":  # `python -m physcap_drake.cli`, as the `physcap` command

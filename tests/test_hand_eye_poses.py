@@ -5,15 +5,23 @@ import numpy as np
 import pytest
 from pydrake.math import RigidTransform, RotationMatrix
 
+from physcap_drake.control.errors import SkillRefused
+from physcap_drake.control.planning_model import PlanningModel
+from physcap_drake.perception import hand_eye_poses
 from physcap_drake.perception.hand_eye_poses import (
+    REACH_SLACK,
     BoardTarget,
     board_corners,
     board_pose,
     default_targets,
     facing_angle,
+    joints_for,
     out_of_view_problem,
     table_clearance_problem,
+    wrist_reach,
 )
+from physcap_drake.resources import stations_dir
+from physcap_drake.scenario import load_scenario
 
 #: A camera 1 m above (0.3, 0, 0) looking straight down: optical z = world -z, x = world -y.
 DOWN = RigidTransform(RotationMatrix(np.array([[0.0, -1.0, 0.0], [-1.0, 0.0, 0.0],
@@ -81,3 +89,62 @@ def test_a_board_partly_outside_the_image_is_out_of_view():
     assert out_of_view_problem(inside, DOWN, intrinsics, size, BOARD) == ""
     assert "out of the camera's view" in out_of_view_problem(outside, DOWN, intrinsics,
                                                               size, BOARD)
+
+
+@pytest.fixture(scope="module")
+def rig_model():
+    """The planning model of the emulated rig the automatic calibration runs on (read only)."""
+    scenario = load_scenario(stations_dir() / "identify_empty_can_rig_emulated.yaml")
+    arm = scenario.station.emulated
+    return PlanningModel(scenario.directives, arm.arm_model, arm.gripper_model)
+
+
+def _wrist_and_flange(model, q):
+    plant = model.plant
+    context = plant.CreateDefaultContext()
+    plant.SetPositions(context, model.full_positions(q, 0.0))
+    arm = plant.GetModelInstanceByName(model.robot.arm_model)
+    wrist = plant.GetJointByName("joint5", arm).frame_on_child().CalcPoseInWorld(context)
+    return wrist.translation(), plant.GetBodyByName("link6", arm).EvalPoseInWorld(context)
+
+
+def test_the_wrist_reach_is_the_vendors_upper_arm_and_forearm_and_bounds_every_pose(rig_model):
+    reach = wrist_reach(rig_model)
+    # The vendor's DH table: shoulder 123 mm up the base axis; upper arm a2 = 285.03 mm,
+    # forearm from the elbow to the wrist (a3, d4) = (-21.98, 250.75) mm: stretched out,
+    # 285.03 + 251.71 = 536.74 mm.
+    np.testing.assert_allclose(reach.shoulder_W, [0.0, 0.0, 0.123], atol=1e-6)
+    assert reach.farthest == pytest.approx(0.28503 + np.hypot(0.02198, 0.25075), abs=1e-4)
+    rng = np.random.default_rng(7)
+    for _ in range(200):  # wherever the six joints are, the wrist is within the bounds
+        q = rng.uniform(rig_model.lower, rig_model.upper)
+        wrist, flange = _wrist_and_flange(rig_model, q)
+        distance = np.linalg.norm(wrist - reach.shoulder_W)
+        assert reach.nearest - 1e-9 <= distance <= reach.farthest + 1e-9
+        assert reach.problem(flange) == ""
+
+
+def test_a_flange_pose_beyond_the_reach_is_refused_without_inverse_kinematics(rig_model,
+                                                                               monkeypatch):
+    reach = wrist_reach(rig_model)
+    # The arm held out, the elbow at -150°, 12° short of straight: the wrist 3 mm inside
+    # the farthest, and the inverse kinematics finds joints for that flange pose.
+    q = np.array([0.3, 1.2, np.radians(-150.0), 0.0, 0.3, 0.0])
+    wrist, X_WG = _wrist_and_flange(rig_model, q)
+    assert 0.0 < reach.farthest - np.linalg.norm(wrist - reach.shoulder_W) < 0.004
+    outward = (wrist - reach.shoulder_W) / np.linalg.norm(wrist - reach.shoulder_W)
+    kwargs = dict(opening=0.0, collision_margin=0.01, limit_margin=0.03)
+    found = joints_for(rig_model, X_WG, RigidTransform(), q, **kwargs)
+    np.testing.assert_allclose(_wrist_and_flange(rig_model, found)[1].translation(),
+                               X_WG.translation(), atol=5e-4)
+    # The same pose moved out until the wrist is 10 mm past the farthest: refused by the
+    # reach test, before any inverse kinematics is tried.
+    beyond = reach.farthest + 2 * REACH_SLACK - np.linalg.norm(wrist - reach.shoulder_W)
+    far = RigidTransform(X_WG.rotation(), X_WG.translation() + beyond * outward)
+
+    def no_ik(*_, **__):
+        raise AssertionError("inverse kinematics tried on a pose out of reach")
+
+    monkeypatch.setattr(hand_eye_poses, "solve_fingertip_ik", no_ik)
+    with pytest.raises(SkillRefused, match=r"out of the arm's reach: the wrist would be 547 mm"):
+        joints_for(rig_model, far, RigidTransform(), q, **kwargs)

@@ -10,6 +10,7 @@ A new package must be given a layer here; that is where its place in the design 
 from __future__ import annotations
 
 import ast
+import functools
 import os
 import subprocess
 import sys
@@ -68,12 +69,19 @@ def module_of(path: Path) -> str:
     return ".".join(parts)
 
 
-def imported_modules(path: Path) -> list[tuple[int, str, tuple[str, ...]]]:
+@functools.cache
+def parsed(path: Path) -> ast.Module:
+    """The file's syntax tree, parsed once for all the tests of this module (read only)."""
+    return ast.parse(path.read_text(), str(path))
+
+
+@functools.cache
+def imported_modules(path: Path) -> tuple[tuple[int, str, tuple[str, ...]], ...]:
     """(line, absolute module, names imported from it) of every import in the file."""
     module = module_of(path)
     package = module if path.name == "__init__.py" else module.rpartition(".")[0]
     found = []
-    for node in ast.walk(ast.parse(path.read_text(), str(path))):
+    for node in ast.walk(parsed(path)):
         if isinstance(node, ast.Import):
             found += [(node.lineno, alias.name, ()) for alias in node.names]
         elif isinstance(node, ast.ImportFrom):
@@ -83,7 +91,7 @@ def imported_modules(path: Path) -> list[tuple[int, str, tuple[str, ...]]]:
             else:
                 target = node.module or ""
             found.append((node.lineno, target, tuple(a.name for a in node.names)))
-    return found
+    return tuple(found)
 
 
 def package_edges() -> dict[str, dict[str, list[str]]]:
@@ -124,7 +132,7 @@ EMULATOR = "physcap_drake.piper_emulator"
 
 def typing_only_lines(path: Path) -> set[int]:
     """The lines of `path`'s `if TYPE_CHECKING:` blocks (imports there never run)."""
-    tree = ast.parse(path.read_text(), str(path))
+    tree = parsed(path)
     return {node.lineno for block in tree.body if isinstance(block, ast.If)
             and ast.unparse(block.test) == "TYPE_CHECKING"
             for node in ast.walk(block) if hasattr(node, "lineno")}
@@ -133,7 +141,7 @@ def typing_only_lines(path: Path) -> set[int]:
 def emulator_imports(path: Path) -> tuple[list[int], list[int]]:
     """(all lines, module-level lines) at which `path` imports the emulator package;
     `if TYPE_CHECKING:` imports are left out."""
-    tree = ast.parse(path.read_text(), str(path))
+    tree = parsed(path)
     top_level = {node.lineno for node in tree.body}
     typing_only = typing_only_lines(path)
     lines, module_level = [], []

@@ -8,40 +8,25 @@ import json
 import logging
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any, NoReturn
+from typing import Any
 
-import typer
 from pydrake.geometry import Meshcat
-from rich.console import Console
-from rich.markup import escape
 
 from physcap_drake.agent.sandbox.isolation import platform_problem
 from physcap_drake.commands import progress
+from physcap_drake.commands.lines import (  # noqa: F401 (the commands import them from here)
+    BAD_INPUT,
+    MODEL_FAILURE,
+    NOT_SOLVED,
+    SOLVED,
+    console,
+    error_console,
+    fail,
+    print_error,
+)
 from physcap_drake.recording.reading import RecordingError
 from physcap_drake.scenario import Scenario, load_scenario
 from physcap_drake.scenario_errors import ScenarioError
-
-# Lines are never broken to fit the width (a pipe or a log file has none): paths and units
-# stay whole; tables still fit the terminal.
-console = Console(soft_wrap=True)
-error_console = Console(stderr=True, soft_wrap=True)
-
-#: Exit codes: the task was solved; it was not; bad input (a missing file, a file of the wrong
-#: kind, a bad name or value); a model or its server failed (see README).
-SOLVED, NOT_SOLVED, BAD_INPUT, MODEL_FAILURE = 0, 1, 2, 3
-
-
-def print_error(message: str) -> None:
-    """Prints `error: <message>` as one line on stderr."""
-    error_console.print(f"[bold red]error:[/] {escape(' '.join(message.split()))}",
-                        highlight=False)
-
-
-def fail(message: str, code: int = BAD_INPUT) -> NoReturn:
-    """Prints `error: <message>` as one line on stderr and exits with `code`."""
-    print_error(message)
-    raise typer.Exit(code=code)
-
 
 #: Errors that mean the input is wrong, whichever command meets them.
 INPUT_ERRORS = (ScenarioError, RecordingError, FileNotFoundError, FileExistsError,

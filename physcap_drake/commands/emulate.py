@@ -5,21 +5,19 @@ from __future__ import annotations
 import signal
 import time
 from pathlib import Path
-from typing import Annotated
+from typing import Annotated, NoReturn
 
 import can
 import numpy as np
 import typer
 
 from physcap_drake.can.unix_bus import UnixBusHub
-from physcap_drake.commands.common import console, fail, load_scenario_or_exit
+from physcap_drake.commands.lines import console, fail, run_app
 from physcap_drake.commands.options import ScenarioText
 from physcap_drake.piper_emulator.arm_gravity import ArmGravity
 from physcap_drake.piper_emulator.emulator import PiperEmulator
 from physcap_drake.piper_emulator.firmware import START_STATES
 from physcap_drake.piper_emulator.motion import KinematicMotion
-from physcap_drake.station.can_cameras import emulated_world
-from physcap_drake.station.simulated_motion import simulated_motion
 
 #: The buses it serves on.
 INTERFACES = ("socketcan", "unix", "virtual")
@@ -71,6 +69,11 @@ def emulate_piper(
         if joints_deg:
             raise typer.BadParameter("--joints-deg is for the kinematic arm; with --scenario "
                                      "the arm starts where the scenario puts it")
+        # Imported here: the kinematic arm needs neither scenarios nor Drake (emulate_alone).
+        from physcap_drake.commands.common import load_scenario_or_exit
+        from physcap_drake.station.can_cameras import emulated_world
+        from physcap_drake.station.simulated_motion import simulated_motion
+
         # The world renders no camera here: cameras belong to the station that connects.
         motion = simulated_motion(emulated_world(load_scenario_or_exit(scenario, scenario_text),
                                                   cameras=False))
@@ -116,3 +119,23 @@ def _power_up_joints(text: str) -> np.ndarray:
     except ValueError:
         raise typer.BadParameter(f"--joints-deg: six numbers separated by commas, not "
                                  f"{text!r}") from None
+
+
+#: Options that need the whole command line (a scenario, help in its layout).
+NEEDS_CLI = ("--scenario", "-h", "--help")
+
+
+def alone(argv: list[str]) -> bool:
+    """Whether `physcap ARGV` can run with this command only: `emulate-piper` of the
+    kinematic arm (no scenario to load, no help to lay out)."""
+    return argv[:1] == ["emulate-piper"] and not any(
+        arg.startswith(NEEDS_CLI) for arg in argv[1:])
+
+
+def emulate_alone(argv: list[str]) -> NoReturn:
+    """Runs `physcap emulate-piper ARGV` (see `alone`) without importing the other
+    commands, as the whole command line would (its errors, its exit codes)."""
+    app = typer.Typer(pretty_exceptions_enable=False, rich_markup_mode=None,
+                      add_completion=False)
+    app.command("emulate-piper")(emulate_piper)
+    run_app(app, argv, "physcap emulate-piper")
