@@ -10,6 +10,7 @@ from pathlib import Path
 
 from pydrake.systems.sensors import CameraConfig
 
+from physcap_drake.agent.agent_setup import AgentSetup
 from physcap_drake.agent.agent_system import AgentSystem
 from physcap_drake.agent.reference.task_reading import read_task
 from physcap_drake.perception.camera_geometry import CameraGeometry
@@ -121,7 +122,7 @@ def make_episode(task_name: str, seed: int, answer: str = "", meshcat=None, *,
                  with_agent: bool = False, sink: McapSink | None = None,
                  scenario_file: str | Path | None = None,
                  perception: str | None = None, judge: str | None = None,
-                 scenario_text: str = "") -> Episode:
+                 scenario_text: str = "", agent: AgentSetup | None = None) -> Episode:
     """Loads stations/<task>.yaml (or `scenario_file`), lays out the objects for `seed`,
     builds and initializes the simulation with the objects' hidden masses, and wires camera
     perception (`perception`: "rgbd" or "label", see the design notes) to the API (and,
@@ -133,7 +134,9 @@ def make_episode(task_name: str, seed: int, answer: str = "", meshcat=None, *,
     the scenario's `task.perception` / `task.judge`, else "label" and "simulator". Raises
     ValueError for a choice the station cannot serve (ground truth or the label image on a
     rig without a simulated world). Call `close()` on the episode when done.
-    `scenario_text`: YAML laid over the scenario file (as `--scenario-text`)."""
+    `scenario_text`: YAML laid over the scenario file (as `--scenario-text`). `agent`: the
+    AgentSystem's policy and robot calls (implies `with_agent`; without it the system has
+    no policy and does nothing)."""
     task = get_task(task_name)
     scenario = load_scenario(scenario_file or stations_dir() / task.scenario_file,
                              scenario_text)
@@ -165,10 +168,12 @@ def make_episode(task_name: str, seed: int, answer: str = "", meshcat=None, *,
                                                                      scene_plant(station)))))
         return perceptions[0]
 
+    background = not isinstance(scenario.station, SimPiper)
     robot = build_robot_stack(
         scenario, meshcat,
-        make_agent=(lambda station: AgentSystem(
-            make_perception(station), background=not isinstance(scenario.station, SimPiper)))
+        make_agent=(lambda station: agent.system(make_perception(station), instance.prompt,
+                                                 scenario, background)) if agent else
+        (lambda station: AgentSystem(make_perception(station), background=background))
         if with_agent else None,
         make_recorder=None if sink is None else (
             lambda station: make_mcap_recorder(sink, station, scenario)))
