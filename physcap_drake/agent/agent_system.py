@@ -10,9 +10,7 @@ Design notes: docs/design/agent.md.
 from __future__ import annotations
 
 import dataclasses as dc
-import threading
 from collections.abc import Callable
-from concurrent.futures import Future
 
 from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import Context, EventStatus, LeafSystem, State
@@ -25,10 +23,11 @@ from physcap_drake.agent.mind import AgentMind
 from physcap_drake.agent.observation import Observation, observe
 from physcap_drake.agent.phases import FailureKind, Phase
 from physcap_drake.agent.sandbox import CodeOutcome, SandboxSession, SpareChild, Waiting
+from physcap_drake.agent.thought import Thought
 from physcap_drake.control.requests import RobotRequest, SkillStatus
 from physcap_drake.control.skill_executor import MONITOR_PERIOD, REQUEST_PORT, STATUS_PORT
 from physcap_drake.immutable_state import Immutable
-from physcap_drake.knowledge import KnowledgeEntry
+from physcap_drake.knowledge import KNOWLEDGE_PORT, KnowledgeEntry
 from physcap_drake.perception.object_geometry import SteadySizes
 from physcap_drake.perception.object_locator import ObjectLocator
 from physcap_drake.robot_calls import (
@@ -48,7 +47,6 @@ _IMAGE_INPUTS = {ports.CAMERA_RGB: ImageRgba8U, ports.CAMERA_DEPTH: ImageDepth32
                  ports.CAMERA_LABEL: ImageLabel16I}
 
 PROGRESS_PORT = "agent.progress"
-KNOWLEDGE_PORT = "agent.knowledge"
 #: This system's name on the request path.
 CLIENT = "agent"
 #: Period of the agent's events, s of simulated time, and their offset (in periods) from the
@@ -87,28 +85,6 @@ class AgentState(Immutable):
     block: RunningBlock | None = None
     spare: SpareChild | None = None
     thought: Thought | None = None
-
-
-class Thought:
-    """`policy.decide(...)` on a daemon worker thread (a resource handle: the thread is never
-    joined, so a fault never waits for a model)."""
-
-    def __init__(self, policy: AgentPolicy, *args):
-        self._policy = policy
-        self.future: Future = Future()
-        self.thread = threading.Thread(target=self._run, args=args, name="agent-thought",
-                                       daemon=True)
-        self.thread.start()
-
-    def _run(self, *args) -> None:
-        try:
-            self.future.set_result(self._policy.decide(*args))
-        except BaseException as error:  # noqa: BLE001 - handed to the event that collects it
-            self.future.set_exception(error)
-
-    def give_up(self) -> None:
-        """The episode ended while the thought ran: it writes nothing more."""
-        self._policy.notes.silence(self.thread)
 
 
 class AgentSystem(LeafSystem):
