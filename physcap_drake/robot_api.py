@@ -73,15 +73,8 @@ class RobotAPI:
         self._look: tuple[bytes, dict] = (b"", {})
 
     def get_object_pose(self, name: str) -> np.ndarray:
-        """Find an object in the camera image and return its grasp point [x, y, z] (metres,
-        world frame): the fingertip target for a top-down grasp, at the middle of the
-        object's top, half its height down (at most 57 mm below its top).
-
-        name: a description that picks out one object, e.g. "red can", "large cup",
-            "second from left green avocado", "dark avocado on the right", "can with a straw".
-        Raises ValueError listing the visible objects if the name fits none or several.
-        Asked again while nothing in view has changed, it answers from the last look.
-        """
+        """`RobotCalls.get_object_pose`, answered through the locator from the station's
+        camera outputs (from the last look while the images do not change)."""
         rgb, depth, label = self._images()
         answers = self._look[1]
         if name not in answers:

@@ -10,7 +10,6 @@ from __future__ import annotations
 import dataclasses as dc
 import math
 from collections.abc import Generator
-from contextlib import contextmanager
 
 import numpy as np
 
@@ -212,11 +211,7 @@ class RobotCalls:
         (recorded).
         """
         subject = _subject(position, name)
-        with _recording_failures(subject, "mass", "kg") as failures:
-            status = yield from request(MeasureMass(position))
-        if failures:
-            yield from _record_failure(failures[0])
-        result = status.result
+        result = (yield from _measured(MeasureMass(position), subject, "mass", "kg")).result
         if not result.ok and result.reason.startswith(NOTHING_GRASPED):
             raise SkillFailed(f"get_mass found nothing to weigh {_at(position)}: "
                               f"{result.reason}; no measurement was recorded")
@@ -245,11 +240,8 @@ class RobotCalls:
         not be made (recorded).
         """
         subject = _subject(position, name)
-        with _recording_failures(subject, "stiffness", "level") as failures:
-            status = yield from request(MeasureStiffness(position))
-        if failures:
-            yield from _record_failure(failures[0])
-        measurement = status.result
+        measurement = (yield from _measured(MeasureStiffness(position), subject, "stiffness",
+                                            "level")).result
         if not any(math.isfinite(d) for d in measurement.result.deformations_mm):
             raise SkillFailed(f"get_stiffness found nothing to squeeze {_at(position)}: "
                               f"{measurement.describe()}; no measurement was recorded")
@@ -360,23 +352,16 @@ def request(action) -> RobotSteps:
     return status
 
 
-@contextmanager
-def _recording_failures(subject: str, prop: str, unit: str):
-    """Keeps (subject, prop, unit, error) of a skill error that interrupted a measurement,
-    to be recorded by the caller before the error goes on."""
-    failures: list = []
+def _measured(action, subject: str, prop: str, unit: str) -> RobotSteps:
+    """The steps of one probe request; a skill error that interrupted it is recorded as a
+    failed measurement of `prop` (in `unit`) of `subject`, then raised."""
     try:
-        yield failures
+        return (yield from request(action))
     except SkillError as error:
-        failures.append((subject, prop, unit, error))
-
-
-def _record_failure(failure) -> RobotSteps:
-    subject, prop, unit, error = failure
-    now = yield Sense("robot_time")
-    yield Learned(KnowledgeEntry(subject, prop, math.nan, unit, False,
-                                 f"interrupted: {error}", now))
-    raise error
+        now = yield Sense("robot_time")
+        yield Learned(KnowledgeEntry(subject, prop, math.nan, unit, False,
+                                     f"interrupted: {error}", now))
+        raise
 
 
 def _subject(position, name: str | None) -> str:

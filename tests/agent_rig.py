@@ -203,16 +203,23 @@ def make_rig(coder: ScriptedCoder, *, limits: SandboxLimits = LIMITS, max_steps:
                                       physx_api=True, max_steps=max_steps)
     policy = AgentPolicy(task="Find the empty can.", variant=variant, llm=coder, limits=limits,
                          **policy_options)
+    agent, stand_in = AgentSystem(NoObjects(), policy, RobotCalls(0.1, SkillsConfig())), \
+        StandInRobot(**robot)
+    return AgentRig(wired(agent, stand_in), agent, stand_in, policy, coder)
+
+
+def wired(agent: AgentSystem, robot: LeafSystem) -> Clock:
+    """The clock of a diagram of `agent` and `robot` (a request path's stand-in with
+    `request`, `status` and `piper.fault` ports), a blank camera image and a closed gripper."""
     builder = DiagramBuilder()
-    agent = builder.AddSystem(AgentSystem(NoObjects(), policy, RobotCalls(0.1, SkillsConfig())))
-    stand_in = builder.AddSystem(StandInRobot(**robot))
+    builder.AddSystem(agent)
+    builder.AddSystem(robot)
     camera = builder.AddSystem(ConstantValueSource(AbstractValue.Make(ImageRgba8U(8, 6))))
     gripper = builder.AddSystem(ConstantVectorSource([0.0]))
     builder.Connect(camera.get_output_port(), agent.GetInputPort(ports.CAMERA_RGB))
     builder.Connect(gripper.get_output_port(),
                     agent.GetInputPort(ports.GRIPPER_POSITION_MEASURED))
-    builder.Connect(agent.GetOutputPort(REQUEST_PORT), stand_in.GetInputPort(REQUEST_PORT))
-    builder.Connect(stand_in.GetOutputPort(STATUS_PORT), agent.GetInputPort(STATUS_PORT))
-    clock = Clock(builder.Build(), fault=stand_in.GetOutputPort(ports.ARM_FAULT))
-    return AgentRig(clock, agent, stand_in, policy, coder)
+    builder.Connect(agent.GetOutputPort(REQUEST_PORT), robot.GetInputPort(REQUEST_PORT))
+    builder.Connect(robot.GetOutputPort(STATUS_PORT), agent.GetInputPort(STATUS_PORT))
+    return Clock(builder.Build(), fault=robot.GetOutputPort(ports.ARM_FAULT))
 

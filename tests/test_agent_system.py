@@ -14,11 +14,9 @@ import time
 
 import numpy as np
 import pytest
-from agent_rig import NoObjects
+from agent_rig import NoObjects, wired
 from pydrake.common.value import AbstractValue
-from pydrake.systems.framework import DiagramBuilder, LeafSystem
-from pydrake.systems.primitives import ConstantValueSource, ConstantVectorSource
-from pydrake.systems.sensors import ImageRgba8U
+from pydrake.systems.framework import LeafSystem
 
 from physcap_drake.agent.agent_system import CLIENT, KNOWLEDGE_PORT, PROGRESS_PORT, AgentSystem
 from physcap_drake.agent.llm.base import LLMResponse
@@ -167,17 +165,9 @@ def make_rig(blocks: list[str], delay: float = 0.0, fault_at: float = math.inf) 
                            max_steps=len(blocks) + 1)
     policy = AgentPolicy(task="Weigh the can.", variant=variant, llm=coder, limits=LIMITS,
                          transcript=transcript)
-    builder = DiagramBuilder()
-    agent = builder.AddSystem(AgentSystem(NoObjects(), policy, RobotCalls(0.1, SkillsConfig())))
-    robot = builder.AddSystem(ScriptedRobot(fault_at))
-    camera = builder.AddSystem(ConstantValueSource(AbstractValue.Make(ImageRgba8U(8, 6))))
-    gripper = builder.AddSystem(ConstantVectorSource([0.0]))
-    builder.Connect(camera.get_output_port(), agent.GetInputPort(ports.CAMERA_RGB))
-    builder.Connect(gripper.get_output_port(),
-                    agent.GetInputPort(ports.GRIPPER_POSITION_MEASURED))
-    builder.Connect(agent.GetOutputPort(REQUEST_PORT), robot.GetInputPort(REQUEST_PORT))
-    builder.Connect(robot.GetOutputPort(STATUS_PORT), agent.GetInputPort(STATUS_PORT))
-    clock = Clock(builder.Build(), fault=robot.GetOutputPort(ports.ARM_FAULT))
+    agent = AgentSystem(NoObjects(), policy, RobotCalls(0.1, SkillsConfig()))
+    robot = ScriptedRobot(fault_at)
+    clock = wired(agent, robot)
     _RIGS.append(Rig(clock, agent, robot, transcript, coder))
     return _RIGS[-1]
 

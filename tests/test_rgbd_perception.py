@@ -67,12 +67,14 @@ def test_the_agent_is_wired_to_what_its_perception_reads():
     episode = make_episode("identify_empty_can", 0, with_agent=True, perception="rgbd")
     agent = episode.robot.agent
     names = {agent.get_input_port(i).get_name() for i in range(agent.num_input_ports())}
-    # What the perception reads, and the answers of the robot's request path.
+    # What the perception reads, the gap between the fingers (close_gripper's answer) and
+    # the answers of the robot's request path.
     assert names == {ports.CAMERA_RGB, ports.CAMERA_DEPTH, ports.ARM_POSITION_MEASURED,
-                     STATUS_PORT}
+                     ports.GRIPPER_POSITION_MEASURED, STATUS_PORT}
     label = make_episode("identify_empty_can", 0, with_agent=True).robot.agent
     assert {label.get_input_port(i).get_name() for i in range(label.num_input_ports())} == {
-        ports.CAMERA_RGB, ports.CAMERA_DEPTH, ports.CAMERA_LABEL, STATUS_PORT}
+        ports.CAMERA_RGB, ports.CAMERA_DEPTH, ports.CAMERA_LABEL,
+        ports.GRIPPER_POSITION_MEASURED, STATUS_PORT}
 
 
 def test_the_table_plane_is_found_under_noise_and_objects():
