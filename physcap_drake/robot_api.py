@@ -42,6 +42,7 @@ CLIENT = "robot_api"
 #: (the longest, a 120 s wait); running out means a system on the path does not answer.
 REQUEST_TIMEOUT = 600.0
 
+
 class RobotAPI:
     """Moves the robot through its SkillExecutor, one blocking call at a time: the functions
     of `RobotCalls` (same names and arguments; frames there), driven over the clock."""

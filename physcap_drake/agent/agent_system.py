@@ -127,13 +127,15 @@ class AgentSystem(LeafSystem):
                  background: bool = False, vlm=None,
                  on_observe: Callable[[], None] | None = None):
         super().__init__()
+        if policy is not None and calls is None:
+            raise ValueError("an AgentSystem with a policy needs the robot calls its code "
+                             "blocks make (calls=RobotCalls(...))")
         self._perception = perception
         self._locator = ObjectLocator(perception, vlm)
         self._sizes = SteadySizes()  # the sizes stated so far, per object name
         self._background = background
         self._policy = policy
-        self._functions = (None if policy is None or calls is None else
-                           counting(policy.code_api.table(calls)))
+        self._functions = None if policy is None else counting(policy.code_api.table(calls))
         self._on_observe = on_observe
         self._inputs = {}
         for name in perception.input_ports:
