@@ -8,6 +8,9 @@ from __future__ import annotations
 
 import dataclasses as dc
 
+#: The AgentSystem's output of the scene knowledge (a tuple of KnowledgeEntry, oldest first).
+KNOWLEDGE_PORT = "agent.knowledge"
+
 
 @dc.dataclass(frozen=True)
 class KnowledgeEntry:

@@ -142,7 +142,8 @@ def build_robot_stack(scenario: Scenario, meshcat: Meshcat | None = None, *,
     (and its `status` input, if any, hears the answers), else the path is exported as
     robot.request / robot.status.
     `recorder` (or `make_recorder(station)`: e.g. McapRecorder) has each of its input ports
-    connected to the station output of the same name."""
+    connected to the agent's output of the same name if it has one (agent.knowledge), else
+    to the station's, if it has one."""
     station_config = scenario.station
     model = model or robot_model(scenario.directives, station_config.arm_model,
                                  station_config.gripper_model, tuple(scenario.skills.furniture))
@@ -234,7 +235,10 @@ def build_robot_stack(scenario: Scenario, meshcat: Meshcat | None = None, *,
         builder.AddNamedSystem("recorder", recorder)
         for index in range(recorder.num_input_ports()):
             port = recorder.get_input_port(index)
-            builder.Connect(station.GetOutputPort(port.get_name()), port)
+            source = agent if agent is not None and agent.HasOutputPort(
+                port.get_name()) else station
+            if source.HasOutputPort(port.get_name()):  # e.g. agent.knowledge, without agent
+                builder.Connect(source.GetOutputPort(port.get_name()), port)
     logs = (None, None)
     if log_joints:
         period = scenario.plant_config.time_step

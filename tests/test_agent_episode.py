@@ -29,7 +29,7 @@ def test_physcap_finds_the_empty_can_weighing_only_opened_cans(physcap_run):
     summary = physcap_run.summary()
     assert summary["success"] is True, summary["reason"]
     assert summary["oi"] == 2 and summary["failure"] == ""
-    weighed = [e.subject for e in physcap_run.episode.api.knowledge.entries]
+    weighed = [e.subject for e in physcap_run.knowledge]
     assert weighed and set(weighed) <= OPENED
     assert {"success", "oi", "robot_time_s", "llm_calls", "input_tokens"} <= set(summary)
     roles = [call.role for call in physcap_run.calls]
@@ -57,7 +57,7 @@ def test_cap_physx_weighs_every_can_left_to_right():
     assert run.outcome.success
     first_view = run.transcript.entries[0].text  # objects in view, left to right
     left_to_right = [line.split("'")[1] for line in first_view.splitlines()[1:]]
-    weighed = [e.subject for e in run.episode.api.knowledge.entries]
+    weighed = [e.subject for e in run.knowledge]
     assert weighed == [name for name in left_to_right if name.endswith("can")]
 
 

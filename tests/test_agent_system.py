@@ -14,13 +14,14 @@ import time
 
 import numpy as np
 import pytest
+from agent_rig import wired
 from pydrake.common.value import AbstractValue
-from pydrake.systems.framework import DiagramBuilder, LeafSystem
-from pydrake.systems.primitives import ConstantValueSource
+from pydrake.systems.framework import LeafSystem
 
-from physcap_drake.agent.agent_system import CLIENT, PROGRESS_PORT, AgentSystem
+from physcap_drake.agent.agent_system import CLIENT, KNOWLEDGE_PORT, PROGRESS_PORT, AgentSystem
 from physcap_drake.agent.llm.base import LLMResponse
-from physcap_drake.agent.loop import AgentLoop, AgentMind
+from physcap_drake.agent.loop import AgentPolicy
+from physcap_drake.agent.mind import AgentMind
 from physcap_drake.agent.sandbox import SandboxLimits
 from physcap_drake.agent.sandbox.child_process import children_of
 from physcap_drake.agent.transcript import Transcript
@@ -35,11 +36,10 @@ from physcap_drake.control.requests import (
     SkillStatus,
 )
 from physcap_drake.control.skill_executor import REQUEST_PORT, STATUS_PORT
+from physcap_drake.control.skills_config import SkillsConfig
 from physcap_drake.immutable_state import Immutable
-from physcap_drake.knowledge import SceneKnowledge
-from physcap_drake.perception.perception_system import SIZES_PORT, VIEW_PORT, PerceptionView
 from physcap_drake.physx.mass_probe import MassMeasurement, MeasureMass
-from physcap_drake.robot_api import RobotAPI
+from physcap_drake.robot_calls import RobotCalls
 from physcap_drake.station import ports
 
 MOTION_S = 0.5  # s of simulated time each request takes the scripted robot
@@ -107,34 +107,6 @@ class ScriptedRobot(LeafSystem):
             dc.replace(memory, status=status))
 
 
-class PortArm(RobotAPI):
-    """The RobotAPI's own robot calls (their steps), its knowledge and measurements, over the
-    scripted robot: robot time is what the robot's status reports."""
-
-    def __init__(self, robot: ScriptedRobot):
-        self._on_skill_done = None
-        self._locator = None
-        self.knowledge = SceneKnowledge()
-        self.last_mass = self.last_stiffness = None
-        self._status = lambda: SkillStatus()
-        self._robot_system = robot
-
-    def read_from(self, clock: Clock) -> None:
-        context = self._robot_system.GetMyContextFromRoot(clock.context)
-        self._status = lambda: self._robot_system.GetOutputPort(STATUS_PORT).Eval(context)
-
-    @property
-    def robot_time(self) -> float:
-        return self._status().robot_time
-
-    @property
-    def status(self) -> SkillStatus:
-        return self._status()
-
-    def get_object_pose(self, name: str) -> np.ndarray:
-        return np.array(OBJECT)
-
-
 class Coder:
     """A coder model that writes the given blocks in turn (the last completes the task),
     taking `delay` s of wall time per answer; a block that is an exception is raised
@@ -160,10 +132,8 @@ class Rig:
     clock: Clock
     agent: AgentSystem
     robot: ScriptedRobot
-    arm: PortArm
     transcript: Transcript
     coder: Coder
-    loop: AgentLoop
 
     def agent_context(self):
         return self.agent.GetMyContextFromRoot(self.clock.context)
@@ -190,24 +160,15 @@ def release_the_agents():
 
 
 def make_rig(blocks: list[str], delay: float = 0.0, fault_at: float = math.inf) -> Rig:
-    builder = DiagramBuilder()
-    agent = builder.AddSystem(AgentSystem())
-    robot = builder.AddSystem(ScriptedRobot(fault_at))
-    nothing = PerceptionView(rgb=np.zeros((6, 8, 4), np.uint8))  # no object in view
-    for port, value in ((VIEW_PORT, nothing), (SIZES_PORT, ())):
-        source = builder.AddSystem(ConstantValueSource(AbstractValue.Make(value)))
-        builder.Connect(source.get_output_port(), agent.GetInputPort(port))
-    builder.Connect(agent.GetOutputPort(REQUEST_PORT), robot.GetInputPort(REQUEST_PORT))
-    builder.Connect(robot.GetOutputPort(STATUS_PORT), agent.GetInputPort(STATUS_PORT))
-    clock = Clock(builder.Build(), fault=robot.GetOutputPort(ports.ARM_FAULT))
-    arm, transcript, coder = PortArm(robot), Transcript(), Coder(blocks, delay)
-    arm.read_from(clock)
+    transcript, coder = Transcript(), Coder(blocks, delay)
     variant = AgentVariant(name="scripted", decider="coder", order="as_given", physx_api=True,
                            max_steps=len(blocks) + 1)
-    loop = AgentLoop(task="Weigh the can.", variant=variant, llm=coder, api=arm, limits=LIMITS,
-                     transcript=transcript)
-    agent.attach(loop, lambda: arm.robot_time)
-    _RIGS.append(Rig(clock, agent, robot, arm, transcript, coder, loop))
+    policy = AgentPolicy(task="Weigh the can.", variant=variant, llm=coder, limits=LIMITS,
+                         transcript=transcript)
+    agent = AgentSystem(policy, RobotCalls(0.1, SkillsConfig()))
+    robot = ScriptedRobot(fault_at)
+    clock = wired(agent, robot)
+    _RIGS.append(Rig(clock, agent, robot, transcript, coder))
     return _RIGS[-1]
 
 
@@ -216,7 +177,7 @@ def outputs(transcript: Transcript) -> list[str]:
 
 
 def test_each_robot_call_of_the_code_is_a_request_and_its_answer_comes_back_to_the_code():
-    rig = make_rig(["position = get_object_pose('can')\n"
+    rig = make_rig([f"position = {OBJECT}\n"
                     "goto_pose([position[0], position[1], 0.2])\n"
                     "print('weighed', get_mass(position, 'can'))\n", "goto_pose([0.3, 0.0, 0.25])"])
     rig.clock.run_until(lambda root: len(rig.requests()) == 2, timeout=5.0)
@@ -233,10 +194,28 @@ def test_each_robot_call_of_the_code_is_a_request_and_its_answer_comes_back_to_t
     assert (progress.phase, progress.steps) == ("executing", 0)
     rig.clock.run_until(lambda root: rig.agent.mind(rig.agent_context()).steps, timeout=5.0)
     assert outputs(rig.transcript)[0].strip().endswith(f"weighed {MASS_KG}")
-    assert [e.value for e in rig.arm.knowledge.entries] == [MASS_KG]
+    knowledge = rig.agent.GetOutputPort(KNOWLEDGE_PORT).Eval(rig.agent_context())
+    assert [(e.subject, e.value, e.robot_time_s) for e in knowledge] == [
+        ("can", MASS_KG, 2 * MOTION_S)]  # the robot time the status reported then
     mind = rig.agent.mind(rig.agent_context())
     assert mind.steps[0].ok and mind.steps[0].robot_time_s == pytest.approx(2 * MOTION_S)
     assert mind.oi == 0  # the scripted measurement held no load window: no touch
+
+
+def test_a_cloned_context_carries_the_scene_knowledge():
+    rig = make_rig([f"print(get_mass({OBJECT}, 'can'))\n", "goto_pose([0.3, 0.0, 0.25])"])
+    rig.clock.run_until(lambda root: rig.agent.mind(rig.agent_context()).steps, timeout=5.0)
+    clone = rig.agent.GetMyContextFromRoot(root_clone := rig.clock.context.Clone())
+    rig.run_episode()
+    assert [e.value for e in rig.agent.knowledge(clone)] == [MASS_KG]
+    port = rig.agent.GetOutputPort(KNOWLEDGE_PORT)
+    assert port.Eval(clone) == rig.agent.knowledge(clone)
+    # The clone is its own: a new fact in it leaves the episode's knowledge as it was.
+    state = rig.agent.state(clone)
+    clone.get_mutable_abstract_state(0).set_value(dc.replace(
+        state, knowledge=(*state.knowledge, state.knowledge[0])))
+    assert len(port.Eval(clone)) == 2 and len(port.Eval(rig.agent_context())) == 1
+    assert root_clone.get_time() < rig.clock.context.get_time()
 
 
 def test_a_refused_request_reaches_the_code_as_an_error_it_can_catch():
@@ -282,7 +261,8 @@ def test_code_that_breaks_inside_the_agent_never_raises_out_of_the_diagram():
     assert mind.phase == "done" and [step.ok for step in mind.steps] == [False, False, True]
     assert mind.steps[0].error.startswith("rejected: ")
     assert mind.steps[1].error.startswith("exception: ZeroDivisionError at line 1")
-    assert math.isclose(rig.arm.robot_time, 2 * 0.5 + MOTION_S)  # two holds of 0.5 s, a motion
+    # two holds of 0.5 s and a motion, as the status input reports it
+    assert math.isclose(rig.agent.robot_time(rig.agent_context()), 2 * 0.5 + MOTION_S)
 
 
 
@@ -294,14 +274,14 @@ def test_an_arm_fault_while_the_code_waits_for_the_robot_ends_the_episode_at_onc
                     "    print('caught')\n", "goto_pose([0.3, 0.0, 0.25])"],
                    fault_at=MOTION_S + 0.2)  # during the second motion
     context = rig.agent_context()
-    mind = run_agent(rig.clock, rig.agent, context, rig.loop, timeout=10.0)
+    mind = run_agent(rig.clock, rig.agent, context, timeout=10.0)
     assert (mind.phase, mind.failure_kind) == ("failed", "arm")
     assert mind.failure == ("arm fault: goto_pose() failed with ArmFault: the arm reports: "
                             "emergency stop; the code was stopped at once")
     assert "caught" not in "".join(outputs(rig.transcript)) and rig.coder.calls == 1
     assert rig.agent.mind(context).phase == "executing"  # the Context was left as it stood
-    server = rig.agent.state(context).block.server
-    assert server.outcome is not None and server.outcome.kind == "fault"  # the child is gone
+    session = rig.agent.state(context).block.session
+    assert session.outcome is not None and session.outcome.kind == "fault"  # the child is gone
 
 
 TWO_MOTIONS = ["goto_pose([0.3, 0.0, 0.2])\n", "goto_pose([0.3, 0.0, 0.25])"]
@@ -347,7 +327,7 @@ def test_ctrl_c_while_the_agent_decides_leaves_no_child_behind(sandbox_folders, 
     rig = make_rig(blocks)
     _RIGS.remove(rig)  # run_agent releases the agent itself
     with pytest.raises(KeyboardInterrupt):
-        run_agent(rig.clock, rig.agent, rig.agent_context(), rig.loop, timeout=10.0)
+        run_agent(rig.clock, rig.agent, rig.agent_context(), timeout=10.0)
     assert rig.coder.calls == at_call
     assert set(children_of(os.getpid())) <= before and list(sandbox_folders.iterdir()) == []
 

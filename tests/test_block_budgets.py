@@ -9,7 +9,7 @@ from types import SimpleNamespace
 
 import numpy as np
 import pytest
-from test_agent_untrusted_blocks import LIMITS, StandInArm, make_loop, run_episode
+from agent_rig import LIMITS, ScriptedCoder, make_rig
 
 from physcap_drake.agent.sandbox import BlockBudget, SandboxLimits
 from physcap_drake.agent.variant import load_variant
@@ -47,19 +47,12 @@ def test_the_defaults_leave_a_task_room_several_times_over():
     assert limits.max_pose_calls >= 40 and limits.max_api_calls > limits.max_pose_calls
 
 
-class QuickArm(StandInArm):
-    """Its motions take no robot time: only the call budgets can stop a block."""
-
-    def _move(self, what: str) -> None:
-        self.motions.append(what)
-
-
 def test_a_gripper_toggling_block_is_stopped_at_the_variants_limit():
-    arm = QuickArm()
-    loop, coder = make_loop(["for i in range(100):\n    close_gripper()\n    open_gripper()\n",
-                             "print('done')\n"], arm, block_retries=1)
-    mind = run_episode(loop)
-    assert arm.motions.count("close_gripper") == SandboxLimits().max_gripper_cycles
+    coder = ScriptedCoder(["for i in range(100):\n    close_gripper()\n    open_gripper()\n",
+                           "print('done')\n"])
+    rig = make_rig(coder, block_retries=1, quick=True)  # only the call budgets can stop it
+    mind = rig.run_episode()
+    assert rig.motions.count("close_gripper") == SandboxLimits().max_gripper_cycles
     assert "limit max_gripper_cycles" in mind.steps[0].error
     assert "limit max_gripper_cycles" in coder.requests[1].prompt
 
@@ -70,13 +63,11 @@ def test_the_limits_come_from_the_agent_config(tmp_path):
     variant = load_variant(config)
     assert variant.block_limits(LIMITS).max_probe_calls == 2
     assert variant.block_limits(LIMITS).cpu_s == LIMITS.cpu_s
-    arm = QuickArm()
-    loop, _ = make_loop(["for i in range(5):\n    get_mass([0.3, 0.0, 0.05], f'can {i}')\n",
-                         "print('done')\n"], arm, block_retries=1)
-    loop.variant = variant
-    loop._limits = variant.block_limits(LIMITS)  # noqa: SLF001 - as AgentLoop builds it
-    mind = run_episode(loop)
-    assert arm.motions == ["get_mass", "get_mass"]
+    coder = ScriptedCoder(["for i in range(5):\n    get_mass([0.3, 0.0, 0.05], f'can {i}')\n",
+                           "print('done')\n"])
+    rig = make_rig(coder, variant=variant, block_retries=1, quick=True)
+    mind = rig.run_episode()
+    assert rig.motions == ["get_mass", "get_mass"]
     assert "limit max_probe_calls" in mind.steps[0].error
     config.write_text("name: bad\nmax_probe_calls: 0\n")
     with pytest.raises(ScenarioError, match="max_probe_calls"):

@@ -39,7 +39,7 @@ LAYERS = (
     ("scenario",),
     # The robot stack (station, skills, probes on one request path), perception, the API.
     ("robot_stack", "perception", "emulated_world"),
-    ("knowledge", "free_spot", "robot_api"),
+    ("knowledge", "free_spot", "robot_calls", "robot_api"),
     # What runs on the API: the tasks and the agent; then what records an agent.
     ("tasks", "agent"),
     ("recording",),

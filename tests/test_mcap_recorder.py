@@ -4,6 +4,7 @@ an MCAP file out, without a station, a simulator of the world or an agent."""
 from __future__ import annotations
 
 import json
+import math
 import time
 
 import numpy as np
@@ -12,15 +13,16 @@ from fault_source import FaultSource
 from jsonschema import Draft202012Validator
 from mcap.reader import NonSeekingReader, make_reader
 from mcap.writer import Writer
-from pydrake.common.value import AbstractValue
+from pydrake.common.value import AbstractValue, Value
 from pydrake.geometry import Meshcat
 from pydrake.systems.analysis import Simulator
-from pydrake.systems.framework import DiagramBuilder
+from pydrake.systems.framework import DiagramBuilder, LeafSystem
 from pydrake.systems.primitives import ConstantValueSource, ConstantVectorSource
 from pydrake.systems.sensors import ImageRgba8U
 
 from physcap_drake.app.replay import replay_in_meshcat, replay_samples
 from physcap_drake.control.planning_model import TCP_FRAME, PlanningModel
+from physcap_drake.knowledge import KNOWLEDGE_PORT, KnowledgeEntry
 from physcap_drake.recording import topics
 from physcap_drake.recording.mcap_recorder import GRIPPER_JOINT, McapRecorder
 from physcap_drake.recording.mcap_sink import McapSink
@@ -48,10 +50,35 @@ FAULT = "the arm reports: emergency stop"
 REPLAYED_EPISODE = {"task": "identify_empty_can", "seed": "0"}
 
 
-def _recorder_diagram(sink, time_base=None, fault_at=None):
-    """A recorder fed by constant station signals, a synthetic image and a fault latched at
-    `fault_at` s (never, with None); returns (diagram, recorder, model, joint names, TCP
-    frame)."""
+class KnowledgeSource(LeafSystem):
+    """The scene knowledge as an AgentSystem's `agent.knowledge` output shows it: FACTS[:k],
+    k growing by one in its own event at each of the times `at` (s)."""
+
+    def __init__(self, at: tuple[float, ...]):
+        super().__init__()
+        self._at = at
+        self._known = self.DeclareAbstractState(Value(0))
+        self.DeclarePeriodicUnrestrictedUpdateEvent(0.005, 0.0, self._learn)
+        self.DeclareAbstractOutputPort(
+            KNOWLEDGE_PORT, lambda: AbstractValue.Make(()),
+            lambda context, output: output.set_value(
+                FACTS[:context.get_abstract_state(self._known).get_value()]),
+            {self.abstract_state_ticket(self._known)})
+
+    def _learn(self, context, state) -> None:
+        learned = sum(context.get_time() >= t - 1e-12 for t in self._at)
+        state.get_mutable_abstract_state(self._known).set_value(learned)
+
+
+FACTS = (KnowledgeEntry("red can", "mass", 0.35, "kg", True, "", 8.0),
+         KnowledgeEntry("green can", "mass", math.nan, "kg", False, "interrupted: refused",
+                        17.5))
+
+
+def _recorder_diagram(sink, time_base=None, fault_at=None, knowledge_at=None):
+    """A recorder fed by constant station signals, a synthetic image, a fault latched at
+    `fault_at` s (never, with None) and, with `knowledge_at`, the scene knowledge; returns
+    (diagram, recorder, model, joint names, TCP frame)."""
     scenario = load_scenario(stations_dir() / "piper_table.yaml")
     config = scenario.station
     model = PlanningModel(scenario.directives, config.arm_model, config.gripper_model)
@@ -76,6 +103,9 @@ def _recorder_diagram(sink, time_base=None, fault_at=None):
     builder.Connect(camera.get_output_port(), recorder.GetInputPort(ports.CAMERA_RGB))
     fault = builder.AddSystem(FaultSource(FAULT, fault_at))
     builder.Connect(fault.get_output_port(), recorder.GetInputPort(ports.ARM_FAULT))
+    if knowledge_at is not None:
+        knowledge = builder.AddSystem(KnowledgeSource(knowledge_at))
+        builder.Connect(knowledge.get_output_port(), recorder.GetInputPort(KNOWLEDGE_PORT))
     return builder.Build(), recorder, model, joint_names, tcp
 
 
@@ -159,6 +189,24 @@ def test_a_fault_is_written_once_at_the_end_of_the_step_that_latched_it(run, tmp
     schema = json.loads(next(s for s in schemas if s.name == "physcap.ArmFault").data)
     assert not list(Draft202012Validator(schema).iter_errors(faults[0].value))
     assert list(Draft202012Validator(schema).iter_errors({**faults[0].value, "fault": ""}))
+
+
+def test_each_fact_of_the_knowledge_port_is_written_once_when_it_appears(run, tmp_path):
+    assert run[0].on(topics.AGENT_KNOWLEDGE) == []  # the input left unconnected: none
+    path = tmp_path / "knowledge.mcap"
+    sink = McapSink(path)
+    Simulator(_recorder_diagram(sink, knowledge_at=(0.1, 0.2))[0]).AdvanceTo(DURATION)
+    sink.close()
+    facts = read_recording(path).on(topics.AGENT_KNOWLEDGE)
+    assert [(f.value["subject"], f.value["ok"]) for f in facts] == [("red can", True),
+                                                                    ("green can", False)]
+    # Each at the end of the step in which the port gained it, as the fault is.
+    assert [f.time_s for f in facts] == pytest.approx([0.105, 0.205])
+    assert facts[0].value["value"] == 0.35 and facts[1].value["robot_time_s"] == 17.5
+    with path.open("rb") as stream:
+        schemas = make_reader(stream).get_summary().schemas.values()
+    schema = json.loads(next(s for s in schemas if s.name == "physcap.KnowledgeEntry").data)
+    assert not list(Draft202012Validator(schema).iter_errors(facts[0].value))
 
 
 def test_bad_periods_and_joint_counts_are_refused_by_name():

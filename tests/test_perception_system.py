@@ -1,7 +1,7 @@
 """The PerceptionSystem through its ports: one look per frame (Drake's cache), its memory in
 its Context (a clone carries it), the sizes held across the looks that read them; and, on a
-rendered scene, get_object_pose and the AgentSystem seeing the same objects from its one
-output."""
+rendered scene, get_object_pose and the AgentSystem (its observation and the camera looks
+of its robot calls) seeing the same objects from its one output."""
 
 from __future__ import annotations
 
@@ -19,6 +19,7 @@ from physcap_drake.perception.perception_system import (
 )
 from physcap_drake.perception.seen_object import SeenObject
 from physcap_drake.perception.visible_objects import VisibleObject
+from physcap_drake.robot_calls import GraspPoint, InView, Locate
 from physcap_drake.station import ports
 
 W, H = 8, 6
@@ -123,15 +124,25 @@ def test_get_object_pose_and_the_agent_see_the_same_objects_from_one_look(episod
     counting.look = lambda images: looks.append(1) or original(images)
     try:
         agent = episode.robot.agent
-        observation = agent.observation(agent.GetMyContextFromRoot(
-            episode.api.simulator.get_context()))
+        context = agent.GetMyContextFromRoot(episode.api.simulator.get_context())
+        observation = agent.observation(context)
+
+        def answer(action):  # the agent's answer to a look of its code's robot calls
+            return agent._answer(context, agent.state(context), action, 0.0)[1]
+
         view = episode.look()
         assert observation.names() == [s.name for s in view.objects]
         assert len(observation.names()) >= 4
+        assert [s.name for s in answer(InView())] == observation.names()
         for seen in view.objects:
             np.testing.assert_array_equal(episode.api.get_object_pose(seen.name),
                                           seen.grasp_point)
-        assert len(looks) == 1  # the agent, get_object_pose and the judge: one output
+            np.testing.assert_array_equal(answer(GraspPoint(seen.name)), seen.grasp_point)
+            assert answer(Locate(seen.name)) is seen
+        with pytest.raises(ValueError, match="basket"):
+            answer(GraspPoint("green basket"))
+        # The agent, its code's looks, get_object_pose and the judge: one output.
+        assert len(looks) == 1
         sizes = episode.perception.GetOutputPort(SIZES_PORT).Eval(
             perception_context(episode))
         assert [round(g.top_z, 3) for g in sizes] == [o.height_m for o in observation.objects]

@@ -4,9 +4,9 @@ hold. Judged by the simulator's ground truth."""
 
 import numpy as np
 import pytest
+from sandbox_runs import run_sandboxed
 
 from physcap_drake.agent.code_api import CodeAPI
-from physcap_drake.agent.sandbox import run_sandboxed
 from physcap_drake.app.episode import make_episode
 from physcap_drake.tasks.ground_truth import check_upright_and_resting
 from physcap_drake.tasks.placement import TRAY_FLOOR, check_in_tray
@@ -90,7 +90,8 @@ def test_generated_code_calls_the_skills_through_the_sandbox(episode):
             "print('spot', len(free_spot('wooden tray', 'blue cube 1')))\n"
             "found = lift_and_look(get_object_pose('blue cube 1'), 'blue cube 1')\n"
             "print('found', found)\n")
-    outcome = run_sandboxed(code, CodeAPI(api, physx=False).functions())
+    # The block's robot calls are steps; the blocking driver answers each of their actions.
+    outcome = run_sandboxed(code, CodeAPI(physx=False).table(api.calls), wait=api.answer)
     assert outcome.ok, outcome.error
     assert outcome.stdout.splitlines() == ["closed 0.0 False", "spot 2", "found []"]
     assert api.knowledge.as_text().splitlines()[-1] == (

@@ -8,11 +8,11 @@ from __future__ import annotations
 import dataclasses as dc
 import math
 import re
-import types
 
 import cv2
 import numpy as np
 import pytest
+from sandbox_runs import run_sandboxed
 
 from physcap_drake.agent.code_api import EXPLORATIONS_ROBOT_S, MANOEUVRES, CodeAPI
 from physcap_drake.agent.history import StepRecord
@@ -20,14 +20,14 @@ from physcap_drake.agent.llm.base import LLMRequest
 from physcap_drake.agent.observation import ObjectInView, Observation
 from physcap_drake.agent.prompts import AgentContext, PromptBook
 from physcap_drake.agent.reference.reasoner import ReferenceReasoner
-from physcap_drake.agent.sandbox import policy, run_sandboxed
+from physcap_drake.agent.sandbox import policy
 from physcap_drake.agent.schemas import Candidate, JointPlannerAnswer, PlannerAnswer
 from physcap_drake.agent.structured_call import ask_structured
 from physcap_drake.agent.variant import load_variant, variant_names
 from physcap_drake.agent.world_facts import WorldFacts, finger_length
 from physcap_drake.knowledge import KnowledgeEntry
 from physcap_drake.resources import stations_dir
-from physcap_drake.robot_api import RobotAPI
+from physcap_drake.robot_calls import RobotCalls
 from physcap_drake.scenario import load_scenario
 from physcap_drake.station.robot_model import robot_model
 from physcap_drake.tasks.registry import TASKS
@@ -67,9 +67,7 @@ def _observation(task: str) -> Observation:
 
 
 def _coder_api(physx: bool) -> CodeAPI:
-    stand_in = types.SimpleNamespace(**{name: (lambda *args: None) for name in dir(RobotAPI)
-                                        if not name.startswith("_")})
-    return CodeAPI(stand_in, physx=physx)
+    return CodeAPI(physx=physx)
 
 
 def _requests(task: str, world: WorldFacts) -> list[LLMRequest]:
@@ -122,7 +120,7 @@ def _text(request: LLMRequest) -> str:
 
 def test_no_prompt_names_a_robot_function_the_coder_lacks(rendered):
     _, requests = rendered
-    robot_calls = {n for n in dir(RobotAPI) if not n.startswith("_") and "_" in n}
+    robot_calls = {n for n in dir(RobotCalls) if not n.startswith("_") and "_" in n}
     for request in requests:
         coder_names = set(request.context["functions"])
         text = _text(request)

@@ -53,6 +53,7 @@ EXPECTED_SCHEMAS = {
     topics.AGENT_CODE: "physcap.CodeBlock",
     topics.AGENT_OUTPUT: "physcap.CodeOutput",
     topics.AGENT_MEASUREMENT: "physcap.Measurement",
+    topics.AGENT_KNOWLEDGE: "physcap.KnowledgeEntry",
     topics.LLM_CALLS: "physcap.LLMCall",
     topics.AGENT_PROGRESS: "physcap.AgentProgress",
     topics.EPISODE_SUMMARY: "physcap.EpisodeSummary",
@@ -189,6 +190,10 @@ def test_agent_messages_are_structured(recording):
     assert "get_mass" in code["code"] and code["decision"] == "explore"
     measurement = recording.on(topics.AGENT_MEASUREMENT)[0].value["data"]
     assert measurement["prop"] == "mass" and measurement["unit"] == "kg"
+    # The same fact from the AgentSystem's agent.knowledge port, once.
+    facts = [m.value for m in recording.on(topics.AGENT_KNOWLEDGE)]
+    assert [(f["subject"], f["value"]) for f in facts] == [
+        (measurement["subject"], measurement["value"])]
     calls = [m.value for m in recording.on(topics.LLM_CALLS)]
     assert {c["role"] for c in calls} >= {"planner", "prioritizer", "coder"}
     assert all(c["input_tokens"] > 0 and c["latency_s"] >= 0 for c in calls)

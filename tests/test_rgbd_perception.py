@@ -70,8 +70,10 @@ def _inputs(system) -> set[str]:
 
 def test_the_perception_is_wired_to_what_its_module_reads_and_the_agent_to_it():
     episode = make_episode("identify_empty_can", 0, with_agent=True, perception="rgbd")
-    # The agent sees through the perception system, and hears the request path's answers.
-    assert _inputs(episode.robot.agent) == {VIEW_PORT, SIZES_PORT, STATUS_PORT}
+    # The agent sees through the perception system, reads the gap between the fingers
+    # (close_gripper's answer) and hears the request path's answers.
+    assert _inputs(episode.robot.agent) == {VIEW_PORT, SIZES_PORT,
+                                            ports.GRIPPER_POSITION_MEASURED, STATUS_PORT}
     assert _inputs(episode.perception) == {ports.CAMERA_RGB, ports.CAMERA_DEPTH,
                                            ports.ARM_POSITION_MEASURED}
     label = make_episode("identify_empty_can", 0, with_agent=True).perception

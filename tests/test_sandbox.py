@@ -20,6 +20,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from sandbox_runs import run_sandboxed
 
 from physcap_drake.agent.sandbox import (
     ApiFunction,
@@ -36,7 +37,6 @@ from physcap_drake.agent.sandbox import (
     Vector,
     check_code,
     protocol,
-    run_sandboxed,
     seccomp,
 )
 

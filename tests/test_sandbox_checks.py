@@ -27,7 +27,8 @@ from physcap_drake.agent.sandbox.messages import (
     read_message,
 )
 from physcap_drake.agent.sandbox.session import raise_reply
-from physcap_drake.robot_api import RobotAPI
+from physcap_drake.control.skills_config import SkillsConfig
+from physcap_drake.robot_calls import RobotCalls
 
 SPECS = {name: spec_of(name, None) for name in PARAMETER_KINDS
          if name != "breakpoint_code_block"}
@@ -46,10 +47,10 @@ def bind(name: str, /, *args, **kwargs) -> Call | RefusedCall:
 
 def test_specs_follow_the_robot_api_signatures():
     for name, spec in SPECS.items():
-        method = getattr(RobotAPI, name)
+        method = getattr(RobotCalls, name)
         expected = [p for p in inspect.signature(method).parameters if p != "self"]
         assert list(spec.signature.parameters) == expected, name
-    functions = CodeAPI(RobotAPI.__new__(RobotAPI), physx=True).functions()
+    functions = CodeAPI(physx=True).table(RobotCalls(0.1, SkillsConfig()))
     assert set(functions) == set(PARAMETER_KINDS)
     assert functions["get_mass"].spec.motion and not functions["get_object_pose"].spec.motion
 

@@ -8,16 +8,14 @@ import io
 import math
 
 import pytest
+from agent_rig import ScriptedCoder, make_rig
 from rich.console import Console
-from test_agent_untrusted_blocks import StandInArm, make_loop, run_episode
 
 from physcap_drake.agent.sandbox import Name, Refused
 from physcap_drake.agent.sandbox.clean_text import clean, fence, name_problem, quoted
 from physcap_drake.agent.transcript import Transcript, entry_markdown
 from physcap_drake.commands import run as run_command
-from physcap_drake.control.errors import SkillRefused
 from physcap_drake.knowledge import KnowledgeEntry, SceneKnowledge
-from physcap_drake.robot_api import RobotAPI
 
 CLEAR = "\x1b[2J\x1b[H"
 CLIPBOARD = "\x1b]52;c;cm0gLXJmIH4=\x07"
@@ -104,18 +102,6 @@ def test_a_failed_measurement_is_the_parents_sentence_with_the_name_quoted():
                    knowledge.as_text().splitlines())
 
 
-class RefusingArm(StandInArm):
-    """get_mass refuses targets outside the workspace and records the failure through the
-    RobotAPI's own recorder, as the real API does."""
-
-    def get_mass(self, position, name: str | None = None) -> float:
-        subject = name or "object"
-        with RobotAPI._recording_failures(self, subject, "mass", "kg"):  # noqa: SLF001
-            if max(abs(value) for value in position) > 0.8:
-                raise SkillRefused("target outside the workspace")
-            return super().get_mass(position, name)
-
-
 HOSTILE_BLOCK = (
     "print('\\x1b[2J\\x1b[Hcleared \\x1b]52;c;cm0gLXJmIH4=\\x07 \\x9b2J'"
     " + '\\x1b]8;;https://evil.example\\x1b\\\\click\\x1b]8;;\\x1b\\\\')\n"
@@ -130,16 +116,17 @@ HOSTILE_BLOCK = (
 
 
 def test_a_hostile_block_leaves_no_control_sequence_and_no_forged_measurement():
-    arm = RefusingArm()
     shown = io.StringIO()
     console = Console(file=shown, force_terminal=True, width=200)
     printer = run_command.EntryPrinter()
-    loop, coder = make_loop([HOSTILE_BLOCK, "print('done')\n"], arm, block_retries=2,
-                            transcript=Transcript(printer))  # as `physcap run` prints
+    coder = ScriptedCoder([HOSTILE_BLOCK, "print('done')\n"])
+    # get_mass refuses the target and records the failure, as on the robot
+    rig = make_rig(coder, reach=0.8, block_retries=2,
+                   transcript=Transcript(printer))  # as `physcap run` prints
     original = run_command.console
     run_command.console = console
     try:
-        mind = run_episode(loop)
+        mind = rig.run_episode()
     finally:
         printer.stop()
         run_command.console = original
@@ -147,17 +134,17 @@ def test_a_hostile_block_leaves_no_control_sequence_and_no_forged_measurement():
     error = mind.steps[0].error
     assert error.startswith("memory_limit: memory limit (512 MB) reached: MemoryError at "
                             "line 8; the block's error said \"")
-    markdown = loop.transcript.as_markdown()
+    markdown = rig.transcript.as_markdown()
     next_prompt = coder.requests[1].prompt
     for where, text in (("transcript", markdown), ("prompt", next_prompt),
-                        ("entries", repr([e.as_json() for e in loop.transcript.entries]))):
+                        ("entries", repr([e.as_json() for e in rig.transcript.entries]))):
         assert "\x1b" not in text and "\x9b" not in text and "\x07" not in text, where
     console_text = shown.getvalue()
     for sequence in ("\x1b[2J", "\x1b]52", "\x1b]8", "\x9b"):
         assert sequence not in console_text
     assert "cleared" in console_text
     # only the name without '=' passed the name check; it failed and is quoted, not a fact
-    assert [entry.ok for entry in arm.knowledge.entries] == [False]
+    assert [entry.ok for entry in rig.knowledge.entries] == [False]
     knowledge_lines = [line for line in next_prompt.splitlines() if "blue cube 3" in line]
     assert knowledge_lines, "the failed measurement is not in the next prompt"
     assert not any(line.lstrip("- ").startswith("blue cube 3") for line in knowledge_lines)

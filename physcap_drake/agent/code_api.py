@@ -21,7 +21,7 @@ from physcap_drake.agent.sandbox import (
     Vector,
     then,
 )
-from physcap_drake.robot_api import RobotAPI
+from physcap_drake.robot_calls import RobotCalls
 
 #: The functions of every variant, and those only variants with the PhysX modules get.
 MOTION_FUNCTIONS = ("get_object_pose", "goto_pose", "open_gripper", "close_gripper",
@@ -69,39 +69,32 @@ def breakpoint_code_block() -> None:
 
 
 class CodeAPI:
-    """The function table handed to the sandbox for one episode, with a log of the calls."""
+    """The functions a code block may call (those of a variant with or without the PhysX
+    modules), their API text for the prompts, and their table for the sandbox."""
 
-    def __init__(self, api: RobotAPI, physx: bool):
-        self._api = api
-        names = MOTION_FUNCTIONS + (PHYSX_FUNCTIONS if physx else ())
-        self._functions: dict[str, Callable] = {name: getattr(api, name) for name in names}
-        self._functions["breakpoint_code_block"] = breakpoint_code_block
-        # Built here, so a RobotAPI signature that PARAMETER_KINDS does not match fails now.
-        self._table = {name: ApiFunction(_plain_results(function), spec_of(name, function))
-                       for name, function in self._functions.items()}
+    def __init__(self, physx: bool):
+        self._names = list(MOTION_FUNCTIONS + (PHYSX_FUNCTIONS if physx else ())) + [
+            "breakpoint_code_block"]
 
-    def functions(self) -> dict[str, ApiFunction]:
-        """name -> the function (numpy results turned into lists for the RPC) with the spec
-        its calls are checked against (the RobotAPI method's signature and
+    def table(self, calls: RobotCalls) -> dict[str, ApiFunction]:
+        """name -> the function of `calls` (its steps; numpy results turned into lists for
+        the RPC) with the spec its calls are checked against (the RobotCalls signature and
         PARAMETER_KINDS)."""
-        return dict(self._table)
-
-    def stepwise_functions(self) -> dict[str, ApiFunction]:
-        """The same table for a client that waits on its own: the robot calls return their
-        steps (see `RobotAPI.stepwise`), the other functions answer at once."""
-        return {name: ApiFunction(_plain_results(self._api.stepwise(name))
-                                  if hasattr(RobotAPI, name) else entry.function, entry.spec)
-                for name, entry in self._table.items()}
+        functions = {name: getattr(calls, name) for name in self._names
+                     if name != "breakpoint_code_block"}
+        functions["breakpoint_code_block"] = breakpoint_code_block
+        return {name: ApiFunction(_plain_results(function), spec_of(name, function))
+                for name, function in functions.items()}
 
     def names(self) -> list[str]:
-        return list(self._functions)
+        return list(self._names)
 
     def describe(self) -> str:
         """The API text of the prompts: the frame conventions, then each function's
         signature and docstring."""
-        parts = [inspect.cleandoc(RobotAPI.__doc__ or "")]
-        for name, function in self._functions.items():
-            target = getattr(RobotAPI, name, function)
+        parts = [inspect.cleandoc(RobotCalls.__doc__ or "")]
+        for name in self._names:
+            target = getattr(RobotCalls, name, breakpoint_code_block)
             signature = inspect.signature(target)
             parameters = [p for p in signature.parameters.values() if p.name != "self"]
             shown = signature.replace(parameters=parameters, return_annotation=inspect.
@@ -120,10 +113,10 @@ def in_metres(text: str) -> str:
 
 
 def spec_of(name: str, function: Callable) -> FunctionSpec:
-    """The spec of one function: the signature of the RobotAPI method of that name (or of
-    `function` itself if RobotAPI has none), the kinds of PARAMETER_KINDS, and whether it
-    moves the robot."""
-    method = getattr(RobotAPI, name, None)
+    """The spec of one function: the signature of the RobotCalls function of that name (or
+    of `function` itself if RobotCalls has none), the kinds of PARAMETER_KINDS, and whether
+    it moves the robot."""
+    method = getattr(RobotCalls, name, None)
     return FunctionSpec.of(name, method or function, PARAMETER_KINDS[name],
                            motion=name in MOVING, drop_self=method is not None,
                            counted_as=COUNTED_AS.get(name, ""))

@@ -11,16 +11,16 @@ import time
 from collections.abc import Callable
 from pathlib import Path
 
+from physcap_drake.agent.agent_setup import AgentSetup
 from physcap_drake.agent.agent_system import AgentSystem
-from physcap_drake.agent.llm import LLMError, ModelSettings, check_client, make_llm
+from physcap_drake.agent.llm import ModelSettings, make_llm
 from physcap_drake.agent.llm.base import CallRecord, LLMClient, takes_images
 from physcap_drake.agent.llm.pointer_ask import pointer_ask
-from physcap_drake.agent.loop import AgentLoop, AgentMind, EpisodeOutcome
-from physcap_drake.agent.prompts import PromptBook
+from physcap_drake.agent.mind import AgentMind, EpisodeOutcome
+from physcap_drake.agent.phases import FailureKind
 from physcap_drake.agent.sandbox import SandboxLimits
 from physcap_drake.agent.transcript import Transcript, TranscriptEntry
 from physcap_drake.agent.variant import load_variant
-from physcap_drake.agent.world_facts import WorldFacts
 from physcap_drake.app.episode import Episode, make_episode
 from physcap_drake.app.episode_description import JudgeKind
 from physcap_drake.app.judges import OperatorJudge, SimulatorJudge
@@ -64,6 +64,13 @@ class AgentRun:
     judge: str = "simulator"
     ground_truth: object | None = None
 
+    @property
+    def knowledge(self) -> tuple:
+        """The scene knowledge at the end (KnowledgeEntry, oldest first), from the
+        AgentSystem's Context."""
+        agent = self.episode.robot.agent
+        return agent.knowledge(agent.GetMyContextFromRoot(self.episode.api.clock.context))
+
     def summary(self) -> dict:
         """The metrics as plain data: success, oi, robot_time_s, and the run's particulars
         (with another judge than the simulator: the judge, and the simulator's verdict
@@ -89,8 +96,7 @@ class AgentRun:
         return summary
 
 
-def run_agent(clock: Clock, system: AgentSystem, context, loop: AgentLoop,
-              timeout: float) -> AgentMind:
+def run_agent(clock: Clock, system: AgentSystem, context, timeout: float) -> AgentMind:
     """Runs the episode to its end: one run of the clock until the AgentSystem's mind is done
     or failed (at most `timeout` s of diagram time). Returns the final mind.
 
@@ -106,7 +112,25 @@ def run_agent(clock: Clock, system: AgentSystem, context, loop: AgentLoop,
         raise
     fault = clock.fault
     mind = system.release(context, ArmFault(fault) if fault else None)
-    return mind if finished or fault else loop.time_up(mind, timeout)
+    if finished or fault:
+        return mind
+    return system.policy.end(mind, f"the episode ran {timeout:g} s without ending",
+                             FailureKind.LIMIT, system.robot_time(context))
+
+
+def episode_outcome(mind: AgentMind, check: Callable | None, transcript: Transcript,
+                    robot_time_s: float, wall_time_s: float) -> EpisodeOutcome:
+    """The episode's result once the mind is done or failed (or interrupted): the task's
+    check (an object with .success and .reason) runs now, noted in the transcript."""
+    result = check() if check is not None else None
+    if result is not None:
+        transcript.add("result", len(mind.steps), robot_time_s,
+                       f"success: {result.success} ({result.reason})")
+    return EpisodeOutcome(
+        success=None if result is None else bool(result.success),
+        reason="" if result is None else result.reason, oi=mind.oi,
+        robot_time_s=robot_time_s, wall_time_s=wall_time_s, steps=list(mind.steps),
+        failure=mind.failure, failure_kind=mind.failure_kind)
 
 
 def judge_outcome(episode: Episode, outcome: EpisodeOutcome,
@@ -165,21 +189,7 @@ def run_agent_episode(task: str, seed: int, *, agent: str = "physcap",
     client = client or make_llm(llm, model, seed=seed)
     if pointer == "vlm" and not takes_images(client):
         raise ValueError("the vlm pointer needs a model that takes images (not --no-images)")
-    episode = make_episode(task, seed, meshcat=meshcat, with_agent=True, sink=sink,
-                           scenario_file=scenario_file, perception=perception, judge=judge,
-                           scenario_text=scenario_text)
-    if pointer == "vlm":
-        episode.api.use_locator(ObjectLocator(VlmPointer(pointer_ask(client))))
-    clock, system = episode.api.clock, episode.robot.agent
-    root = clock.context  # read only: the agent's state changes only in its own events
-    agent_context = system.GetMyContextFromRoot(root)
-    recording = None if sink is None else AgentRecording(
-        sink, root.get_time, client=client, recorder=episode.robot.recorder,
-        context=episode.robot.recorder.GetMyContextFromRoot(root))
-    if recording is not None:
-        recording.start({"task": task, "agent": variant.name, "seed": seed,
-                         "llm": getattr(client, "name", llm),
-                         "model": getattr(client, "model", model or ""), **git_state()})
+    recording: AgentRecording | None = None  # once the diagram is built
 
     def on_phase(phase: str, steps: int, oi: int) -> None:
         if recording is not None:
@@ -191,43 +201,57 @@ def run_agent_episode(task: str, seed: int, *, agent: str = "physcap",
         if on_entry is not None:
             on_entry(entry)
 
+    def on_observe() -> None:
+        if recording is not None:
+            recording.on_observe()
+
     transcript = Transcript(on_any_entry)
-    loop = AgentLoop(task=episode.instance.prompt, variant=variant, llm=client, api=episode.api,
-                     check=None if episode.judge == "operator" else episode.check,
-                     seed=seed, limits=limits,
-                     robot_time_limit=robot_time_limit, transcript=transcript,
-                     task_budget_s=getattr(get_task(task), "time_limit_s", None),
-                     on_phase=on_phase, prompts=PromptBook(
-                         images=takes_images(client), world=WorldFacts.build(
-                             episode.robot.model, episode.scenario.skills.workspace,
-                             episode.camera.X_WC)))
-    observe = recording.on_observe if recording is not None else None
+    vlm = VlmPointer(pointer_ask(client)) if pointer == "vlm" else None
+    setup = AgentSetup(variant, client, seed=seed, limits=limits,
+                       robot_time_limit=robot_time_limit,
+                       task_budget_s=getattr(get_task(task), "time_limit_s", None),
+                       transcript=transcript, on_phase=on_phase, on_observe=on_observe, vlm=vlm)
+    episode = make_episode(task, seed, meshcat=meshcat, sink=sink, scenario_file=scenario_file,
+                           perception=perception, judge=judge, scenario_text=scenario_text,
+                           agent=setup)
+    if vlm is not None:
+        episode.api.use_locator(ObjectLocator(vlm))
+    clock, system = episode.api.clock, episode.robot.agent
+    root = clock.context  # read only: the agent's state changes only in its own events
+    agent_context = system.GetMyContextFromRoot(root)
     try:
-        if on_start is not None:
-            on_start(episode)
-        start = time.monotonic()
-        if wall_time_limit is not None and hasattr(client, "stop_calls_at"):
-            client.stop_calls_at(start + wall_time_limit, f"the episode's wall-clock limit "
-                                 f"of {wall_time_limit:g} s has passed; no more model calls")
-        problem = ""
         try:
-            found = check_client(client)
-            if found:
-                transcript.add("model", -1, episode.api.robot_time, f"model server: {found}")
-        except LLMError as error:
-            problem = str(error)  # the agent's first event ends the episode with it
-        system.attach(loop, lambda: episode.api.robot_time, observe, start_problem=problem)
-        mind = run_agent(clock, system, agent_context, loop, timeout=robot_time_limit + (
-            wall_time_limit or WALL_TIME_LIMIT) + EPISODE_TIME_MARGIN)
-        # Judged before the station is released: a camera judge still needs its camera.
-        outcome = loop.outcome(mind, time.monotonic() - start)
-        outcome, truth = judge_outcome(episode, outcome, operator, transcript)
+            if sink is not None:
+                recording = AgentRecording(
+                    sink, root.get_time, client=client, recorder=episode.robot.recorder,
+                    context=episode.robot.recorder.GetMyContextFromRoot(root))
+                recording.start({"task": task, "agent": variant.name, "seed": seed,
+                                 "llm": getattr(client, "name", llm),
+                                 "model": getattr(client, "model", model or ""),
+                                 **git_state()})
+            if on_start is not None:
+                on_start(episode)
+            start = time.monotonic()
+            if wall_time_limit is not None and hasattr(client, "stop_calls_at"):
+                client.stop_calls_at(start + wall_time_limit, "the episode's wall-clock "
+                                     f"limit of {wall_time_limit:g} s has passed; no more "
+                                     "model calls")
+            mind = run_agent(clock, system, agent_context, timeout=robot_time_limit + (
+                wall_time_limit or WALL_TIME_LIMIT) + EPISODE_TIME_MARGIN)
+            # Judged before the station is released: a camera judge still needs its camera.
+            outcome = episode_outcome(
+                mind, None if episode.judge == JudgeKind.OPERATOR else episode.check, transcript,
+                episode.api.robot_time, time.monotonic() - start)
+            outcome, truth = judge_outcome(episode, outcome, operator, transcript)
+        finally:
+            episode.close()
+        run = AgentRun(task, variant.name, seed, getattr(client, "name", llm),
+                       getattr(client, "model", model or ""), outcome, transcript,
+                       list(getattr(client, "records", [])), episode, episode.judge, truth)
+        if recording is not None:
+            recording.finish(run.summary())
     finally:
-        system.detach()  # else the finished episode could never be freed (see detach)
-        episode.close()
-    run = AgentRun(task, variant.name, seed, getattr(client, "name", llm),
-                   getattr(client, "model", model or ""), outcome, transcript,
-                   list(getattr(client, "records", [])), episode, episode.judge, truth)
-    if recording is not None:
-        recording.finish(run.summary())
+        # The hooks the AgentSystem holds let go of the recording, and so of the diagram's
+        # context: else the finished episode could never be freed (see the design notes).
+        recording = None
     return run

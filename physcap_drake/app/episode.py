@@ -8,6 +8,7 @@ from __future__ import annotations
 import dataclasses as dc
 from pathlib import Path
 
+from physcap_drake.agent.agent_setup import AgentSetup
 from physcap_drake.agent.agent_system import AgentSystem
 from physcap_drake.app.episode_description import (
     EpisodeDescription,
@@ -112,32 +113,36 @@ def make_episode(task_name: str, seed: int, answer: str = "", meshcat=None, *,
                  with_agent: bool = False, sink: McapSink | None = None,
                  scenario_file: str | Path | None = None,
                  perception: str | None = None, judge: str | None = None,
-                 scenario_text: str = "") -> Episode:
+                 scenario_text: str = "", agent: AgentSetup | None = None) -> Episode:
     """Describes the episode (`describe_episode`: the scenario, stations/<task>.yaml or
     `scenario_file` with `scenario_text` laid over it, the objects laid out for `seed`,
     `perception` "rgbd" or "label", `judge` "simulator", "perception" or "operator"; errors
-    name the bad field) and builds it (`build_episode`). Call `close()` when done."""
+    name the bad field) and builds it (`build_episode`, with `agent`). Call `close()` when
+    done."""
     return build_episode(describe_episode(
         task_name, seed, answer, scenario_file=scenario_file, scenario_text=scenario_text,
-        perception=perception, judge=judge), meshcat, with_agent=with_agent, sink=sink)
+        perception=perception, judge=judge), meshcat, with_agent=with_agent, sink=sink,
+        agent=agent)
 
 
 def build_episode(description: EpisodeDescription, meshcat=None, *, with_agent: bool = False,
-                  sink: McapSink | None = None) -> Episode:
+                  sink: McapSink | None = None, agent: AgentSetup | None = None) -> Episode:
     """Builds and initializes the described episode: the station (its simulated world with
-    the objects' hidden masses), a PerceptionSystem feeding the robot API (and, `with_agent`,
-    an AgentSystem in the diagram: the client of the robot's request path, whose model calls
-    run in the background on the real arm's station); with a `sink`, an McapRecorder in the
-    diagram records the station's signals to it. Call `close()` on the episode when done."""
+    the objects' hidden masses), a PerceptionSystem feeding the robot API (and, `with_agent`
+    or with `agent`, an AgentSystem in the diagram: the client of the robot's request path,
+    with `agent`'s policy and robot calls, whose model calls run in the background on the
+    real arm's station); with a `sink`, an McapRecorder in the diagram records the station's
+    signals to it. Call `close()` on the episode when done."""
     scenario, instance = description.scenario, description.instance()
     station = MakeStation(scenario, meshcat)
     try:
         perception = PerceptionSystem(_perception_module(description, instance, station))
-        agent = AgentSystem(background=not isinstance(scenario.station, SimPiper)) \
-            if with_agent else None
+        background = not isinstance(scenario.station, SimPiper)
+        system = agent.system(perception.camera, instance.prompt, scenario, background) \
+            if agent is not None else AgentSystem(background=background) if with_agent else None
         recorder = None if sink is None else make_mcap_recorder(sink, station, scenario)
         robot = build_robot_stack(scenario, station=station, perception=perception,
-                                  agent=agent, recorder=recorder)
+                                  agent=system, recorder=recorder)
         clock = robot.make_clock()
     except BaseException:
         close_station(station)

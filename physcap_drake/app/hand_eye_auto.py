@@ -34,7 +34,8 @@ from physcap_drake.perception.hand_eye_poses import (
     table_clearance_problem,
 )
 from physcap_drake.perception.printed_boards import HAND_EYE_A4
-from physcap_drake.robot_api import RobotAPI, robot_call
+from physcap_drake.robot_api import RobotAPI
+from physcap_drake.robot_calls import request
 from physcap_drake.robot_stack import build_robot_stack
 from physcap_drake.scenario import Scenario
 from physcap_drake.station import close_station, ports
@@ -104,18 +105,16 @@ def slow_scenario(scenario: Scenario, X_WC_nominal: RigidTransform) -> Scenario:
 
 
 class _BoardRobot(RobotAPI):
-    @robot_call
     def close_on_board(self) -> float:
         """Closes the gripper on the board's tab; the gap left (m)."""
-        yield from self._request(MoveGripper(0.0, self._robot.scenario.skills.grasp_force,
-                                             "close on the board", holds=HELD_BOARD))
+        self.drive(request(MoveGripper(0.0, self._robot.scenario.skills.grasp_force,
+                                       "close on the board", holds=HELD_BOARD)))
         return self.gripper_opening
 
-    @robot_call
     def move_board(self, q) -> None:
         """To joints `q` (rad), collision-checked; beside the arm, outside the agent's
         workspace box."""
-        yield from self._request(MoveToJoints(q, "move the board", check_workspace=False))
+        self.drive(request(MoveToJoints(q, "move the board", check_workspace=False)))
 
 
 @dc.dataclass

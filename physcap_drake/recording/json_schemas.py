@@ -67,6 +67,9 @@ _AGENT_ERROR = {"type": "object", "properties": {"kind": _STRING, "error": _STRI
 _MEASUREMENT = {"type": "object", "properties": {
     "subject": _STRING, "prop": _STRING, "value": {"type": "number"}, "unit": _STRING,
     "ok": {"type": "boolean"}, "note": _STRING, "robot_time_s": {"type": "number"}}}
+_KNOWLEDGE = {"type": "object", "properties": {
+    **_MEASUREMENT["properties"], "sentence": _STRING, "detail": _STRING},
+    "required": ["subject", "prop", "unit", "ok"]}
 
 _LLM_CALL = {"type": "object", "properties": {
     "role": _STRING, "model": _STRING, "system": _STRING, "prompt": _STRING,
@@ -130,6 +133,7 @@ def agent_schemas() -> dict[str, tuple[str, dict[str, Any]]]:
         topics.AGENT_OUTPUT: ("physcap.CodeOutput", _entry_schema(_CODE_OUTPUT)),
         topics.AGENT_ERROR: ("physcap.AgentError", _entry_schema(_AGENT_ERROR)),
         topics.AGENT_MEASUREMENT: ("physcap.Measurement", _entry_schema(_MEASUREMENT)),
+        topics.AGENT_KNOWLEDGE: ("physcap.KnowledgeEntry", _KNOWLEDGE),
         topics.GRIPPER_STATE: ("physcap.GripperState", _GRIPPER),
         topics.ARM_STATUS: ("physcap.ArmStatus", _ARM_STATUS),
         topics.LINK: ("physcap.LinkHealth", _LINK),

@@ -5,6 +5,8 @@ Design notes: docs/design/recording.md.
 
 from __future__ import annotations
 
+import dataclasses as dc
+
 import numpy as np
 from pydrake.common.value import AbstractValue, Value
 from pydrake.math import RigidTransform
@@ -14,6 +16,7 @@ from pydrake.systems.framework import Context, EventStatus, LeafSystem, State
 from pydrake.systems.sensors import ImageRgba8U
 
 from physcap_drake.control.planning_model import TCP_FRAME, PlanningModel
+from physcap_drake.knowledge import KNOWLEDGE_PORT
 from physcap_drake.perception.jpeg import encode_jpeg
 from physcap_drake.recording import topics
 from physcap_drake.recording.can_topics import arm_feedback_of, arm_status_message, link_message
@@ -38,8 +41,10 @@ class McapRecorder(LeafSystem):
         piper.torque_measured (6, N·m), gripper.position_measured (1, m),
         gripper.effort_measured (1, 0..1), camera.rgb (ImageRgba8U),
         piper.fault (str, "" while none), body_poses (X_WB by body index; only with
-        `plant` and without `kinematics`).
-    No outputs. State: the fault written (str; a per-step update copies the input).
+        `plant` and without `kinematics`), agent.knowledge (tuple of KnowledgeEntry, the
+        AgentSystem's output; may be left unconnected).
+    No outputs. State: the fault written (str) and how many knowledge entries were written
+    (int); per-step updates copy the inputs.
 
     Args:
         sink: where messages go (the recorder does not close it).
@@ -93,6 +98,8 @@ class McapRecorder(LeafSystem):
                                                   AbstractValue.Make(ImageRgba8U()))
         self._fault = self.DeclareAbstractInputPort(ports.ARM_FAULT, AbstractValue.Make(""))
         self._fault_written = self.DeclareAbstractState(Value(""))
+        self._knowledge = self.DeclareAbstractInputPort(KNOWLEDGE_PORT, AbstractValue.Make(()))
+        self._knowledge_written = self.DeclareAbstractState(Value(0))
         self._body_poses = None
         if plant is not None:
             if kinematics is None:
@@ -109,6 +116,8 @@ class McapRecorder(LeafSystem):
         self.DeclarePeriodicPublishEvent(flush_period, 0.0, self._flush)
         self.DeclarePerStepPublishEvent(self._write_fault)
         self.DeclarePerStepUnrestrictedUpdateEvent(self._note_fault_written)
+        self.DeclarePerStepPublishEvent(self._write_knowledge)
+        self.DeclarePerStepUnrestrictedUpdateEvent(self._note_knowledge_written)
 
     @property
     def sink(self) -> McapSink:
@@ -165,6 +174,26 @@ class McapRecorder(LeafSystem):
         """At the start of a step: the fault the last step's end wrote (the input then)."""
         state.get_mutable_abstract_state(self._fault_written).set_value(
             self._fault.Eval(context))
+
+    def _write_knowledge(self, context: Context) -> EventStatus:
+        """Facts new on the `agent.knowledge` input: written (once; see
+        `_note_knowledge_written`)."""
+        if not self._knowledge.HasValue(context):
+            return EventStatus.DidNothing()
+        entries = self._knowledge.Eval(context)
+        written = context.get_abstract_state(self._knowledge_written).get_value()
+        if len(entries) <= written:
+            return EventStatus.DidNothing()
+        at = self._sink.stamp(context.get_time())
+        for entry in entries[written:]:
+            self._sink.json(topics.AGENT_KNOWLEDGE, at, dc.asdict(entry))
+        return EventStatus.Succeeded()
+
+    def _note_knowledge_written(self, context: Context, state: State) -> None:
+        """At the start of a step: the facts the last step's end wrote (the input then)."""
+        if self._knowledge.HasValue(context):
+            state.get_mutable_abstract_state(self._knowledge_written).set_value(
+                len(self._knowledge.Eval(context)))
 
     def _poses(self, context: Context, joints: dict) -> list | None:
         """World poses of the plant's bodies, by BodyIndex (None: no plant)."""

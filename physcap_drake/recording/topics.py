@@ -37,6 +37,10 @@ AGENT_CODE = "/agent/code"
 AGENT_OUTPUT = "/agent/stdout"
 AGENT_ERROR = "/agent/error"
 AGENT_MEASUREMENT = "/agent/measurement"
+#: physcap.KnowledgeEntry (JSON): each fact of the scene knowledge (a measurement, a failed
+#: one, a lift's finding), once, at the end of the step in which the AgentSystem's
+#: `agent.knowledge` output gained it.
+AGENT_KNOWLEDGE = "/agent/knowledge"
 #: physcap.LLMCall (JSON): one record per language-model call (prompt, answer, latency, tokens).
 LLM_CALLS = "/agent/llm_calls"
 #: physcap.AgentProgress (JSON): the AgentSystem's phase, code blocks run and OI.

@@ -7,7 +7,6 @@ from .ast_check import CodeRejected, check_code
 from .budget import BlockBudget, Meters, Stop
 from .limits import SandboxLimits
 from .outcome import CodeOutcome, OutcomeKind
-from .runner import CallServer, Waiting, run_sandboxed, then
 from .session import SandboxSession
 from .signatures import (
     ApiFunction,
@@ -23,8 +22,9 @@ from .signatures import (
     Vector,
 )
 from .spare import SpareChild
+from .stepping import Waiting, then
 
-__all__ = ["ApiFunction", "BlockBudget", "Call", "CallServer", "CodeOutcome", "CodeRejected",
+__all__ = ["ApiFunction", "BlockBudget", "Call", "CodeOutcome", "CodeRejected",
            "FunctionSpec", "Meters", "Name", "Number", "OrNone", "OutcomeKind", "ParameterKind",
            "PlainValue", "Refused", "SandboxLimits", "SandboxSession", "SpareChild", "Stop",
-           "Text", "Vector", "Waiting", "check_code", "run_sandboxed", "then"]
+           "Text", "Vector", "Waiting", "check_code", "then"]

@@ -1,4 +1,5 @@
-"""One code block's run in the sandbox, step by step: the parent's side of the conversation.
+"""One code block's run in the sandbox, step by step: the parent's side of the conversation,
+serving the code's calls (at once, or in steps for an owner that waits on its own).
 
 Design notes: docs/design/agent.md.
 """
@@ -6,6 +7,7 @@ Design notes: docs/design/agent.md.
 from __future__ import annotations
 
 import contextlib
+import inspect
 import keyword
 import math
 import shutil
@@ -23,6 +25,7 @@ from .limits import SandboxLimits
 from .outcome import CodeOutcome, OutcomeKind
 from .signatures import ApiFunction, Call, api_table
 from .spare import SpareChild, spawn_child
+from .stepping import Waiting
 
 _EXIT_WAIT_S = 2.0
 #: Names the sandbox itself gives the code; API functions may not hide them.
@@ -47,7 +50,8 @@ class SandboxSession:
     the robot time this block may spend, if less than limits.robot_time_s. spare: a child
     started ahead (`spare.SpareChild`), which the session owns from now on: `start` takes
     it over instead of starting a child, `close` kills it if it was never taken (the code
-    was rejected).
+    was rejected). fatal: exception classes of the API that stop the code at once (kind
+    "fault"): the code never hears of them.
     `skip_ast_check` and `real_builtins` are for tests only: they switch off the static
     check and the restricted builtins, so tests can attack the process wall directly.
     """
@@ -55,6 +59,7 @@ class SandboxSession:
     def __init__(self, code: str, api: Mapping[str, Callable[..., Any] | ApiFunction],
                  limits: SandboxLimits | None = None, *, meters: Meters | None = None,
                  robot_time_s: float = math.inf, spare: SpareChild | None = None,
+                 fatal: tuple[type[BaseException], ...] = (),
                  skip_ast_check: bool = False, real_builtins: bool = False):
         _check_api_names(api)
         limits = limits or SandboxLimits()
@@ -65,6 +70,9 @@ class SandboxSession:
         self._meters = meters or Meters()
         self._budget = BlockBudget(limits, robot_time_s)
         self._spare = spare
+        self._fatal = fatal
+        self._steps = None  # the steps of the call that waits (a generator), if any
+        self._serving: Call | None = None  # the call being served
         self._skip_ast_check = skip_ast_check
         self._raw = real_builtins
         self._started = time.monotonic()
@@ -145,6 +153,7 @@ class SandboxSession:
     def close(self) -> None:
         """Kill and reap the child (and a spare never taken), delete its folder.
         Idempotent."""
+        self._steps = None
         if self._spare is not None:
             self._spare.close()
             self._spare = None
@@ -153,6 +162,70 @@ class SandboxSession:
         if self._home is not None:
             shutil.rmtree(self._home, ignore_errors=True)
             self._home = None
+
+    # -- serving the calls (see the design notes) ---------------------------------------
+
+    def serve(self) -> Waiting | CodeOutcome:
+        """Start the run and serve its calls until one waits for an action of the robot
+        (`Waiting`: answer with `resume`) or the run is over (its outcome)."""
+        return self._serve_from(self.start() or self.next_call())
+
+    def resume(self, result: Any) -> Waiting | CodeOutcome:
+        """Go on with the waiting call: `result` is what came of its action."""
+        steps = self._waiting_steps()
+        return self._serve_from(self._advance(lambda: steps.send(result)))
+
+    def throw(self, error: Exception) -> Waiting | CodeOutcome:
+        """Go on with the waiting call: its action raised `error` (raised in the call's
+        steps, which may handle it; a fatal one stops the code at once)."""
+        steps = self._waiting_steps()
+        return self._serve_from(self._advance(lambda: steps.throw(error)))
+
+    def halt(self, error: BaseException) -> CodeOutcome:
+        """End the run now, as if the waiting call had raised the fatal `error` (the code
+        never hears of it)."""
+        self._steps = None
+        name = self._serving.name if self._serving is not None else "the code block"
+        return self.abort("fault", _fatal_message(name, error))
+
+    def _waiting_steps(self):
+        if self._steps is None:
+            raise RuntimeError("no call waits to be resumed")
+        return self._steps
+
+    def _serve_from(self, event: Call | Waiting | CodeOutcome | None) -> Waiting | CodeOutcome:
+        while isinstance(event, Call):
+            self._serving = event
+            event = self._advance(self._call_serving)
+        return event
+
+    def _call_serving(self) -> Any:
+        call = self._serving
+        return self.function(call.name)(*call.args, **call.kwargs)
+
+    def _advance(self, advance: Callable[[], Any]) -> Call | Waiting | CodeOutcome:
+        """Run `advance` (the call, or its next step) and turn what it did into the answer
+        to the call and the session's next event, or into what the call now waits on."""
+        call, stepping = self._serving, self._steps is not None
+        try:
+            result = advance()
+            if not stepping and inspect.isgenerator(result):
+                self._steps, stepping = result, True
+                result = next(result)
+        except StopIteration as stop:
+            if not stepping:  # a plain function raised it: an error like any other
+                return self.answer_error(stop) or self.next_call()
+            self._steps, result = None, stop.value
+        except self._fatal as error:
+            self._steps = None
+            return self.abort("fault", _fatal_message(call.name, error))
+        except Exception as error:  # noqa: BLE001 - any API error is the code's to handle
+            self._steps = None
+            return self.answer_error(error) or self.next_call()
+        else:
+            if stepping:
+                return Waiting(call, result)
+        return self.answer(result) or self.next_call()
 
     # -- inside the steps --------------------------------------------------------------
 
@@ -363,6 +436,11 @@ def raise_reply(type_name: str, message: str) -> bytes:
     if len(message) > limit:
         message = message[:limit - 40] + f" [... {len(message) - limit + 40} characters cut]"
     return protocol.pack({"t": "raise", "type": type_name, "message": message})
+
+
+def _fatal_message(name: str, error: BaseException) -> str:
+    return (f"{name}() failed with {type(error).__name__}: {safe_str(error)}; the code was "
+            "stopped at once")
 
 
 def safe_str(error: BaseException) -> str:
