@@ -17,7 +17,6 @@ from physcap_drake.agent.prompts import AgentContext, PromptBook, object_line
 from physcap_drake.agent.schemas import Candidate
 from physcap_drake.agent.world_facts import WorldFacts
 from physcap_drake.knowledge import KnowledgeEntry
-from physcap_drake.robot_api import RobotAPI
 from physcap_drake.tasks.registry import TASKS
 
 #: What sets each shipped task apart, as its prompt and objects word it (the prompts of a task
@@ -80,13 +79,11 @@ def _requests(task: str, observation: Observation) -> list:
     candidates = [Candidate(name=n, action=a, description=f"Measure the {n}.",
                             expected_info=f"the {n}'s {a[4:]}", estimated_robot_s=10.0)
                   for n in names[1:3] for a in ("get_mass", "get_stiffness")]
-    stand_in = type("StandIn", (), {n: (lambda *a: None) for n in dir(RobotAPI)
-                                    if not n.startswith("_")})()
     requests = []
     for images in (True, False):
         book = PromptBook(images=images, world=WORLD)
         for physx in (False, True):
-            api = CodeAPI(stand_in, physx=physx)
+            api = CodeAPI(physx=physx)
             requests += [book.planner(ctx, m) for m in ("planner", "joint_planner",
                                                         "enumerator")]
             requests.append(book.prioritizer(ctx, candidates))
