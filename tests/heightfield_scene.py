@@ -61,8 +61,10 @@ class HeightfieldScene:
         self.box(x, y, top, rgb)
         return self.box((x[0] + wall, x[1] - wall), (y[0] + wall, y[1] - wall), floor, rgb)
 
-    def images(self, camera: CameraGeometry) -> tuple[np.ndarray, np.ndarray]:
-        """(colour image H × W × 3 uint8, depth image H × W, m along the optical axis)."""
+    def images(self, camera: CameraGeometry,
+               noise: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+        """(colour image H × W × 3 uint8, depth image H × W, m along the optical axis);
+        the depth with Gaussian noise of `noise` m RMS (seeded: the same every time)."""
         v, u = np.mgrid[0:camera.height, 0:camera.width]
         rays_c = np.stack([(u - camera.cx) / camera.fx, (v - camera.cy) / camera.fy,
                            np.ones(u.shape)], axis=-1).reshape(-1, 3)
@@ -73,9 +75,12 @@ class HeightfieldScene:
         start = (origin[2] - ceiling) / -rays[:, 2]
         end = origin[2] / -rays[:, 2]
         depth = end.copy()  # where the ray meets the table
-        open_ = np.ones(len(rays), dtype=bool)
+        table = origin + rays * end[:, None]
+        open_ = ((table[:, 0] > EXTENT[0][0] - 0.3) & (table[:, 0] < EXTENT[0][1] + 0.3)
+                 & (table[:, 1] > EXTENT[1][0] - 0.3) & (table[:, 1] < EXTENT[1][1] + 0.3))
         length = np.linalg.norm(rays, axis=1)
-        for step in range(int(np.ceil(np.max((end - start) * length) / STEP)) + 1):
+        steps = np.max(((end - start) * length)[open_]) / STEP
+        for step in range(int(np.ceil(steps)) + 1):
             t = start + step * STEP / length
             live = open_ & (t < end)
             if not live.any():
@@ -100,4 +105,5 @@ class HeightfieldScene:
                         & (points[:, 1] >= EXTENT[1][0]) & (points[:, 1] < EXTENT[1][1]))[:, None],
                        self.rgb[ix, iy], np.array(TABLE_RGB, np.uint8))
         shape = (camera.height, camera.width)
+        depth = depth + np.random.default_rng(0).normal(0.0, noise, depth.shape)
         return rgb.reshape(*shape, 3).astype(np.uint8), depth.reshape(shape)
