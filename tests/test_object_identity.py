@@ -51,6 +51,20 @@ def test_a_tray_that_moved_is_measured_anew():
                         lambda r: 0.005) == pytest.approx(kept)
 
 
+def test_kept_containers_carry_the_top_they_were_measured_with():
+    rng = np.random.default_rng(5)
+    memory = ContainerMemory()
+    memory.area("brown basket", _tray_points(rng), lambda rectangle: 0.004, 0.061)
+    # Seen again with a cup in it (its top higher now): the first measure is kept.
+    memory.area("brown basket", _tray_points(rng), lambda rectangle: 0.004, 0.09)
+    (rectangle, top), = memory.kept()
+    assert top == 0.061
+    assert rectangle.mean(axis=0) == pytest.approx([0.30, -0.27], abs=0.003)
+    # Measured anew (it moved): the new top with the new rectangle.
+    memory.area("brown basket", _tray_points(rng, shift=(0.0, 0.25)), lambda r: 0.0, 0.058)
+    assert memory.kept()[0][1] == 0.058
+
+
 def test_a_tray_first_seen_in_part_grows_to_its_whole_area():
     rng = np.random.default_rng(4)
     memory = ContainerMemory()

@@ -79,3 +79,12 @@ def test_a_cup_set_by_a_basket_wall_is_found_apart_from_the_wall(camera):
     # Its points by the wall, mixed with the wall's, would pull it 9 mm towards the wall.
     assert np.hypot(*(cup.grasp_point[:2] - CUP_IN_BASKET)) < 0.005
     assert cup.on == "brown basket"
+
+
+def test_a_long_wall_is_not_cut_into_objects_in_a_row(camera):
+    """A basket's far wall seen alone (17 cm long, 4 cm thick with the stereo's spread,
+    6.5 cm high) is as wide in its middle as at its ends: no objects split off it (it
+    was two 'brown cups', halves of it, before the split looked for the narrowing)."""
+    wall = HeightfieldScene().box((0.42, 0.46), (-0.35, -0.18), 0.065, BROWN)
+    seen = _look(RgbdPerception(camera, ("lidded cup", "basket")), wall, camera)
+    assert seen and all(s.area is not None for s in seen.values()), sorted(seen)
