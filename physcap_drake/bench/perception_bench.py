@@ -209,7 +209,7 @@ def bench_moves(task: str, seed: int, tell: bool = True) -> list[LookAfterMoves]
     """The first view, and a look after each object the oracle sets down in the container
     (SLOTS; sim-only teleports, nothing simulated between), compared with the truth. With
     `tell`, the oracle tells perception where it set the object down, under the name
-    perception gave it at first (as the robot does after `place_in`)."""
+    perception gave it at first (as the robot would after `place_in`)."""
     from physcap_drake.perception.object_state import STANDING_KINDS
 
     episode = make_episode(task, seed, perception="rgbd")

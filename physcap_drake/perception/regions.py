@@ -277,11 +277,7 @@ def is_wall_of(region: Region, container: Region) -> bool:
     if footprint(region.points)[0] > WALL_THICKNESS:
         return False
     corners = footprint_rectangle(container.points)
-    centre, axes = corners.mean(axis=0), (corners[1] - corners[0], corners[3] - corners[0])
-    offsets = region.points[:, :2] - centre
-    margins = [np.linalg.norm(a) / 2 - np.abs(offsets @ (a / np.linalg.norm(a)))
-               for a in axes]
-    return bool(np.all(np.abs(np.minimum(*margins)) < WALL_BAND))
+    return bool(np.all(np.abs(side_margin(region.points[:, :2], corners)) < WALL_BAND))
 
 
 def _components(mask: np.ndarray):
@@ -403,12 +399,7 @@ def footprint_rectangle(points: np.ndarray, percent: float = 2.0) -> np.ndarray:
 def inside_rectangle(points: np.ndarray, rectangle: np.ndarray, margin: float) -> np.ndarray:
     """Which points (N × 2 or more, world, m) lie over `rectangle` (4 × 2 corners in order)
     grown by `margin` (m; shrunk if negative) on every side."""
-    xy = np.asarray(points, dtype=float)[:, :2]
-    centre, inside = rectangle.mean(axis=0), np.ones(len(xy), dtype=bool)
-    for axis in (rectangle[1] - rectangle[0], rectangle[3] - rectangle[0]):
-        length = float(np.linalg.norm(axis))
-        inside &= np.abs((xy - centre) @ (axis / length)) <= length / 2 + margin
-    return inside
+    return side_margin(np.asarray(points, dtype=float)[:, :2], rectangle) >= -margin
 
 
 def floor_height(geometry: SceneGeometry, rectangle: np.ndarray) -> float:
