@@ -196,9 +196,11 @@ def _compare(task, seed, moved, truths, seen, first_names, upright_kinds) -> Loo
     return result
 
 
-def bench_moves(task: str, seed: int) -> list[LookAfterMoves]:
+def bench_moves(task: str, seed: int, tell: bool = True) -> list[LookAfterMoves]:
     """The first view, and a look after each object the oracle sets down in the container
-    (SLOTS; sim-only teleports, nothing simulated between), compared with the truth."""
+    (SLOTS; sim-only teleports, nothing simulated between), compared with the truth. With
+    `tell`, the oracle tells perception where it set the object down, under the name
+    perception gave it at first (as the robot would after `place_in`)."""
     from physcap_drake.perception.object_state import STANDING_KINDS
 
     episode = make_episode(task, seed, perception="rgbd")
@@ -216,6 +218,9 @@ def bench_moves(task: str, seed: int) -> list[LookAfterMoves]:
             plant.SetFreeBodyPose(context, body, RigidTransform(pose.rotation(), [
                 floor[0] + slot[0], floor[1] + slot[1],
                 pose.translation()[2] + floor[2] + FLOORS[kind]]))
+            if tell and obj.visible.name in first_names:
+                episode.api.locator.perception.memory.set_down(
+                    first_names[obj.visible.name], floor[:2] + slot)
             looks.append(_compare(task, seed, count, _in_view(episode), _look(episode),
                                   first_names, STANDING_KINDS))
         return looks

@@ -7,6 +7,7 @@ Design notes: docs/design/perception.md.
 from __future__ import annotations
 
 import dataclasses as dc
+from collections.abc import Sequence
 
 import cv2
 import numpy as np
@@ -43,6 +44,20 @@ CELL_POINTS = 3
 FACE_MARGIN = 0.015
 #: ... and comes this near it in the image (a band without depth between them), px.
 FACE_PIXELS = 15
+#: A long region splits into objects side by side when k-means (k = 2, 3) on the table
+#: gives parts each at least OBJECT_WIDTH across and at most OBJECT_LENGTH long, their
+#: centres ROW_SPACING apart, m (a container's wall is thinner; a cup is 4.3 cm across).
+OBJECT_WIDTH = 0.035
+OBJECT_LENGTH = 0.11
+ROW_SPACING = 0.05
+#: ... and the points narrow halfway between each two neighbouring parts to less than
+#: NECK × the parts' widths (measured in slices NECK_SLICE thick, m).
+NECK = 0.5
+NECK_SLICE = 0.01
+#: A pixel within this distance of a known container's side (inside or out) and no higher
+#: than this above its top is that container's wall (see `find_regions`), m.
+KNOWN_WALL_BAND = 0.025
+WALL_TOP_NOISE = 0.015
 
 
 @dc.dataclass(frozen=True)
@@ -112,30 +127,122 @@ def scene_geometry(depth: np.ndarray, camera: CameraGeometry,
     return SceneGeometry(plane, points, heights, usable, np.where(valid, depth, np.nan), camera)
 
 
-def find_regions(geometry: SceneGeometry) -> list[Region]:
+def find_regions(geometry: SceneGeometry,
+                 known: Sequence[tuple[np.ndarray, float]] = ()) -> list[Region]:
     """The object and container regions of the scene (see the design notes), objects
-    first, each group left to right."""
+    first, each group left to right. `known`: (rectangle, top) of the containers seen
+    before (4 × 2 corners on the table, m; m above the table). The wall pixels of those
+    with tall walls (KNOWN_WALL_BAND, WALL_TOP_NOISE) go to the container, not to what
+    touches them in the image; the floor left in view of each (however little of it the
+    objects on it leave) is one container region."""
     heights = np.nan_to_num(geometry.heights)
     tall = geometry.usable & (heights > OBJECT_HEIGHT) & (heights < MAX_HEIGHT)
+    on_walls = tall & known_walls(geometry, [(r, top) for r, top in known
+                                             if top >= OBJECT_HEIGHT])
+    tall &= ~on_walls
     body = cv2.morphologyEx(tall.astype(np.uint8), cv2.MORPH_OPEN, np.ones((3, 3), np.uint8))
     body = cv2.morphologyEx(body, cv2.MORPH_CLOSE, np.ones((5, 5), np.uint8))
-    objects, large = [], []
+    whole = (slice(0, tall.shape[0]), slice(0, tall.shape[1]))
+    wall_region = _region(whole, on_walls, geometry) if on_walls.any() else None
+    objects, large = [], [] if wall_region is None else [wall_region]
     for box, mask in _components(body):
         for part in _split_on_table(mask & tall[box], box, geometry):
             region = _region(box, part, geometry)
             if region is None:
                 continue
-            # Nothing a task handles is this long: a container's wall, or all of one.
+            # Nothing a task handles is this long: a container's wall, or all of one, or
+            # objects standing side by side.
             if footprint(region.points)[1] < CONTAINER_SIZE:
                 objects.append(region)
+                continue
+            row = _objects_in_a_row(region, geometry)
+            if row:
+                objects += row
                 continue
             walls, inside = _walls_and_inside(region, geometry)
             large += walls
             objects += inside
-    containers = _containers(geometry, body.astype(bool), large)
+    containers = _containers(geometry, body.astype(bool), large, known)
     objects = _join_faces(objects, geometry)
     return (sorted(objects, key=lambda r: r.column)
             + sorted(containers, key=lambda r: r.column))
+
+
+def _objects_in_a_row(region: Region, geometry: SceneGeometry) -> list[Region]:
+    """The objects side by side that a long region shows (see OBJECT_WIDTH), or [] when
+    no split into 2 or 3 such parts exists."""
+    xy = geometry.smoothed_points(region.rows, region.cols)[:, :2].astype(np.float32)
+    criteria = (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_MAX_ITER, 50, 1e-5)
+    whole = (slice(0, geometry.usable.shape[0]), slice(0, geometry.usable.shape[1]))
+    for count in (2, 3):
+        if len(xy) < count * MIN_PIXELS:
+            break
+        cv2.setRNGSeed(0)
+        _, labels, centres = cv2.kmeans(xy, count, None, criteria, 3, cv2.KMEANS_PP_CENTERS)
+        labels = labels.ravel()
+        sides = [footprint(region.points[labels == k]) for k in range(count)]
+        spacing = min(float(np.linalg.norm(centres[a] - centres[b]))
+                      for a in range(count) for b in range(a + 1, count))
+        if spacing < ROW_SPACING or any(short < OBJECT_WIDTH or long > OBJECT_LENGTH
+                                        for short, long in sides):
+            continue
+        if not all(_narrows_between(xy, centres[a], centres[b])
+                   for a in range(count) for b in range(a + 1, count)
+                   if np.linalg.norm(centres[a] - centres[b]) < OBJECT_LENGTH + ROW_SPACING):
+            continue
+        parts = []
+        for k in range(count):
+            pixels = np.zeros(geometry.usable.shape, dtype=bool)
+            pixels[region.rows[labels == k], region.cols[labels == k]] = True
+            parts.append(_region(whole, pixels, geometry))
+        if all(part is not None for part in parts):
+            return parts
+    return []
+
+
+def _narrows_between(xy: np.ndarray, a: np.ndarray, b: np.ndarray) -> bool:
+    """Whether the points (N × 2, m) are at least OBJECT_WIDTH wide across `a` and across
+    `b`, and narrower halfway between them than NECK × that (widths across the line a-b,
+    in slices NECK_SLICE thick; two cups side by side narrow between them, a wall does
+    not)."""
+    line = b - a
+    length = float(np.linalg.norm(line))
+    along = (xy - a) @ (line / length)
+    across = (xy - a) @ (np.array([-line[1], line[0]]) / length)
+
+    def width(at: float) -> float:
+        inside = across[np.abs(along - at) < NECK_SLICE / 2]
+        return float(np.ptp(np.percentile(inside, [5, 95]))) if len(inside) >= 3 else 0.0
+
+    sides = min(width(0.0), width(length))
+    return sides >= OBJECT_WIDTH and width(length / 2) < NECK * sides
+
+
+def known_walls(geometry: SceneGeometry,
+                walls: Sequence[tuple[np.ndarray, float]]) -> np.ndarray:
+    """The pixels (H × W bool) whose points lie within KNOWN_WALL_BAND of a side of one of
+    `walls`' rectangles and no higher than its top plus WALL_TOP_NOISE."""
+    found = np.zeros(geometry.usable.shape, dtype=bool)
+    rows, cols = np.nonzero(geometry.usable)
+    if len(rows) == 0:
+        return found
+    xy, heights = geometry.points[rows, cols, :2], geometry.heights[rows, cols]
+    for rectangle, top in walls:
+        near = np.abs(side_margin(xy, rectangle)) < KNOWN_WALL_BAND
+        found[rows[near & (heights <= top + WALL_TOP_NOISE)],
+              cols[near & (heights <= top + WALL_TOP_NOISE)]] = True
+    return found
+
+
+def side_margin(xy: np.ndarray, rectangle: np.ndarray) -> np.ndarray:
+    """Each point's (N × 2, m) distance to the nearest side of `rectangle` (4 × 2 corners
+    in order, m): positive inside it, negative outside."""
+    centre = rectangle.mean(axis=0)
+    margins = []
+    for axis in (rectangle[1] - rectangle[0], rectangle[3] - rectangle[0]):
+        length = float(np.linalg.norm(axis))
+        margins.append(length / 2 - np.abs((xy - centre) @ (axis / length)))
+    return np.minimum(*margins)
 
 
 def _walls_and_inside(region: Region, geometry: SceneGeometry) -> tuple[list[Region],
@@ -170,11 +277,7 @@ def is_wall_of(region: Region, container: Region) -> bool:
     if footprint(region.points)[0] > WALL_THICKNESS:
         return False
     corners = footprint_rectangle(container.points)
-    centre, axes = corners.mean(axis=0), (corners[1] - corners[0], corners[3] - corners[0])
-    offsets = region.points[:, :2] - centre
-    margins = [np.linalg.norm(a) / 2 - np.abs(offsets @ (a / np.linalg.norm(a)))
-               for a in axes]
-    return bool(np.all(np.abs(np.minimum(*margins)) < WALL_BAND))
+    return bool(np.all(np.abs(side_margin(region.points[:, :2], corners)) < WALL_BAND))
 
 
 def _components(mask: np.ndarray):
@@ -296,12 +399,7 @@ def footprint_rectangle(points: np.ndarray, percent: float = 2.0) -> np.ndarray:
 def inside_rectangle(points: np.ndarray, rectangle: np.ndarray, margin: float) -> np.ndarray:
     """Which points (N × 2 or more, world, m) lie over `rectangle` (4 × 2 corners in order)
     grown by `margin` (m; shrunk if negative) on every side."""
-    xy = np.asarray(points, dtype=float)[:, :2]
-    centre, inside = rectangle.mean(axis=0), np.ones(len(xy), dtype=bool)
-    for axis in (rectangle[1] - rectangle[0], rectangle[3] - rectangle[0]):
-        length = float(np.linalg.norm(axis))
-        inside &= np.abs((xy - centre) @ (axis / length)) <= length / 2 + margin
-    return inside
+    return side_margin(np.asarray(points, dtype=float)[:, :2], rectangle) >= -margin
 
 
 def floor_height(geometry: SceneGeometry, rectangle: np.ndarray) -> float:
@@ -329,10 +427,12 @@ def footprint(points: np.ndarray) -> tuple[float, float]:
     return float(extent.min()), float(extent.max())
 
 
-def _containers(geometry: SceneGeometry, objects: np.ndarray,
-                large: list[Region]) -> list[Region]:
+def _containers(geometry: SceneGeometry, objects: np.ndarray, large: list[Region],
+                known: Sequence[tuple[np.ndarray, float]] = ()) -> list[Region]:
     """Containers: large low regions (smoothed height above LOW_HEIGHT) together with the
-    long tall regions (a basket's walls) they touch, at least CONTAINER_SIZE both ways."""
+    long tall regions (a basket's walls) they touch, at least CONTAINER_SIZE both ways;
+    and the smaller low regions whose middle lies over a `known` rectangle, one container
+    per rectangle."""
     usable = geometry.usable
     heights = np.where(usable, np.nan_to_num(geometry.heights), 0.0)
     window = (LOW_WINDOW, LOW_WINDOW)
@@ -347,9 +447,25 @@ def _containers(geometry: SceneGeometry, objects: np.ndarray,
     low = ((smooth > LOW_HEIGHT) & usable & ~near_objects.astype(bool)) | walls
     low = cv2.morphologyEx(low.astype(np.uint8), cv2.MORPH_OPEN, np.ones((3, 3), np.uint8))
     low = cv2.morphologyEx(low, cv2.MORPH_CLOSE, np.ones((5, 5), np.uint8))
-    found = []
+    found, pieces = [], np.zeros((len(known), *usable.shape), dtype=bool)
     for box, mask in _components(low):
         region = _region(box, mask, geometry, container=True)
-        if region is not None and footprint(region.points)[0] >= CONTAINER_SIZE:
+        if region is None:
+            continue
+        if footprint(region.points)[0] >= CONTAINER_SIZE:
             found.append(region)
+            continue
+        middle = np.median(region.points[:, :2], axis=0)[None]
+        for index, (rectangle, _) in enumerate(known):
+            if inside_rectangle(middle, rectangle, 0.0)[0]:
+                pieces[index] |= region.mask & usable
+                break
+    whole = (slice(0, usable.shape[0]), slice(0, usable.shape[1]))
+    for index, (rectangle, _) in enumerate(known):
+        if pieces[index].any() and not any(
+                inside_rectangle(np.median(r.points[:, :2], axis=0)[None], rectangle, 0.0)[0]
+                for r in found):
+            region = _region(whole, pieces[index], geometry, container=True)
+            if region is not None:
+                found.append(region)
     return found

@@ -61,7 +61,7 @@ class RgbdPerception:
                                              step, rgb.shape[:2]))
         coarse_rgb = rgb[::step, ::step]
         views = [describe(region, coarse_rgb, geometry, self.vocabulary, full)
-                 for region in find_regions(geometry)]
+                 for region in find_regions(geometry, self.containers.kept())]
         containers = [v.region for v in views if v.container]
         views = [v for v in views if v.container or not any(
             is_wall_of(v.region, container) for container in containers)]
@@ -79,7 +79,8 @@ class RgbdPerception:
         grasp, area = view.grasp_point, None
         if view.container:
             area = self.containers.area(visible.name, view.region.points,
-                                        lambda rectangle: floor_height(geometry, rectangle))
+                                        lambda rectangle: floor_height(geometry, rectangle),
+                                        view.top_height)
             grasp = np.array([*area.mean(axis=0), grasp[2]])
         mask = upsample(view.region.mask, step, depth.shape)
         pose = NO_STANCE if view.container else stance_in_depth(
