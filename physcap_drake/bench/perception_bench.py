@@ -219,8 +219,9 @@ def bench_moves(task: str, seed: int, tell: bool = True) -> list[LookAfterMoves]
                 floor[0] + slot[0], floor[1] + slot[1],
                 pose.translation()[2] + floor[2] + FLOORS[kind]]))
             if tell and obj.visible.name in first_names:
-                episode.api.locator.perception.memory.set_down(
-                    first_names[obj.visible.name], floor[:2] + slot)
+                memory = episode.perception.memory(episode.perception.GetMyContextFromRoot(
+                    episode.api.simulator.get_context()))
+                memory.module.memory.set_down(first_names[obj.visible.name], floor[:2] + slot)
             looks.append(_compare(task, seed, count, _in_view(episode), _look(episode),
                                   first_names, STANDING_KINDS))
         return looks
