@@ -1,16 +1,39 @@
-"""All tasks by name."""
+"""All tasks by name: the task files shipped in tasks/files/, and any task file given by
+its path (`physcap run --task my_task.yaml`)."""
 
 from __future__ import annotations
 
-from physcap_drake.tasks.empty_cup import EmptyCup
-from physcap_drake.tasks.find_blue_cube import FindBlueCube
-from physcap_drake.tasks.tray_tasks import IdentifyEmptyCan, PickRipeAvocado
+from pathlib import Path
 
-TASKS = {task.name: task for task in (FindBlueCube(), IdentifyEmptyCan(), PickRipeAvocado(),
-                                      EmptyCup())}
+from physcap_drake.tasks.file_task import FileTask
+from physcap_drake.tasks.task_file import load_task_file
+
+#: The folder of the shipped task files.
+FILES_DIR = Path(__file__).resolve().parent / "files"
+#: The shipped tasks, in the order runs and tables list them.
+SHIPPED = ("find_blue_cube", "identify_empty_can", "pick_ripe_avocado", "empty_cup")
+
+TASKS = {name: FileTask(load_task_file(FILES_DIR / f"{name}.yaml")) for name in SHIPPED}
+_FROM_FILES: dict[str, FileTask] = {}
+
+
+def is_task_file(name: str) -> bool:
+    """Whether `name` is a path to a task file rather than a task's name."""
+    return name.endswith((".yaml", ".yml")) or "/" in name
 
 
 def get_task(name: str):
-    if name not in TASKS:
-        raise KeyError(f"unknown task {name!r}; the tasks are {sorted(TASKS)}")
-    return TASKS[name]
+    """The task named `name`, or the task of the task file at the path `name` (its name is
+    then that path, as the episode's instance records it). Raises KeyError naming the
+    known tasks, or ScenarioError naming the task file's bad key."""
+    if name in TASKS:
+        return TASKS[name]
+    if is_task_file(name):
+        if name not in _FROM_FILES:
+            if not Path(name).is_file():
+                raise KeyError(f"no task file {name!r} (and not a task: the tasks are "
+                               f"{sorted(TASKS)})")
+            _FROM_FILES[name] = FileTask(load_task_file(name), name=name)
+        return _FROM_FILES[name]
+    raise KeyError(f"unknown task {name!r}; the tasks are {sorted(TASKS)} or a task file "
+                   "(.yaml)")
