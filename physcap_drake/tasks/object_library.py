@@ -9,6 +9,7 @@ families' generator (models/objects/generate_objects.py) into the model cache fo
 from __future__ import annotations
 
 import dataclasses as dc
+import hashlib
 import importlib.util
 import math
 import os
@@ -43,18 +44,24 @@ class ModelChoice:
 
 
 def model_cache_dir() -> Path:
-    """The folder generated models are written to (made if missing)."""
+    """The folder generated models are written to (made if missing): one per version of
+    the generator, so a changed generator never reuses an older model."""
+    version = hashlib.sha1(_generator_path().read_bytes()).hexdigest()[:10]
     folder = Path(os.environ.get(CACHE_VARIABLE) or Path.home() / ".cache" / "physcap_drake"
-                  / "models")
+                  / "models") / version
     folder.mkdir(parents=True, exist_ok=True)
     return folder
+
+
+def _generator_path() -> Path:
+    return models_dir() / "objects" / "generate_objects.py"
 
 
 @cache
 def generator():
     """The families' generator module (models/objects/generate_objects.py)."""
-    path = models_dir() / "objects" / "generate_objects.py"
-    spec = importlib.util.spec_from_file_location("physcap_generate_objects", path)
+    spec = importlib.util.spec_from_file_location("physcap_generate_objects",
+                                                  _generator_path())
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
     return module

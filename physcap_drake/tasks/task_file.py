@@ -7,7 +7,6 @@ file, the key path and the bad value.
 
 # No `from __future__ import annotations`: yaml_load_typed reads the field types at run time.
 import dataclasses as dc
-import typing
 from pathlib import Path
 
 from pydrake.common.yaml import yaml_load_typed
@@ -101,7 +100,7 @@ class Among:
     color: str = ""
     size: str = ""
     # true or false: only objects with (without) a straw; unset: either.
-    straw: typing.Optional[bool] = None
+    straw: bool | None = None
 
 
 @dc.dataclass
