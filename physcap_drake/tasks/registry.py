@@ -37,3 +37,15 @@ def get_task(name: str):
         return _FROM_FILES[name]
     raise KeyError(f"unknown task {name!r}; the tasks are {sorted(TASKS)} or a task file "
                    "(.yaml)")
+
+
+def task_files_in(text: str) -> list[str]:
+    """The task files named in a comma-separated list of tasks (each loaded and checked:
+    raises ScenarioError naming a bad one's key path; a missing file is left out)."""
+    names = [name.strip() for name in text.split(",") if is_task_file(name.strip())]
+    return [name for name in names if Path(name).is_file() and get_task(name)]
+
+
+def folder_name(task: str) -> str:
+    """A task's name as one folder name: a task file's stem (its path may hold '/')."""
+    return Path(task).stem if is_task_file(task) else task
