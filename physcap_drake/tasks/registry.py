@@ -1,5 +1,6 @@
-"""All tasks by name: the task files shipped in tasks/files/, and any task file given by
-its path (`physcap run --task my_task.yaml`)."""
+"""All tasks by name: the four evaluation tasks' files in tasks/files/, the example task
+files there (by their name, not in "all"), and any task file given by its path
+(`physcap run --task my_task.yaml`)."""
 
 from __future__ import annotations
 
@@ -23,27 +24,36 @@ def is_task_file(name: str) -> bool:
 
 
 def get_task(name: str):
-    """The task named `name`, or the task of the task file at the path `name` (its name is
-    then that path, as the episode's instance records it). Raises KeyError naming the
-    known tasks, or ScenarioError naming the task file's bad key."""
+    """The task named `name` (an evaluation task, or an example task file in tasks/files/),
+    or the task of the task file at the path `name` (its name is then that path, as the
+    episode's instance records it). Raises KeyError naming the known tasks, or
+    ScenarioError naming the task file's bad key."""
     if name in TASKS:
         return TASKS[name]
-    if is_task_file(name):
-        if name not in _FROM_FILES:
-            if not Path(name).is_file():
-                raise KeyError(f"no task file {name!r} (and not a task: the tasks are "
-                               f"{sorted(TASKS)})")
+    if name not in _FROM_FILES:
+        example = FILES_DIR / f"{name}.yaml"
+        if is_task_file(name) and Path(name).is_file():
             _FROM_FILES[name] = FileTask(load_task_file(name), name=name)
-        return _FROM_FILES[name]
-    raise KeyError(f"unknown task {name!r}; the tasks are {sorted(TASKS)} or a task file "
-                   "(.yaml)")
+        elif not is_task_file(name) and example.is_file():
+            _FROM_FILES[name] = FileTask(load_task_file(example), name=name)
+        else:
+            raise KeyError(f"unknown task {name!r}; the tasks are {sorted(TASKS)}, the "
+                           f"examples {examples()} or a task file (.yaml) that exists")
+    return _FROM_FILES[name]
 
 
-def task_files_in(text: str) -> list[str]:
-    """The task files named in a comma-separated list of tasks (each loaded and checked:
-    raises ScenarioError naming a bad one's key path; a missing file is left out)."""
-    names = [name.strip() for name in text.split(",") if is_task_file(name.strip())]
-    return [name for name in names if Path(name).is_file() and get_task(name)]
+def examples() -> list[str]:
+    """The names of the example task files shipped in tasks/files/ (not in TASKS)."""
+    return sorted(p.stem for p in FILES_DIR.glob("*.yaml") if p.stem not in TASKS)
+
+
+def extra_tasks_in(text: str) -> list[str]:
+    """The example tasks and task files named in a comma-separated list of tasks (each
+    loaded and checked: raises ScenarioError naming a bad file's key path; a file that does
+    not exist is left out)."""
+    names = [name.strip() for name in text.split(",")]
+    return [name for name in names if name in examples() or (
+        is_task_file(name) and Path(name).is_file() and get_task(name))]
 
 
 def folder_name(task: str) -> str:

@@ -175,7 +175,10 @@ def load_task_file(path: str | Path) -> TaskFile:
     try:
         task = yaml_load_typed(schema=TaskFile, filename=str(path))
     except (RuntimeError, ValueError, TypeError, KeyError, AssertionError) as error:
-        raise locate_yaml_error(error, label) from error
+        located = locate_yaml_error(error, label)
+        raise ScenarioError(filename=label, key_path=located.key_path,
+                            expected=located.expected.replace("Scenario", "TaskFile"),
+                            problem=located.problem) from error
     except Exception as error:  # yaml syntax errors carry their own line and column
         raise ScenarioError(filename=label, key_path="", expected="valid YAML",
                             problem=str(error)) from error
