@@ -18,7 +18,7 @@ CAN_FILE = (FILES_DIR / "identify_empty_can.yaml").read_text()
 def test_names_examples_and_paths_resolve_to_tasks(tmp_path):
     assert list(TASKS) == ["find_blue_cube", "identify_empty_can", "pick_ripe_avocado",
                            "empty_cup"]
-    assert examples() == ["cup_with_weight", "heaviest_box", "softest_ball"]
+    assert examples() == ["cup_with_weight", "heaviest_box", "softest_avocado"]
     assert get_task("heaviest_box").name == "heaviest_box"
     path = tmp_path / "cans.yaml"
     path.write_text(CAN_FILE)
