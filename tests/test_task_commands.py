@@ -9,6 +9,7 @@ import json
 import pytest
 from test_cli_errors import run_cli
 
+from physcap_drake.resources import stations_dir
 from physcap_drake.tasks import answer_hidden
 from physcap_drake.tasks.registry import FILES_DIR, TASKS, examples, folder_name, get_task
 
@@ -75,3 +76,11 @@ def test_task_check_runs_the_oracle_and_a_wrong_answer_on_a_task_file(capsys, tm
     assert row["seed"] == 5 and row["answer_shows"] == ""
     assert row["oracle"]["success"] and not row["wrong"]["success"]
     assert "passed 1/1 seeds" in out
+
+
+def test_run_with_a_scenario_must_set_up_the_scene_the_task_file_extends(capsys):
+    """heaviest_box extends identify_empty_can.yaml: a scenario for another scene is
+    refused, naming the scene it should set up."""
+    scene = str(stations_dir() / "empty_cup.yaml")
+    code, out, err = run_cli(capsys, ["run", "--task", "heaviest_box", "--scenario", scene])
+    assert code == 2 and "task.name" in err and "'identify_empty_can'" in err, err

@@ -87,3 +87,13 @@ def test_a_mass_range_is_drawn_per_seed_within_it(tmp_path):
               for seed in range(20)}
     assert len(masses) == 20 and all(0.01 <= m <= 0.05 for m in masses)
     assert task.instance(3) == task.instance(3)
+
+
+def test_bodies_must_be_named_apart(tmp_path):
+    text = CAN_FILE.replace("body: blue_can", "body: red_can")
+    with pytest.raises(ScenarioError, match="a body name of its own") as refused:
+        _load(tmp_path, text)
+    assert refused.value.key_path == "groups"
+    with pytest.raises(ScenarioError) as refused:
+        _load(tmp_path, CAN_FILE.replace("body: blue_can", "body: '{colour}_can'"))
+    assert refused.value.key_path == "groups[0].objects[2].body"

@@ -190,7 +190,8 @@ def run(task: Annotated[str, typer.Option("--task", help=f"One of: {', '.join(TA
     if scenario is not None:
         scenario_task = load_scenario_or_exit(scenario, scenario_text).task
         try:
-            check_scenario_task(task, scenario_task.name, str(scenario))
+            own = load_scenario_or_exit(stations_dir() / task_spec.scenario_file).task.name
+            check_scenario_task(own, scenario_task.name, str(scenario))  # a task file's too
         except ScenarioError as error:
             fail(str(error))
     loaded = load_scenario_or_exit(scenario or stations_dir() / task_spec.scenario_file,

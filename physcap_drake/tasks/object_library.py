@@ -137,11 +137,11 @@ def _ball(color, size, dims, straw, level) -> ModelChoice:
     g = generator()
     _one_of("color", color, list(g.COLOURS))
     _one_of("hidden.stiffness_level", level, [*g.MODULUS_BY_LEVEL, 5])
-    radius = (list(dims) or [0.035])
-    if len(radius) != 1 or not 0.02 <= radius[0] <= 0.04:
+    dims = list(dims) or [0.035]
+    if len(dims) != 1 or not 0.02 <= dims[0] <= 0.04:
         raise LibraryError("dimensions_m", "[radius] from 0.02 to 0.04 m (the gripper's "
                            "reach)", f"got {dims}")
-    r = radius[0]
+    r = dims[0]
     name = f"ball_{color}_r{1000 * r:g}mm_level{level}"
     model = _generated(name, lambda folder: g.ball(name, r, g.COLOURS[color], level, folder))
     return ModelChoice(model, "ball", color, r, r)
@@ -165,6 +165,4 @@ def choose_model(family: str, color: str = "", size: str = "", dimensions_m=(),
 def visuals(model: str) -> list[str]:
     """The <visual> blocks of a model's SDF (what a camera can see of it)."""
     path = Path(model + ".sdf") if model.startswith("/") else models_dir() / f"{model}.sdf"
-    text = path.read_text()
-    text = re.sub(r'<model name="[^"]*">|<link name="[^"]*">', "", text)
-    return re.findall(r"<visual.*?</visual>", text, re.DOTALL)
+    return re.findall(r"<visual.*?</visual>", path.read_text(), re.DOTALL)

@@ -38,6 +38,8 @@ def _check_group(group, at: ConfigChecker) -> None:
         at.fail("objects", "at least one object", "none given")
     if layout.kind == "row" and len(layout.x) != 1:
         where.fail("x", "one x for the row, m", f"got {layout.x}")
+    if layout.kind == "grid" and not layout.x:
+        where.fail("x", "the xs of the grid's rows, m", "none given")
     if layout.kind in ("row", "grid") and not layout.y:
         where.fail("y", "the ys of the slots, m", "none given")
     if layout.kind == "places":
@@ -67,6 +69,11 @@ def _check_entry(entry, straw_drawn: bool, at: ConfigChecker) -> None:
     if not entry.body.strip():
         at.fail("body", "a model instance name (with {slot} if several)", "it is empty")
     at.number("count", entry.count, minimum=1)
+    try:
+        entry.body.format(color="c", slot=0)
+    except (KeyError, IndexError, ValueError) as error:
+        at.fail("body", "a name in which only {color} and {slot} are filled in",
+                f"got {entry.body!r} ({error!r})")
     if entry.count > 1 and "{slot}" not in entry.body:
         at.fail("body", "a name with {slot} in it (the entry has several objects)",
                 f"got {entry.body!r}")
@@ -125,6 +132,10 @@ def _check_answer(task, at: ConfigChecker) -> None:
     file_task = FileTask(task)
     for seed in range(3):
         instance = file_task.instance(seed)
+        bodies = [o.body for o in instance.objects]
+        if len(set(bodies)) < len(bodies):
+            ConfigChecker(at.filename).fail("groups", "a body name of its own for each "
+                                            "object", f"seed {seed}: the bodies are {bodies}")
         names = plausible_names(file_task, instance)
         if len(names) < 2:
             at.fail("among", "a description at least two objects fit (else the answer "
