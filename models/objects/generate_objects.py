@@ -490,19 +490,23 @@ def avocado(name: str, modulus: float, rgb: str, folder: Path = HERE) -> Path:
 
 
 def box_object(name: str, size: tuple[float, float, float], rgb: str, folder: Path) -> Path:
-    """A solid box of `size` (x, y, z, m), standing on four corner spheres (a box-box pair
-    has a single contact point), its box collision 1 mm above its bottom face."""
+    """A solid box of `size` (x, y, z, m) with a sphere in each of its eight corners, flush
+    with the faces, as scene/cube_5cm.sdf: a box-box pair has a single contact point, so it
+    stands on the four bottom ones, and a finger pad on a side face touches that face's four
+    (a single point would let the box pivot in the grasp). Its box collision is 1 mm above
+    its bottom face."""
     sx, sy, sz = size
     m = BOX_DENSITY * sx * sy * sz
     r = BOX_CORNER
     elements = collision("box_collision", pose(z=(sz + 0.001) / 2), box(sx, sy, sz - 0.001),
                          BOX_MU)
     for fx, fy, tag in ((1, 1, "px_py"), (1, -1, "px_ny"), (-1, 1, "nx_py"), (-1, -1, "nx_ny")):
-        elements += collision(f"corner_{tag}", pose(fx * (sx / 2 - r), fy * (sy / 2 - r), r),
-                              sphere(r), BOX_MU)
+        for z, level in ((r, "bottom"), (sz - r, "top")):
+            elements += collision(f"corner_{level}_{tag}",
+                                  pose(fx * (sx / 2 - r), fy * (sy / 2 - r), z), sphere(r), BOX_MU)
     elements += visual("box_visual", pose(z=sz / 2), box(sx, sy, sz), rgb)
     comment = (f"  Box {sx * 1000:g} x {sy * 1000:g} x {sz * 1000:g} mm, default mass {m:g} kg"
-               f" (uniform), mu {BOX_MU:g}, on four {r * 1000:g} mm corner spheres.\n"
+               f" (uniform), mu {BOX_MU:g}, eight {r * 1000:g} mm corner spheres.\n"
                "  Body frame at the centre of the bottom face, +z up.")
     moments = (m * (sy**2 + sz**2) / 12, m * (sx**2 + sz**2) / 12, m * (sx**2 + sy**2) / 12)
     return write(name, model(name, comment, inertial(m, (0, 0, sz / 2), moments), elements),
