@@ -11,10 +11,12 @@ from pydrake.math import RigidTransform, RollPitchYaw
 
 from physcap_drake.app.episode import make_episode
 from physcap_drake.resources import models_dir
-from physcap_drake.tasks.empty_cup import BASKET_BOTTOM, BASKET_FLOOR
 from physcap_drake.tasks.placement import TRAY_FLOOR
 from physcap_drake.tasks.registry import TASKS, get_task
 from physcap_drake.tasks.tray_tasks import TRAY_BOTTOM
+
+#: The basket of stations/empty_cup.yaml: its floor's centre (underside) and thickness, m.
+BASKET_BOTTOM, BASKET_FLOOR = np.array([0.32, -0.26, 0.0]), 0.004
 
 
 @pytest.mark.parametrize("name", sorted(TASKS))

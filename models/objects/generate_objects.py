@@ -1,4 +1,6 @@
-"""Writes the task objects' SDF files next to this script.
+"""Writes the task objects' SDF files next to this script; the object library
+(physcap_drake/tasks/object_library.py) calls its families' functions to write models a
+task file asks for (a box, a ball, an avocado of another stiffness) into a cache folder.
 
 Run it again after changing a number here: `python models/objects/generate_objects.py`
 (plain Python, no pydrake needed). Conventions shared by every model:
@@ -40,6 +42,7 @@ Objects:
 """
 
 import math
+import os
 import sys
 from pathlib import Path
 
@@ -119,13 +122,27 @@ LIBERO_COLOURS = {
 }
 
 AVOCADO_RADII, AVOCADO_MASS, AVOCADO_MU = (0.042, 0.042, 0.036), 0.2, 0.7
+AVOCADO_SKINS = {"dark": "0.20 0.17 0.09", "green": "0.33 0.52 0.14"}
 # One look per skin colour: ripeness is hidden, so it must not show in the colour.
 AVOCADOS = {  # name: (hydroelastic modulus Pa, skin RGB)
-    "avocado_dark_ripe": (1.5e5, "0.20 0.17 0.09"),
-    "avocado_dark_firm": (4.0e6, "0.20 0.17 0.09"),
-    "avocado_green_firm": (4.0e6, "0.33 0.52 0.14"),
-    "avocado_green_ripe": (1.5e5, "0.33 0.52 0.14"),
+    "avocado_dark_ripe": (1.5e5, AVOCADO_SKINS["dark"]),
+    "avocado_dark_firm": (4.0e6, AVOCADO_SKINS["dark"]),
+    "avocado_green_firm": (4.0e6, AVOCADO_SKINS["green"]),
+    "avocado_green_ripe": (1.5e5, AVOCADO_SKINS["green"]),
 }
+# Hydroelastic modulus (Pa) of a compliant body of each stiffness level (1 ultra-soft .. 4;
+# 5 is rigid: point contact). Levels 1 and 4 are the avocados the probe measures so; 2 and 3
+# lie between them on a log scale (not yet measured with the probe, docs/task_files.md).
+MODULUS_BY_LEVEL = {1: 1.5e5, 2: 5.0e5, 3: 1.5e6, 4: 4.0e6}
+
+# Families made by data: their colours (RGB), defaults and contact.
+COLOURS = {
+    "red": "0.80 0.10 0.10", "green": "0.10 0.55 0.15", "blue": "0.10 0.25 0.85",
+    "yellow": "0.95 0.80 0.10", "white": "0.92 0.92 0.92", "black": "0.08 0.08 0.08",
+    "orange": "0.95 0.50 0.10", "purple": "0.50 0.20 0.65", "brown": "0.50 0.33 0.18",
+}
+BOX_DENSITY, BOX_MU, BOX_CORNER = 400.0, 0.6, 0.002  # kg/m^3 (default mass), -, sphere m
+BALL_DENSITY, BALL_MU = 400.0, 0.8
 
 # --------------------------------------------------------------------------------------------
 # Inertia formulas (moments about the COM, principal axes = body axes).
@@ -220,8 +237,13 @@ def model(name: str, comment: str, inertia_block: str, elements: str) -> str:
             "    </link>\n  </model>\n</sdf>\n")
 
 
-def write(name: str, text: str) -> None:
-    (HERE / f"{name}.sdf").write_text(text)
+def write(name: str, text: str, folder: Path = HERE) -> Path:
+    """Writes `name`.sdf into `folder` whole (a reader never sees half a file)."""
+    path = folder / f"{name}.sdf"
+    partial = folder / f".{name}.{os.getpid()}.partial"
+    partial.write_text(text)
+    partial.replace(path)
+    return path
 
 
 def straw(base: tuple[float, float, float], tilt_deg: float, yaw_deg: float,
@@ -447,10 +469,10 @@ def libero_cup(colour: str, rgb: str, has_straw: bool) -> None:
                       elements))
 
 
-def avocado(name: str, modulus: float, rgb: str) -> None:
+def avocado(name: str, modulus: float, rgb: str, folder: Path = HERE) -> Path:
     a, b, c = AVOCADO_RADII
     m = AVOCADO_MASS
-    skin, ripeness = name.split("_")[1:]
+    skin, ripeness = name.split("_")[1:3]
     geometry = ellipsoid(a, b, c)
     comment = (
         f"  Avocado, {skin} skin, {ripeness}: compliant hydroelastic ellipsoid"
@@ -462,8 +484,49 @@ def avocado(name: str, modulus: float, rgb: str) -> None:
     elements = (collision("collision", pose(z=c), geometry, AVOCADO_MU,
                           compliant(modulus, AVOCADO_MESH_RESOLUTION))
                 + visual("visual", pose(z=c), geometry, rgb))
-    write(name, model(name, comment, inertial(m, (0, 0, c), ellipsoid_inertia(m, a, b, c)),
-                      elements))
+    return write(name, model(name, comment, inertial(m, (0, 0, c),
+                                                     ellipsoid_inertia(m, a, b, c)),
+                             elements), folder)
+
+
+def box_object(name: str, size: tuple[float, float, float], rgb: str, folder: Path) -> Path:
+    """A solid box of `size` (x, y, z, m) with a sphere in each of its eight corners, flush
+    with the faces, as scene/cube_5cm.sdf: a box-box pair has a single contact point, so it
+    stands on the four bottom ones, and a finger pad on a side face touches that face's four
+    (a single point would let the box pivot in the grasp). Its box collision is 1 mm above
+    its bottom face."""
+    sx, sy, sz = size
+    m = BOX_DENSITY * sx * sy * sz
+    r = BOX_CORNER
+    elements = collision("box_collision", pose(z=(sz + 0.001) / 2), box(sx, sy, sz - 0.001),
+                         BOX_MU)
+    for fx, fy, tag in ((1, 1, "px_py"), (1, -1, "px_ny"), (-1, 1, "nx_py"), (-1, -1, "nx_ny")):
+        for z, level in ((r, "bottom"), (sz - r, "top")):
+            elements += collision(f"corner_{level}_{tag}",
+                                  pose(fx * (sx / 2 - r), fy * (sy / 2 - r), z), sphere(r), BOX_MU)
+    elements += visual("box_visual", pose(z=sz / 2), box(sx, sy, sz), rgb)
+    comment = (f"  Box {sx * 1000:g} x {sy * 1000:g} x {sz * 1000:g} mm, default mass {m:g} kg"
+               f" (uniform), mu {BOX_MU:g}, eight {r * 1000:g} mm corner spheres.\n"
+               "  Body frame at the centre of the bottom face, +z up.")
+    moments = (m * (sy**2 + sz**2) / 12, m * (sx**2 + sz**2) / 12, m * (sx**2 + sy**2) / 12)
+    return write(name, model(name, comment, inertial(m, (0, 0, sz / 2), moments), elements),
+                 folder)
+
+
+def ball(name: str, radius: float, rgb: str, level: int, folder: Path) -> Path:
+    """A solid ball; compliant hydroelastic of MODULUS_BY_LEVEL[level] for levels 1 to 4,
+    rigid (point contact) for level 5."""
+    m = BALL_DENSITY * 4 / 3 * math.pi * radius**3
+    geometry = sphere(radius)
+    contact = (compliant(MODULUS_BY_LEVEL[level], AVOCADO_MESH_RESOLUTION)
+               if level in MODULUS_BY_LEVEL else POINT_STIFFNESS)
+    elements = (collision("collision", pose(z=radius), geometry, BALL_MU, contact)
+                + visual("visual", pose(z=radius), geometry, rgb))
+    comment = (f"  Ball of radius {radius * 1000:g} mm, stiffness level {level}, default mass"
+               f" {m:g} kg (solid sphere).\n  Body frame at its lowest point, +z up.")
+    moment = 2 / 5 * m * radius**2
+    return write(name, model(name, comment, inertial(m, (0, 0, radius), (moment,) * 3),
+                             elements), folder)
 
 
 def main() -> None:

@@ -37,6 +37,7 @@ from physcap_drake.eval.grid import (
 from physcap_drake.eval.runner import collect, pending, run_grid
 from physcap_drake.eval.tables import make_cell, write_results
 from physcap_drake.recording.git_state import git_state
+from physcap_drake.tasks.registry import extra_tasks_in
 
 
 def evaluate(
@@ -94,7 +95,8 @@ def evaluate(
             task_names = list(dict.fromkeys(spec.task for spec in specs))
             agent_names = [a for a in all_agents() if any(s.agent == a for s in specs)]
         else:
-            task_names = parse_names(tasks or "all", all_tasks(), "task")
+            task_names = parse_names(tasks or "all", all_tasks() + extra_tasks_in(tasks or ""),
+                                     "task")
             agent_names = parse_names(agents or "all", all_agents(), "agent variant")
             specs = make_grid(task_names, agent_names, trials)
         run_specs = _runner(ray or ray_address is not None, ray_address)

@@ -67,7 +67,7 @@ from physcap_drake.scenario_errors import ScenarioError
 from physcap_drake.station.can_config import PiperCan
 from physcap_drake.station.can_operator import operator_link
 from physcap_drake.station.view import frame_on_table
-from physcap_drake.tasks.registry import TASKS
+from physcap_drake.tasks.registry import TASKS, get_task
 
 STYLES = {"decision": "bold cyan", "error": "bold red", "measurement": "bold green",
           "code": "yellow", "planner": "cyan", "prioritizer": "cyan"}
@@ -101,7 +101,8 @@ class EntryPrinter:
         self._heartbeat.stop()
 
 
-def run(task: Annotated[str, typer.Option("--task", help=f"One of: {', '.join(TASKS)}.")],
+def run(task: Annotated[str, typer.Option("--task", help=f"One of: {', '.join(TASKS)}; "
+                                              "or a task file (docs/task_files.md).")],
         agent: Annotated[str, typer.Option("--agent", help="Agent variant (agents/*.yaml): "
                                            + ", ".join(variant_names()) + ".")] = "physcap",
         seed: Annotated[int, typer.Option("--seed", min=0, help="Layout seed of the task's "
@@ -171,8 +172,10 @@ def run(task: Annotated[str, typer.Option("--task", help=f"One of: {', '.join(TA
     (exploratory object interactions) and robot time. Exit code 0 if the task was solved,
     1 if not, 2 for bad input, 3 if the model or its server failed (one line says why).
     """
-    if task not in TASKS:
-        fail(f"unknown task {task!r}; one of {', '.join(TASKS)}")
+    try:
+        task_spec = get_task(task)
+    except (KeyError, ScenarioError) as error:
+        fail(error.args[0] if isinstance(error, KeyError) else str(error))
     if meshcat_html and out is None:
         fail("--meshcat-html needs --out DIR")
     if hold is not None and not meshcat:
@@ -187,10 +190,11 @@ def run(task: Annotated[str, typer.Option("--task", help=f"One of: {', '.join(TA
     if scenario is not None:
         scenario_task = load_scenario_or_exit(scenario, scenario_text).task
         try:
-            check_scenario_task(task, scenario_task.name, str(scenario))
+            own = load_scenario_or_exit(stations_dir() / task_spec.scenario_file).task.name
+            check_scenario_task(own, scenario_task.name, str(scenario))  # a task file's too
         except ScenarioError as error:
             fail(str(error))
-    loaded = load_scenario_or_exit(scenario or stations_dir() / TASKS[task].scenario_file,
+    loaded = load_scenario_or_exit(scenario or stations_dir() / task_spec.scenario_file,
                                    scenario_text)
     if interface is not None or channel is not None:
         loaded = with_bus(loaded, interface, channel)
@@ -218,7 +222,7 @@ def run(task: Annotated[str, typer.Option("--task", help=f"One of: {', '.join(TA
     printer = None if quiet else EntryPrinter()
     if printer is not None:
         console.print(f"[bold]{task}[/], seed {seed}, agent {escape(agent)}: "
-                      f"{escape(TASKS[task].prompt)}")
+                      f"{escape(task_spec.prompt)}")
     options = dict(agent=agent, client=client, meshcat=viewer, pointer=pointer,
                    perception=perception, judge=judge, scenario_file=scenario,
                    scenario_text=scenario_text,

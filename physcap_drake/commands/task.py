@@ -15,12 +15,15 @@ from physcap_drake.commands.common import console, fail, save_json, trial_progre
 from physcap_drake.commands.options import JsonOut
 from physcap_drake.control.errors import SkillError
 from physcap_drake.perception.offline_pointer import PointingError
+from physcap_drake.scenario_errors import ScenarioError
 from physcap_drake.station import ports
+from physcap_drake.tasks.answer_hidden import answer_shows
 from physcap_drake.tasks.registry import TASKS, get_task
 
 app = typer.Typer(help="The evaluation tasks in simulation.", no_args_is_help=True)
 
-TaskName = Annotated[str, typer.Argument(help=f"One of: {', '.join(TASKS)}.")]
+TaskName = Annotated[str, typer.Argument(help=f"One of: {', '.join(TASKS)}; or a task file "
+                                                 "(docs/task_files.md).")]
 
 
 def _task_or_exit(name: str):
@@ -28,6 +31,8 @@ def _task_or_exit(name: str):
         return get_task(name)
     except KeyError as error:
         fail(error.args[0])
+    except ScenarioError as error:
+        fail(str(error))
 
 
 def parse_seeds(text: str) -> list[int]:
@@ -83,15 +88,17 @@ def show(task: TaskName, seed: Annotated[int, typer.Option("--seed", min=0)] = 0
 @app.command("check")
 def check(task: TaskName,
           seeds: Annotated[str, typer.Option("--seeds", help="e.g. 0-9 or 1,3,5")] = "0-9",
-          wrong: Annotated[bool, typer.Option(
-              "--wrong", help="Run a deliberately wrong solution instead (it must fail).")] = False,
+          oracle_only: Annotated[bool, typer.Option(
+              "--oracle-only", help="Skip the wrong solutions (half the time).")] = False,
           json_path: JsonOut = None) -> None:
-    """Check a task with a scripted solution.
+    """Check a task with scripted right and wrong solutions.
 
-    Runs the oracle solution (it knows the answer: for testing the task, not the agent) on
-    each seed and reports whether the task's success check passes; with --wrong, a
-    deliberately wrong solution that must fail. --json writes one row per seed (seed,
-    answer, success, skill_error, reason, robot_time_s).
+    On each seed: the answer cannot be told by looking (at least two plausible objects,
+    and the same scene whichever is the answer); the oracle solution (it knows the answer:
+    for testing the task, not the agent) passes the task's success check; a deliberately
+    wrong one (an object that looks like the answer) fails it. Exit code 1 if any of these
+    does not hold. --json writes one row per seed (seed, answer, answer_shows, oracle,
+    wrong: success, reason, skill_error, robot_time_s).
     """
     solver = _task_or_exit(task)
     try:
@@ -99,31 +106,62 @@ def check(task: TaskName,
     except ValueError as error:
         fail(str(error))
     rows = []
-    with trial_progress(f"{task} ({'wrong' if wrong else 'oracle'})",
+    with trial_progress(f"{task} (oracle{'' if oracle_only else ' and wrong'})",
                         len(seed_list)) as advance:
         for seed in seed_list:
-            episode = make_episode(task, seed)
-            crashed = False
-            try:
-                solver.solve(episode.instance, episode.api, wrong=wrong)
-                result = episode.check()
-                success, reason = result.success, result.reason
-            except SkillError as error:
-                success, reason, crashed = False, f"skill error: {error}", True
-            rows.append({"seed": seed, "answer": episode.instance.answer, "success": success,
-                         "skill_error": crashed, "reason": reason,
-                         "robot_time_s": episode.api.robot_time})
-            advance(success)
-    table = Table(title=f"{task}: {'wrong' if wrong else 'oracle'} solution")
-    for column in ("seed", "answer", "success", "robot time (s)", "reason"):
-        table.add_column(column)
-    for row in rows:
-        table.add_row(str(row["seed"]), row["answer"], "yes" if row["success"] else "no",
-                      f"{row['robot_time_s']:.1f}", row["reason"])
-    console.print(table)
-    errors = sum(r["skill_error"] for r in rows)
-    console.print(f"success {sum(r['success'] for r in rows)}/{len(rows)}"
-                  + (f" ({errors} ended in a skill error, not by the success check)"
-                     if errors else ""))
+            row = {"seed": seed, "answer": solver.instance(seed).answer,
+                   "answer_shows": answer_shows(solver, seed),
+                   "oracle": _scripted(task, solver, seed, wrong=False)}
+            if not oracle_only:
+                row["wrong"] = _scripted(task, solver, seed, wrong=True)
+            rows.append(row)
+            advance(_passed(row))
+    console.print(_table(task, rows))
+    passed = sum(_passed(r) for r in rows)
+    console.print(f"passed {passed}/{len(rows)} seeds: oracle success "
+                  f"{sum(r['oracle']['success'] for r in rows)}/{len(rows)}"
+                  + ("" if oracle_only else ", wrong answer failed "
+                     f"{sum(not r['wrong']['success'] for r in rows)}/{len(rows)}")
+                  + f", answer hidden {sum(not r['answer_shows'] for r in rows)}/{len(rows)}")
     if json_path is not None:
         save_json(json_path, rows)
+    if passed < len(rows):
+        raise typer.Exit(1)
+
+
+def _scripted(task: str, solver, seed: int, wrong: bool) -> dict:
+    """One episode of the scripted solution (`wrong`: a wrong answer) and its verdict."""
+    episode = make_episode(task, seed)
+    crashed = False
+    try:
+        solver.solve(episode.instance, episode.api, wrong=wrong)
+        result = episode.check()
+        success, reason = result.success, result.reason
+    except SkillError as error:
+        success, reason, crashed = False, f"skill error: {error}", True
+    finally:
+        robot_time = episode.api.robot_time
+        episode.close()
+    return {"success": success, "reason": reason, "skill_error": crashed,
+            "robot_time_s": robot_time}
+
+
+def _passed(row: dict) -> bool:
+    return (row["oracle"]["success"] and not row["answer_shows"]
+            and ("wrong" not in row or not row["wrong"]["success"]))
+
+
+def _table(task: str, rows: list[dict]) -> Table:
+    table = Table(title=f"{task}: scripted solutions")
+    for column in ("seed", "answer", "hidden", "oracle", "wrong", "oracle reason"):
+        table.add_column(column)
+    for row in rows:
+        oracle, wrong = row["oracle"], row.get("wrong")
+        table.add_row(str(row["seed"]), row["answer"],
+                      "yes" if not row["answer_shows"] else f"no: {row['answer_shows']}",
+                      f"{'success' if oracle['success'] else 'FAIL'} "
+                      f"({oracle['robot_time_s']:.1f} s)",
+                      "-" if wrong is None else ("fails" if not wrong["success"] else
+                                                 f"SUCCEEDS: {wrong['reason']}"),
+                      oracle["reason"])
+    return table

@@ -15,7 +15,7 @@ from pathlib import Path
 
 from physcap_drake.agent.variant import variant_names
 from physcap_drake.eval.paper_figures import PAPER_TABLE_1
-from physcap_drake.tasks.registry import TASKS
+from physcap_drake.tasks.registry import TASKS, folder_name
 
 #: The paper's order of the variants (weakest first), used for rows of the tables.
 PAPER_VARIANT_ORDER = ("cap", "cap_physx", "cap_physx_planner", "physcap_joint", "physcap")
@@ -37,7 +37,7 @@ class EpisodeSpec:
     seed: int
 
     def folder(self, out: Path) -> Path:
-        return Path(out) / self.task / self.agent / f"seed_{self.seed:03d}"
+        return Path(out) / folder_name(self.task) / self.agent / f"seed_{self.seed:03d}"
 
     def label(self) -> str:
         return f"{self.task}/{self.agent}/seed {self.seed}"

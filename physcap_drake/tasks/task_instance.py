@@ -21,7 +21,8 @@ class SceneObject:
     visible: what a camera can tell (its name is how the task prompt and the agent refer to
     it). hidden: properties only an interaction reveals (mass_kg, stiffness_level, ...),
     used by the simulation and the success check, never shown to agents.
-    model: the SDF file stem under models/ (e.g. "objects/can_red_open").
+    model: the SDF file stem under models/ (e.g. "objects/can_red_open"), or the absolute
+    stem of a generated model (tasks/object_library.py).
     xy: position of its base centre on the table (world frame, m); yaw: rad.
     """
 
@@ -37,8 +38,16 @@ class SceneObject:
         pose.translation = np.array([self.xy[0], self.xy[1], 0.0])
         pose.rotation = Rotation(RollPitchYaw(0.0, 0.0, self.yaw))
         return ModelDirective(add_model=AddModel(
-            name=self.body, file=f"package://physcap_models/{self.model}.sdf",
+            name=self.body, file=model_url(self.model),
             default_free_body_pose={_link_name(self.model): pose}))
+
+
+def model_url(model: str) -> str:
+    """The URL of a model: a stem under models/ (package://physcap_models/...), or the
+    absolute stem of a model the object library generated (file://...)."""
+    if model.startswith("/"):
+        return f"file://{model}.sdf"
+    return f"package://physcap_models/{model}.sdf"
 
 
 def _link_name(model: str) -> str:
