@@ -26,6 +26,7 @@ from physcap_drake.control.requests import (
 from physcap_drake.control.skills_config import SkillsConfig
 from physcap_drake.free_spot import Circle, Rectangle, free_spot
 from physcap_drake.knowledge import KnowledgeEntry
+from physcap_drake.perception.footprint import box_sides
 from physcap_drake.perception.seen_object import SeenObject
 from physcap_drake.physx.mass_probe import NOTHING_GRASPED, MeasureMass
 from physcap_drake.physx.stiffness_levels import LEVEL_NAMES
@@ -40,6 +41,8 @@ APPROACH = 0.12
 #: (the container's floor and a clearance), or, set back where it stood, this much, m.
 FLOOR_ALLOWANCE = 0.015
 SET_BACK_CLEARANCE = 0.004
+#: Room kept between a box's sides and the opened fingers, m.
+GRIP_ROOM = 0.01
 #: How much higher a container's rim may stand than perception says, m.
 RIM_ERROR = 0.02
 #: Without a destination, lift_and_look looks with the object carried this far sideways, m.
@@ -269,7 +272,7 @@ class RobotCalls:
         spot = None
         if destination is not None:
             spot = yield from self._spot((yield Locate(destination)), item)
-        yield from self._pick(grasp, name)
+        yield from self._pick(grasp, item)
         if spot is None:  # carried aside, out of the camera's line to the spot, and back
             aside = grasp + [0.0, -np.copysign(ASIDE, grasp[1]), LIFT]
             yield from self.goto_pose(aside)
@@ -309,15 +312,18 @@ class RobotCalls:
         spot = yield from self._spot((yield Locate(container)), item)
         grasp = item.grasp_point
         place = np.array([spot[0], spot[1], grasp[2] + FLOOR_ALLOWANCE])
-        yield from self._pick(grasp, name)
+        yield from self._pick(grasp, item)
         yield from self._set_down(place)
         return place
 
-    def _pick(self, grasp: np.ndarray, name: str) -> RobotSteps:
-        """Steps: grasp `name` from above at `grasp` and lift it LIFT straight up; without
-        hold on it, open, rise and raise SkillFailed."""
+    def _pick(self, grasp: np.ndarray, item: SeenObject) -> RobotSteps:
+        """Steps: grasp `item` from above at `grasp` (a box across a pair of its sides, see
+        closing_line) and lift it LIFT straight up; without hold on it, open, rise and raise
+        SkillFailed."""
+        name = item.name
         yield from self.open_gripper()
-        yield from self.goto_pose(grasp, z_approach=APPROACH)
+        yield from request(MoveToPose(grasp, None, APPROACH,
+                                      closing_line(item.footprint, grasp, self._stroke)))
         opening, holding = yield from self.close_gripper()
         if not holding:
             yield from self.open_gripper()
@@ -338,6 +344,21 @@ class RobotCalls:
 CALL_NAMES = ("get_object_pose", "free_spot", "goto_pose", "open_gripper", "close_gripper",
               "home_pose", "move_joints", "wait", "get_mass", "get_weight", "get_stiffness",
               "lift_and_look", "place_in")
+
+
+def closing_line(footprint: np.ndarray, grasp: np.ndarray, stroke: float) -> np.ndarray | None:
+    """The direction [x, y] (world) in which the fingers close on an object of `footprint`
+    grasped at `grasp` (m): for a box (box_sides), the normal of the pair of its sides that
+    fits in the opened fingers (`stroke`, m, less GRIP_ROOM) nearest to the way the fingers
+    close unturned (square to the line from the arm's base); None for other objects, or for
+    a box that does not fit."""
+    sides = box_sides(footprint)
+    if sides is None:
+        return None
+    unturned = np.array([-grasp[1], grasp[0]]) / max(float(np.linalg.norm(grasp[:2])), 1e-9)
+    fitting = [n for n, width in zip(sides.normals, sides.widths, strict=True)
+               if width <= stroke - GRIP_ROOM]
+    return max(fitting, key=lambda n: abs(n @ unturned)) if fitting else None
 
 
 def request(action) -> RobotSteps:

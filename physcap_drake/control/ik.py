@@ -29,6 +29,9 @@ TOP_DOWN_WEIGHT = 100.0
 SEED_WEIGHT = 0.01
 DOWN = np.array([0.0, 0.0, -1.0])
 GRIPPER_AXIS = np.array([0.0, 0.0, 1.0])  # the fingers point along the tcp frame's +z
+CLOSING_AXIS = np.array([0.0, 1.0, 0.0])  # the fingers close along the tcp frame's y
+#: How far the closing line may turn from a requested closing direction, rad.
+CLOSING_TOLERANCE = np.radians(1.0)
 
 
 @dc.dataclass(frozen=True)
@@ -38,12 +41,14 @@ class FingertipGoal:
     position: m. rotation: the `tcp` frame's orientation in the world, honoured within
     ORIENTATION_TOLERANCE; None prefers a top-down grasp: the gripper's axis as close to
     straight down as the arm allows (exactly down where reachable), never tilted more than
-    `max_tilt` rad, the rotation about the vertical left free.
+    `max_tilt` rad, the rotation about the vertical left free, or with `closing` (a
+    horizontal direction [x, y]) turned so that the fingers close along it (either way).
     """
 
     position: np.ndarray
     rotation: RotationMatrix | None = None
     max_tilt: float = np.radians(60.0)
+    closing: np.ndarray | None = None
 
 
 def tilt_from_vertical(rotation: RotationMatrix) -> float:
@@ -62,6 +67,11 @@ def _add_goal(ik: InverseKinematics, model: PlanningModel, goal: FingertipGoal) 
                                             goal.max_tilt)
         ik.AddAngleBetweenVectorsCost(world, DOWN, model.tcp_frame, GRIPPER_AXIS,
                                       TOP_DOWN_WEIGHT)
+        if goal.closing is not None:  # the closing line square to the horizontal across it
+            across = np.array([-goal.closing[1], goal.closing[0], 0.0])
+            ik.AddAngleBetweenVectorsConstraint(world, across, model.tcp_frame, CLOSING_AXIS,
+                                                np.pi / 2 - CLOSING_TOLERANCE,
+                                                np.pi / 2 + CLOSING_TOLERANCE)
     else:
         ik.AddOrientationConstraint(world, goal.rotation, model.tcp_frame, RotationMatrix(),
                                     ORIENTATION_TOLERANCE)
@@ -105,6 +115,9 @@ def solve_fingertip_ik(model: PlanningModel, goal: FingertipGoal, q_seed: np.nda
     where = ", ".join(f"{x:.3f}" for x in goal.position)
     pose = (f"with the gripper within {np.degrees(goal.max_tilt):.0f}° of straight down"
             if goal.rotation is None else "with the requested orientation")
+    if goal.rotation is None and goal.closing is not None:
+        pose += (" and the fingers closing along "
+                 f"({goal.closing[0]:.3f}, {goal.closing[1]:.3f})")
     raise SkillRefused(
         f"no arm configuration puts the fingertip at ({where}) m {pose} "
         f"{np.degrees(limit_margin):.0f}° inside the joint limits and "

@@ -53,11 +53,13 @@ class MoveToJoints:
 class MoveToPose:
     """Move the fingertip to `position` (world frame, m). `quaternion_wxyz`: the fingertip
     frame's orientation, or None to prefer pointing straight down. `z_approach` > 0 (m):
-    first go to the point that far above, then descend vertically."""
+    first go to the point that far above, then descend vertically. `closing_xy`: with no
+    quaternion, a horizontal direction [x, y] (world) the fingers close along, either way."""
 
     position: np.ndarray
     quaternion_wxyz: np.ndarray | None = None
     z_approach: float = 0.0
+    closing_xy: np.ndarray | None = None
 
 
 @dc.dataclass(frozen=True)

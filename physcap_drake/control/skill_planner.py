@@ -190,8 +190,22 @@ class SkillPlanner:
             raise SkillRefused(f"quaternion_wxyz must have unit length; got length {norm:.3f}")
         return RotationMatrix(Quaternion(wxyz / norm))
 
-    def _solve(self, position, rotation, seed, opening, max_step=None) -> np.ndarray:
-        return solve_fingertip_ik(self.model, FingertipGoal(position, rotation), seed,
+    @staticmethod
+    def _closing(closing_xy) -> np.ndarray | None:
+        if closing_xy is None:
+            return None
+        xy = as_vector(closing_xy, 2, "closing_xy")
+        norm = float(np.linalg.norm(xy))
+        if norm < 1e-9:
+            raise SkillRefused("closing_xy must be a direction; got [0, 0]")
+        return xy / norm
+
+    def _solve(self, position, rotation, seed, opening, max_step=None,
+               closing=None) -> np.ndarray:
+        if closing is not None:  # turned from the unturned pose (the wrist's roll turns it)
+            seed = self._solve(position, rotation, seed, opening, max_step)
+        goal = FingertipGoal(position, rotation, closing=closing)
+        return solve_fingertip_ik(self.model, goal, seed,
                                   opening=opening, collision_margin=self.config.collision_margin,
                                   limit_margin=self.config.joint_limit_margin, max_step=max_step)
 
@@ -199,6 +213,7 @@ class SkillPlanner:
                    gripper_command) -> PlannedSkill:
         target = as_vector(request.position, 3, "position (m)")
         rotation = self._rotation(request.quaternion_wxyz)
+        closing = self._closing(request.closing_xy)
         z_approach = as_number(request.z_approach, "z_approach (m)", minimum=0.0)
         where = "(" + ", ".join(f"{v:.3f}" for v in target) + ") m"
         label = f"goto_pose {where}" + (f" from {z_approach:.3f} m above" if z_approach else "")
@@ -208,14 +223,15 @@ class SkillPlanner:
         if z_approach > 0:
             above = target + [0.0, 0.0, z_approach]
             self._check_workspace(above, label + " (approach point)")
-            descent = self._vertical_waypoints(target, above, q_now, rotation, opening)
+            descent = self._vertical_waypoints(target, above, q_now, rotation, opening,
+                                               closing)
             q_target = descent[:, -1]
             segments = (self._timed(np.column_stack([q_now, descent[:, 0]])),
                         self._timed(descent))
             self._check_straight(segments[1], target, label)
             descent_from = now + segments[0].end_time() - segments[0].start_time()
         else:
-            q_target = self._solve(target, rotation, q_now, opening)
+            q_target = self._solve(target, rotation, q_now, opening, closing=closing)
             segments = (self._timed(np.column_stack([q_now, q_target])),)
         self._check_clear(segments, opening, f"{label} refused")
         tilt = np.degrees(tilt_from_vertical(self.model.tcp_pose(q_target).rotation()))
@@ -223,7 +239,8 @@ class SkillPlanner:
         return self._arm_skill(label, segments, now, q_now, gripper_command, note,
                                descent_from)
 
-    def _vertical_waypoints(self, target, above, q_now, rotation, opening) -> np.ndarray:
+    def _vertical_waypoints(self, target, above, q_now, rotation, opening,
+                            closing=None) -> np.ndarray:
         """Joint waypoints (6 × N, top first) whose fingertips lie on the vertical segment from
         `above` down to `target`, each solved close to its neighbour. The chain starts at the
         top (seeded from `q_now`, where the arm comes from) or, failing that, at the bottom."""
@@ -233,11 +250,12 @@ class SkillPlanner:
         for order in (heights, heights[::-1]):
             try:
                 solutions = [self._solve(np.array([*target[:2], order[0]]), rotation, q_now,
-                                         opening)]
+                                         opening, closing=closing)]
                 for z in order[1:]:
                     solutions.append(self._solve(np.array([*target[:2], z]), rotation,
                                                  solutions[-1], opening,
-                                                 max_step=APPROACH_JOINT_STEP))
+                                                 max_step=APPROACH_JOINT_STEP,
+                                                 closing=closing))
             except SkillRefused as error:
                 failure = error
                 continue

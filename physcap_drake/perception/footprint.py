@@ -6,6 +6,8 @@ Design notes: docs/design/perception.md.
 
 from __future__ import annotations
 
+import dataclasses as dc
+
 import cv2
 import numpy as np
 
@@ -16,6 +18,9 @@ HEADINGS = 12
 STRAY_PERCENT = 1.0
 #: Fewest points an outline is taken from.
 MIN_POINTS = 3
+#: An outline filling at least this share of its smallest enclosing rectangle is a box's
+#: (boxes 0.93 to 0.96 of it; cans, cups and avocados 0.79 to 0.82, a circle pi / 4).
+BOX_FILL = 0.88
 
 
 def footprint_outline(points: np.ndarray) -> np.ndarray:
@@ -36,3 +41,33 @@ def footprint_outline(points: np.ndarray) -> np.ndarray:
         kept = xy
     hull = cv2.convexHull(kept.astype(np.float32), clockwise=False)[:, 0, :]
     return hull.astype(np.float64)
+
+
+@dc.dataclass(frozen=True)
+class BoxSides:
+    """A box's footprint as its smallest enclosing rectangle: `normals`, the unit normals of
+    its two pairs of sides (2 × 2, world x y), and `widths`, its width across each pair, m."""
+
+    normals: np.ndarray
+    widths: np.ndarray
+
+
+def box_sides(outline: np.ndarray) -> BoxSides | None:
+    """The sides of a footprint `outline` (K × 2 corners of a convex polygon, world x y, m)
+    if it fills its smallest enclosing rectangle as a box does (BOX_FILL), else None."""
+    corners = np.asarray(outline, dtype=np.float64).reshape(-1, 2)
+    if len(corners) < 3:
+        return None
+    best = None
+    for edge in np.roll(corners, -1, axis=0) - corners:
+        length = np.linalg.norm(edge)
+        if length == 0.0:
+            continue
+        normals = np.array([edge, [-edge[1], edge[0]]]) / length
+        along = corners @ normals.T
+        widths = along.max(axis=0) - along.min(axis=0)
+        if best is None or np.prod(widths) < np.prod(best.widths):
+            best = BoxSides(normals, widths)
+    x, y = corners[:, 0], corners[:, 1]
+    area = 0.5 * abs(x @ np.roll(y, 1) - y @ np.roll(x, 1))
+    return best if best is not None and area >= BOX_FILL * np.prod(best.widths) else None
