@@ -13,6 +13,7 @@ from physcap_drake.control.requests import MoveToPose
 from physcap_drake.control.skill_executor import MONITOR_PERIOD
 from physcap_drake.resources import stations_dir
 from physcap_drake.robot_api import RobotAPI
+from physcap_drake.robot_calls import RobotCalls
 from physcap_drake.robot_stack import build_robot_stack
 from physcap_drake.scenario import load_scenario
 from physcap_drake.station import ports
@@ -171,11 +172,13 @@ def test_a_skill_that_cannot_finish_fails_and_the_arm_stops(table_scenario):
 
 
 def test_the_api_text_states_units_and_frames():
+    """The robot calls' docstrings (the text the model reads) state units and frames."""
     for method in ("goto_pose", "move_joints", "open_gripper", "close_gripper"):
-        assert getattr(RobotAPI, method).__doc__
-    assert "metres" in RobotAPI.goto_pose.__doc__ and "world frame" in RobotAPI.goto_pose.__doc__
-    assert "radians" in RobotAPI.move_joints.__doc__
-    assert "z = 0" in RobotAPI.__doc__
+        assert getattr(RobotCalls, method).__doc__
+    assert ("metres" in RobotCalls.goto_pose.__doc__
+            and "world frame" in RobotCalls.goto_pose.__doc__)
+    assert "radians" in RobotCalls.move_joints.__doc__
+    assert "z = 0" in RobotCalls.__doc__
 
 
 def test_a_pose_whose_gripper_would_hit_the_table_is_refused(robot):
