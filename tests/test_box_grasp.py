@@ -10,17 +10,19 @@ from pydrake.math import RigidTransform, RotationMatrix
 
 from physcap_drake.app.episode import make_episode
 from physcap_drake.control.errors import SkillRefused
-from physcap_drake.control.ik import CLOSING_AXIS, tilt_from_vertical
+from physcap_drake.control.ik import tilt_from_vertical
 from physcap_drake.control.planning_model import PlanningModel
 from physcap_drake.control.requests import MoveToPose
 from physcap_drake.control.skill_planner import SkillPlanner
-from physcap_drake.perception.footprint import BOX_FILL, box_sides
+from physcap_drake.perception.footprint import box_sides
 from physcap_drake.resources import stations_dir
-from physcap_drake.robot_calls import GRIP_ROOM, closing_line
+from physcap_drake.robot_calls import closing_line
 from physcap_drake.scenario import load_scenario
 from physcap_drake.station.robot_model import robot_model
 
 STROKE = 0.10  # m, the 100 mm gripper's opening
+#: The fingers close along the y axis of the fingertip (tcp) frame (RobotCalls docstring).
+FINGERS_CLOSE_ALONG = np.array([0.0, 1.0, 0.0])
 
 
 def rectangle(size_x: float, size_y: float, yaw_deg: float, centre=(0.0, 0.0)) -> np.ndarray:
@@ -57,7 +59,7 @@ def test_a_round_outline_is_no_box():
 
 def test_the_fill_threshold_on_both_sides():
     fills = [1 - 2 * cut**2 for cut in (0.2, 0.26)]
-    assert fills[0] > BOX_FILL > fills[1]
+    assert fills[0] > 0.88 > fills[1]  # a box fills at least 0.88 of its rectangle
     assert box_sides(square_with_cut_corners(0.2)) is not None
     assert box_sides(square_with_cut_corners(0.26)) is None
 
@@ -79,7 +81,7 @@ def test_closing_line_takes_the_sides_nearest_the_unturned_closing():
 
 def test_closing_line_skips_sides_too_wide_for_the_fingers():
     grasp = np.array([0.35, 0.0, 0.03])  # unturned, the fingers close along y
-    fits = STROKE - GRIP_ROOM
+    fits = STROKE - 0.01  # a side must be 10 mm narrower than the opened fingers
     long_along_y = rectangle(0.04, fits + 0.005, 0.0, grasp[:2])
     line = closing_line(long_along_y, grasp, STROKE)
     assert abs(line @ [1.0, 0.0]) == pytest.approx(1.0)  # across its 40 mm, not along y
@@ -115,9 +117,9 @@ def test_the_planner_turns_the_fingers_to_close_along_the_line_without_tilting_m
     line = np.array([np.cos(a), np.sin(a)])
     turned = _grasp_pose(planner, line)
     np.testing.assert_allclose(turned.translation(), [0.37, 0.30, 0.03], atol=2e-4)
-    closes = turned.rotation().matrix() @ CLOSING_AXIS
+    closes = turned.rotation().matrix() @ FINGERS_CLOSE_ALONG
     assert abs(closes[:2] @ line) / np.linalg.norm(closes[:2]) > np.cos(np.radians(1.5))
-    was = unturned.rotation().matrix() @ CLOSING_AXIS
+    was = unturned.rotation().matrix() @ FINGERS_CLOSE_ALONG
     assert abs(was[:2] @ line) / np.linalg.norm(was[:2]) < np.cos(np.radians(30.0))
     assert tilt_from_vertical(turned.rotation()) < tilt_from_vertical(
         unturned.rotation()) + np.radians(2.0)

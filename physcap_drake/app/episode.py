@@ -134,9 +134,13 @@ def build_episode(description: EpisodeDescription, meshcat=None, *, with_agent: 
     real arm's station); with a `sink`, an McapRecorder in the diagram records the station's
     signals to it. Call `close()` on the episode when done."""
     scenario, instance = description.scenario, description.instance()
+    # The camera's calibration is read before the station connects to any hardware.
+    camera = CameraGeometry.from_entry(next(c for c in scenario.cameras
+                                            if c.name == MAIN_CAMERA))
     station = MakeStation(scenario, meshcat)
     try:
-        perception = PerceptionSystem(_perception_module(description, instance, station))
+        perception = PerceptionSystem(_perception_module(description, camera, instance,
+                                                         station))
         background = not isinstance(scenario.station, SimPiper)
         system = agent.system(perception.camera, instance.prompt, scenario, background) \
             if agent is not None else AgentSystem(background=background) if with_agent else None
@@ -151,10 +155,10 @@ def build_episode(description: EpisodeDescription, meshcat=None, *, with_agent: 
     return Episode(description, instance, robot, api)
 
 
-def _perception_module(description: EpisodeDescription, instance: TaskInstance, station):
-    """The perception module the description names, for the built `station`."""
-    camera = CameraGeometry.from_entry(
-        next(c for c in description.scenario.cameras if c.name == MAIN_CAMERA))
+def _perception_module(description: EpisodeDescription, camera: CameraGeometry,
+                       instance: TaskInstance, station):
+    """The perception module the description names, seeing through `camera`, for the built
+    `station`."""
     if description.perception == PerceptionKind.RGBD:
         return RgbdPerception(camera, vocabulary_of(instance.prompt))
     return LabelPerception(camera, OfflinePointer(_catalog(instance, scene_plant(station))))
