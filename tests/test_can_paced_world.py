@@ -124,6 +124,9 @@ def test_lag_tracker_counts_late_steps_and_closes_spells():
     (spell,) = lateness.spells
     assert (spell.start, spell.end, spell.max_lateness) == (pytest.approx(1.07), 1.2, 0.05)
     assert lateness.covering(1.25, 1.4, margin=0.1) is spell
+    tracker.note(2.1, 0.5)  # a second, worse spell: the one a window over both reports
+    assert lateness.covering(1.0, 1.9) is spell
+    assert tracker.lateness().covering(1.0, 2.2).max_lateness == 0.5
     assert lateness.covering(1.5, 1.9) is None
 
 

@@ -41,11 +41,12 @@ class Lateness:
     spells: tuple[LagSpell, ...] = ()
 
     def covering(self, start: float, end: float, margin: float = 0.0) -> LagSpell | None:
-        """The first spell overlapping [start − margin, end + margin] (monotonic s), or None."""
-        for spell in self.spells:
-            if spell.start <= end + margin and spell.end >= start - margin:
-                return spell
-        return None
+        """The worst spell (largest max_lateness) overlapping [start − margin, end + margin]
+        (monotonic s), so that a short spell of a busy machine does not hide a stall; or
+        None."""
+        overlapping = [spell for spell in self.spells
+                       if spell.start <= end + margin and spell.end >= start - margin]
+        return max(overlapping, key=lambda spell: spell.max_lateness, default=None)
 
 
 class LagTracker:
