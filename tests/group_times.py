@@ -1,5 +1,6 @@
-"""`--group-times`: wall and CPU seconds of the suite summed per xdist group, per tier and
-per worker (a worker's wall sum is how long it was busy).
+"""`--group-times`: wall and CPU seconds of the suite summed per xdist group, per tier,
+per worker and per test module (the costliest 30); a worker's wall sum is how long it was
+busy.
 
 A test's CPU time is its worker's (all threads) plus the child processes it waited for, over
 setup, call and teardown. Ungrouped tests sum under "(no group)". See docs/development.md.
@@ -72,7 +73,9 @@ class _Sums:
         self.tests[key].add(report.nodeid)
 
 
-_groups, _tiers, _workers = _Sums(), _Sums(), _Sums()
+_groups, _tiers, _workers, _modules = _Sums(), _Sums(), _Sums(), _Sums()
+#: How many test modules the summary lists, the most CPU first.
+MODULES_SHOWN = 30
 
 
 def pytest_runtest_logreport(report):
@@ -83,6 +86,7 @@ def pytest_runtest_logreport(report):
     _tiers.add("episode" if props["episode"] else "fast tier (not episode)", report)
     worker = getattr(report, "node", None)  # set by xdist's controller
     _workers.add(f"worker {worker.gateway.id}" if worker else "this process", report)
+    _modules.add(report.nodeid.split("::")[0], report)
 
 
 def pytest_terminal_summary(terminalreporter, config):
@@ -92,6 +96,12 @@ def pytest_terminal_summary(terminalreporter, config):
     terminalreporter.section("wall and CPU seconds per xdist group, tier and worker")
     for sums in (_groups, _tiers, _workers):
         for key in sorted(sums.wall, key=lambda k: -sums.wall[k]):
-            write(f"{sums.wall[key]:8.1f} s wall {sums.cpu[key]:8.1f} s CPU "
-                  f"{len(sums.tests[key]):5d} tests  {key}")
+            _write_line(write, sums, key)
         write("")
+    for key in sorted(_modules.cpu, key=lambda k: -_modules.cpu[k])[:MODULES_SHOWN]:
+        _write_line(write, _modules, key)
+
+
+def _write_line(write, sums: _Sums, key: str) -> None:
+    write(f"{sums.wall[key]:8.1f} s wall {sums.cpu[key]:8.1f} s CPU "
+          f"{len(sums.tests[key]):5d} tests  {key}")
