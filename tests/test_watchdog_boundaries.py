@@ -1,6 +1,7 @@
 """The CAN watchdog (FeedbackListener.health) on each side of its configured limits, with
 the clock injected: silence and lateness just under and over `feedback_timeout`, frame loss
-just under and over `max_loss` with whole cycles counted, garbled frames within the timeout."""
+just under and over `max_loss` with whole cycles counted (once over, healthy again under
+half of it), garbled frames within the timeout."""
 
 from __future__ import annotations
 
@@ -124,6 +125,22 @@ def test_losses_older_than_the_window_are_forgotten(clock):
     assert feed.health(clock.now).stale
     run_cycles(feed, clock, 0)
     assert not feed.health(clock.now).stale
+
+
+@pytest.mark.parametrize("lost_after, stale", [
+    (8, True),  # 4.1 %: under the limit, but a bus that was lossy stays so
+    (5, True), (4, False),  # 2.6 % | 2.1 %: either side of half the limit
+])
+def test_a_lossy_bus_is_healthy_again_only_at_half_the_loss_limit(clock, lost_after, stale):
+    feed = listener()
+    run_cycles(feed, clock, 12)  # 6.2 %: over the limit
+    assert feed.health(clock.now).stale
+    run_cycles(feed, clock, lost_after)
+    health = feed.health(clock.now)
+    assert health.stale is stale, health.reason
+    if stale:
+        assert health.reason == (f"{round(100 * lost_after / COUNTED)}% of the feedback "
+                                 "frames lost over the last 16 cycles")
 
 
 def test_loss_waits_for_two_cycles(clock):

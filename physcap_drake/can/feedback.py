@@ -24,6 +24,10 @@ PERIODIC = codec.PERIODIC_FEEDBACK
 #: Feedback cycles over which frame loss is counted (80 ms at 200 Hz): 160 frames, enough to
 #: tell 1 % from 10 % loss (means 1.6 and 16 lost) and to do so within 100 ms.
 LOSS_CYCLES = 16
+#: Once the loss has gone over its limit, the feedback stays lossy until the loss is at most
+#: this fraction of the limit: a bus losing about the limit would otherwise stop and restart
+#: the arm's motion cycle after cycle.
+LOSS_RECOVERY = 0.5
 #: Values beyond these are not feedback but garbage: joint angle beyond its limit (rad),
 #: joint speed (rad/s), motor current (A), gripper opening outside [−, stroke + ] (m),
 #: end-pose position (m, from the base) and angle (rad).
@@ -111,18 +115,27 @@ class LossMonitor:
     the other periodic identifiers, those that did not arrive since the previous status
     frame were lost. Counting per cycle, not per second, keeps a slow or stalling sender
     (fewer cycles, late bursts) from looking lossy; a lost status frame merges two cycles
-    and hides at most one cycle's losses.
+    and hides at most one cycle's losses. `lossy` goes on when the loss exceeds `max_loss`
+    as a cycle closes; over a full window it goes off only once the loss is at most
+    LOSS_RECOVERY of it (a window still filling counts too few frames to hold it).
     """
 
-    def __init__(self):
+    def __init__(self, max_loss: float):
+        self._max_loss = max_loss
         self._others = frozenset(PERIODIC) - {codec.ARM_STATUS}
         self._seen: set[int] = set()
         self._cycles: collections.deque[int] = collections.deque(maxlen=LOSS_CYCLES)
+        self.lossy = False
 
     def arrived(self, identifier: int) -> None:
         if identifier == codec.ARM_STATUS:
             self._cycles.append(len(self._others - self._seen))
             self._seen = set()
+            loss = self.loss()
+            if loss > self._max_loss:
+                self.lossy = True
+            elif loss <= LOSS_RECOVERY * self._max_loss or len(self._cycles) < LOSS_CYCLES:
+                self.lossy = False
         else:
             self._seen.add(identifier)
 
@@ -142,7 +155,6 @@ class FeedbackListener(can.Listener):
         self._lock = threading.Lock()
         self._stroke = stroke
         self._timeout = feedback_timeout
-        self._max_loss = max_loss
         self._q = np.full(6, np.nan)
         self._v = np.zeros(6)
         self._current = np.zeros(6)
@@ -170,7 +182,7 @@ class FeedbackListener(can.Listener):
         #: Joint targets seen on the bus from another sender: a leader arm's (LEADER_FRAMES).
         self.leader_frames = 0
         self._fault = ""
-        self._loss = LossMonitor()
+        self._loss = LossMonitor(max_loss)
 
     # The Notifier's side ----------------------------------------------------------------
 
@@ -359,7 +371,7 @@ class FeedbackListener(can.Listener):
                 reasons.append(f"no feedback for {silence * 1000:.0f} ms")
             elif self._age > self._timeout:
                 reasons.append(f"feedback arrives {self._age * 1000:.0f} ms late")
-            if loss > self._max_loss:
+            if self._loss.lossy:
                 reasons.append(f"{loss:.0%} of the feedback frames lost over the last "
                                f"{LOSS_CYCLES} cycles")
             if now - self._garbled_at <= self._timeout:
