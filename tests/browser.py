@@ -22,6 +22,10 @@ from pathlib import Path
 
 CHROMIUM_NAMES = ("chromium", "chromium-browser", "google-chrome")
 TIMEOUT_S = 240.0
+# WebGL through SwiftShader; a 64 × 48 window: the page's render loop draws little, and
+# images are drawn at the size asked for (`capture_image`), whatever the window.
+CHROMIUM_FLAGS = ("--headless", "--no-sandbox", "--disable-gpu", "--use-angle=swiftshader",
+                  "--enable-unsafe-swiftshader", "--window-size=64,48")
 
 # Counts the page's command fetches and the commands its viewer has handled; the scene is
 # built when the document is loaded and every fetched command is handled.
@@ -81,45 +85,45 @@ class MeshcatPage:
         probe.write_text(text[:head + 6] + _READY + text[head + 6:])
         self._deadline = time.monotonic() + TIMEOUT_S
         self._stderr = workdir / "chromium.stderr"
-        self._launch(chromium, workdir)
+        self._launch(chromium, workdir, probe.as_uri())
         self._ids, self._buffer = 0, b""
         try:
-            target = self._send("Target.createTarget", url=probe.as_uri())["targetId"]
-            self._session = self._send("Target.attachToTarget", targetId=target,
+            while not (tabs := [target["targetId"] for target in self._send(
+                    "Target.getTargets")["targetInfos"] if target["type"] == "page"]):
+                self._wait_a_little("the copy of the page was never opened")
+            self._session = self._send("Target.attachToTarget", targetId=tabs[0],
                                        flatten=True)["sessionId"]
             while not self._probe_script_runs():
-                time.sleep(0.05)
+                self._wait_a_little("the copy's script never ran")
         except BaseException:
             self.close()
             raise
 
+    def _wait_a_little(self, why: str) -> None:
+        if time.monotonic() > self._deadline:
+            raise self._fail(f"{why} in {TIMEOUT_S:.0f} s")
+        time.sleep(0.05)
+
     def _probe_script_runs(self) -> bool:
-        """Whether the copy's script has run (not yet while Chromium still shows
-        about:blank or swaps it for the copy)."""
+        """Whether the copy's script has run (not yet while Chromium still loads it)."""
         try:
             return self._evaluate("typeof physcapSceneBuilt") == "function"
-        except AssertionError:
-            if time.monotonic() > self._deadline:
-                raise
+        except AssertionError:  # no page yet to run it in
             return False
 
-    def _launch(self, chromium: str, workdir: Path) -> None:
+    def _launch(self, chromium: str, workdir: Path, url: str) -> None:
         # Chromium reads the protocol's commands from fd 3 and writes its replies to fd 4.
         commands, replies = os.pipe(), os.pipe()
         theirs = [fcntl.fcntl(fd, fcntl.F_DUPFD_CLOEXEC, 10) for fd in (commands[0], replies[1])]
         for fd in (commands[0], replies[1]):
             os.close(fd)
         self._to, self._from = commands[1], replies[0]
-        # A 64 × 48 window: the page's render loop draws little; images are drawn at the
-        # size asked for (`capture_image`), whatever the window.
         with open(self._stderr, "w") as stderr:
             self._process = subprocess.Popen(
                 ["/bin/bash", "-c", f'exec "$@" 3<&{theirs[0]} 4>&{theirs[1]} '
                  f'{theirs[0]}<&- {theirs[1]}>&-', "chromium", chromium,
-                 "--headless", "--no-sandbox", "--disable-gpu", "--use-angle=swiftshader",
-                 "--enable-unsafe-swiftshader", "--window-size=64,48",
-                 f"--user-data-dir={workdir / 'profile'}", "--remote-debugging-pipe",
-                 "about:blank"],
+                 *CHROMIUM_FLAGS, f"--user-data-dir={workdir / 'profile'}",
+                 "--remote-debugging-pipe", url],
                 pass_fds=theirs, stdout=subprocess.DEVNULL, stderr=stderr)
         for fd in theirs:
             os.close(fd)
