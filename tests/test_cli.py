@@ -8,7 +8,7 @@ import re
 
 import cv2
 import pytest
-from browser import find_chromium, meshcat_image, meshcat_visibility
+from browser import find_chromium, meshcat_images, meshcat_visibility
 from typer.testing import CliRunner
 
 from physcap_drake.cli import app
@@ -69,6 +69,11 @@ def test_missing_scenario_file_exits_2(tmp_path):
     assert "no such file" in result.output
 
 
+# The tests of demo_run share its one run (and one Chromium run) on one xdist worker.
+DEMO_RUN = pytest.mark.xdist_group("test_cli_demo")
+WINDOW_SIZES = [(1024, 768), (1280, 720)]
+
+
 @pytest.fixture(scope="module")
 def demo_run(tmp_path_factory):
     """`physcap demo pick-place --html demo.html`, run once for the tests below."""
@@ -77,7 +82,20 @@ def demo_run(tmp_path_factory):
                          ), html
 
 
+@pytest.fixture(scope="module")
+def demo_images(demo_run, tmp_path_factory):
+    """What demo.html's camera shows in each of WINDOW_SIZES, from one Chromium run."""
+    chromium = find_chromium()
+    if chromium is None:
+        pytest.fail("Chromium is missing: `./run test` installs it (Debian package "
+                    "'chromium'); or install it yourself")
+    images = meshcat_images(demo_run[1], chromium, tmp_path_factory.mktemp("chromium"),
+                            WINDOW_SIZES)
+    return dict(zip(WINDOW_SIZES, images, strict=True))
+
+
 @pytest.mark.episode
+@DEMO_RUN
 def test_demo_pick_place_puts_the_can_on_the_tray(demo_run):
     result, _ = demo_run
     assert result.exit_code == 0, result.output
@@ -93,20 +111,18 @@ def scene_fraction(image) -> float:
 
 
 @pytest.mark.episode
-@pytest.mark.parametrize("size", [(1024, 768), (1280, 720)])
-def test_demo_html_opens_framed_on_the_table(demo_run, tmp_path, size):
+@DEMO_RUN
+@pytest.mark.parametrize("size", WINDOW_SIZES)
+def test_demo_html_opens_framed_on_the_table(demo_images, size):
     """Before framing, the table filled 2 % of a 1024 × 768 window (the rest was sky and
     floor); now most of the window is table, arm and objects."""
-    chromium = find_chromium()
-    if chromium is None:
-        pytest.fail("Chromium is missing: `./run test` installs it (Debian package "
-                    "'chromium'); or install it yourself")
-    image = meshcat_image(demo_run[1], chromium, tmp_path, size)
+    image = demo_images[size]
     assert image.shape[:2] == (size[1], size[0])
     assert scene_fraction(image) > 0.5
 
 
 @pytest.mark.episode
+@DEMO_RUN
 def test_demo_html_hides_contact_forces_axes_and_grid(demo_run):
     for path in ("/drake/contact_forces", "/Axes", "/Grid"):
         assert meshcat_visibility(demo_run[1], path) == {False}, path
