@@ -6,10 +6,11 @@ import pytest
 from pydrake.math import RigidTransform, RotationMatrix
 
 from physcap_drake.control.errors import SkillRefused
+from physcap_drake.control.ik import FingertipGoal, solve_fingertip_ik
 from physcap_drake.control.planning_model import PlanningModel
 from physcap_drake.perception import hand_eye_poses
+from physcap_drake.perception.arm_reach import REACH_SLACK, wrist_reach
 from physcap_drake.perception.hand_eye_poses import (
-    REACH_SLACK,
     BoardTarget,
     board_corners,
     board_pose,
@@ -18,7 +19,6 @@ from physcap_drake.perception.hand_eye_poses import (
     joints_for,
     out_of_view_problem,
     table_clearance_problem,
-    wrist_reach,
 )
 from physcap_drake.resources import stations_dir
 from physcap_drake.scenario import load_scenario
@@ -148,3 +148,33 @@ def test_a_flange_pose_beyond_the_reach_is_refused_without_inverse_kinematics(ri
     monkeypatch.setattr(hand_eye_poses, "solve_fingertip_ik", no_ik)
     with pytest.raises(SkillRefused, match=r"out of the arm's reach: the wrist would be 547 mm"):
         joints_for(rig_model, far, RigidTransform(), q, **kwargs)
+
+
+@pytest.mark.parametrize("beyond", [-0.06, 0.2], ids=["bent inside", "bent beyond"])
+def test_a_wrist_bent_beyond_joint_5s_limit_is_refused_without_inverse_kinematics(
+        rig_model, monkeypatch, beyond):
+    reach = wrist_reach(rig_model)
+    assert reach.joint_tests  # the PiPER is an arm the joint-limit tests describe
+    q = np.array([0.3, 1.2, -1.8, 0.4, rig_model.upper[4] + beyond, 0.2])
+    X_WG = _wrist_and_flange(rig_model, q)[1]  # joint 5 bent this far (a plant allows it)
+    kwargs = dict(opening=0.0, collision_margin=0.01, limit_margin=0.03)
+    if beyond < 0:  # 3.4° inside the limit: allowed, and the inverse kinematics reaches it
+        assert reach.problem(X_WG, 0.03) == ""
+        found = joints_for(rig_model, X_WG, RigidTransform(), q, **kwargs)
+        np.testing.assert_allclose(_wrist_and_flange(rig_model, found)[1].translation(),
+                                   X_WG.translation(), atol=5e-4)
+        return
+    # 11.5° beyond: no joints within the limits put the flange there (the solver, from
+    # the pose's own joints and its fallback seeds, without collisions, finds none) ...
+    goal = X_WG @ hand_eye_poses.flange_to_tcp(rig_model)
+    with pytest.raises(SkillRefused):
+        solve_fingertip_ik(rig_model, FingertipGoal(goal.translation(), goal.rotation()),
+                           q, opening=0.0, collision_margin=0.0, limit_margin=0.0)
+    # ... and the reach test says so before any inverse kinematics is tried.
+    monkeypatch.setattr(hand_eye_poses, "solve_fingertip_ik", _no_ik)
+    with pytest.raises(SkillRefused, match=r"joint limits: .* needs .*joint 5 beyond"):
+        joints_for(rig_model, X_WG, RigidTransform(), q, **kwargs)
+
+
+def _no_ik(*_, **__):
+    raise AssertionError("inverse kinematics tried on a pose beyond the joint limits")

@@ -80,6 +80,24 @@ def test_the_software_device_returns_the_pushed_frame_with_its_intrinsics():
     assert (frame.fx, frame.fy, frame.cx, frame.cy) == pytest.approx((50.0, 51.0, 31.5, 23.5))
 
 
+def test_an_rgba_image_and_a_coarser_depth_are_pushed_as_the_full_frame_pair():
+    """What the emulated camera pushes: the renderer's RGBA (alpha dropped) and its depth
+    at half the resolution, each depth pixel standing for 2 x 2 of the depth stream."""
+    device = SoftwareRealSense(W, H, 50.0, 51.0, 31.5, 23.5, depth_unit=0.001)
+    rng = np.random.default_rng(1)
+    rgba = rng.integers(0, 256, (H, W, 4), dtype=np.uint8)
+    coarse = rng.uniform(0.3, 3.0, (H // 2, W // 2))
+    coarse[0, 0], coarse[1, 2] = 0.0, np.inf  # none measured
+    frame = device.capture(rgba, coarse, 2)
+    device.close()
+    assert np.array_equal(frame.rgb, rgba[:, :, :3])
+    full = np.kron(np.where(np.isfinite(coarse), coarse, 0.0), np.ones((2, 2)))
+    assert frame.depth.shape == (H, W)
+    np.testing.assert_array_equal(frame.depth, np.float32(np.round(full / 0.001))
+                                  * np.float32(0.001))
+    assert (frame.depth[:2, :2] == 0).all() and (frame.depth[2:4, 4:6] == 0).all()
+
+
 def test_the_emulated_camera_exports_faulty_depth_and_is_reproducible():
     scenario = _emulated_scenario()
     station = MakeStation(scenario)

@@ -9,7 +9,6 @@ G the flange (link6), B the board (centre of its ChArUco area, z out of the prin
 from __future__ import annotations
 
 import dataclasses as dc
-import weakref
 
 import numpy as np
 from pydrake.math import RigidTransform, RollPitchYaw, RotationMatrix
@@ -18,6 +17,7 @@ from physcap_drake.control.errors import SkillRefused
 from physcap_drake.control.ik import FingertipGoal, solve_fingertip_ik
 from physcap_drake.control.planning_model import PlanningModel
 from physcap_drake.control.requests import HeldObject
+from physcap_drake.perception.arm_reach import wrist_reach
 
 #: Where the nominal A4 board sits on the flange when its tab is clamped fully: the card's
 #: mid-plane between the fingers (its face across their closing axis, y), its long side
@@ -41,11 +41,6 @@ TABLE_CLEARANCE = 0.05
 ARM_ANCHOR = np.array([0.0, 0.0, 0.2])
 #: Margin the board's corners keep from the image's edges, px.
 IMAGE_MARGIN = 20.0
-#: Slack of the reach test, m: a wrist centre farther than this outside the distances the
-#: joints allow is refused without inverse kinematics (its tolerances move it < 1 mm).
-REACH_SLACK = 0.005
-#: Elbow angles sampled over the joint's range to find those distances.
-ELBOW_SAMPLES = 721
 
 
 @dc.dataclass(frozen=True)
@@ -138,62 +133,15 @@ def facing_angle(X_WC: RigidTransform, X_WB: RigidTransform) -> float:
     return float(np.arccos(np.clip(normal @ to_camera / np.linalg.norm(to_camera), -1, 1)))
 
 
-@dc.dataclass(frozen=True)
-class WristReach:
-    """Where the wrist centre (the point where joints 4-6 meet, fixed on the flange) can be:
-    between `nearest` and `farthest` m from the shoulder (on joints 1 and 2, fixed in W);
-    only the elbow (joint 3) changes that distance."""
-
-    shoulder_W: np.ndarray
-    wrist_G: np.ndarray
-    nearest: float
-    farthest: float
-
-    def problem(self, X_WG: RigidTransform) -> str:
-        """Why no joints put the flange at X_WG ("" if the reach allows it)."""
-        distance = float(np.linalg.norm(X_WG @ self.wrist_G - self.shoulder_W))
-        if self.nearest - REACH_SLACK <= distance <= self.farthest + REACH_SLACK:
-            return ""
-        return (f"out of the arm's reach: the wrist would be {1000 * distance:.0f} mm from "
-                f"the shoulder (it reaches {1000 * self.nearest:.0f} to "
-                f"{1000 * self.farthest:.0f} mm)")
-
-
-_reach_of: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
-
-
-def wrist_reach(model: PlanningModel) -> WristReach:
-    """The WristReach of `model`'s arm (computed once per model)."""
-    if model not in _reach_of:
-        plant = model.plant
-        arm = plant.GetModelInstanceByName(model.robot.arm_model)
-        shoulder = plant.GetJointByName("joint2", arm).frame_on_child()
-        wrist = plant.GetJointByName("joint5", arm).frame_on_child()
-        flange = plant.GetBodyByName("link6", arm)
-
-        def where(frame, poses) -> RigidTransform:
-            return poses[int(frame.body().index())] @ frame.GetFixedPoseInBodyFrame()
-
-        poses = model.body_poses(np.zeros(6), 0.0)
-        wrist_G = (poses[int(flange.index())].inverse() @ where(wrist, poses)).translation()
-        distances = []
-        for elbow in np.linspace(model.lower[2], model.upper[2], ELBOW_SAMPLES):
-            poses = model.body_poses(np.array([0.0, 0.0, elbow, 0.0, 0.0, 0.0]), 0.0)
-            distances.append(np.linalg.norm(where(wrist, poses).translation()
-                                            - where(shoulder, poses).translation()))
-        _reach_of[model] = WristReach(where(shoulder, poses).translation(), wrist_G,
-                                      float(min(distances)), float(max(distances)))
-    return _reach_of[model]
-
-
 def joints_for(model: PlanningModel, X_WB: RigidTransform, X_GB: RigidTransform,
                q_seed: np.ndarray, *, opening: float, collision_margin: float,
                limit_margin: float) -> np.ndarray:
     """Arm joints (rad) that put the board at X_WB when it sits at X_GB on the flange,
     clear of `model`'s environment and the arm by `collision_margin` m (with what `model`
-    holds). Raises SkillRefused saying why not (out of reach: before any inverse kinematics)."""
+    holds). Raises SkillRefused saying why not (out of reach or of the joint limits: before any
+    inverse kinematics, see perception/arm_reach.py)."""
     X_WG = X_WB @ X_GB.inverse()
-    out_of_reach = wrist_reach(model).problem(X_WG)
+    out_of_reach = wrist_reach(model).problem(X_WG, limit_margin)
     if out_of_reach:
         raise SkillRefused(out_of_reach)
     X_W_tcp = X_WG @ flange_to_tcp(model)

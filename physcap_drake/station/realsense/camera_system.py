@@ -8,6 +8,7 @@ from __future__ import annotations
 import atexit
 import logging
 
+import cv2
 import numpy as np
 from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import Context, LeafSystem, ValueProducer
@@ -85,8 +86,8 @@ class RgbdCameraSystem(LeafSystem):
         frame = self.frame(context)
         image = output.get_mutable_value()
         image.resize(frame.width, frame.height)
-        image.mutable_data[:, :, :3] = frame.rgb
-        image.mutable_data[:, :, 3] = 255
+        image.mutable_data[:] = cv2.cvtColor(np.ascontiguousarray(frame.rgb),
+                                             cv2.COLOR_RGB2RGBA)  # alpha 255
 
     def _output_depth(self, context: Context, output: AbstractValue) -> None:
         frame = self.frame(context)
@@ -161,8 +162,7 @@ class EmulatedRealSenseCamera(RgbdCameraSystem):
         faulty = self.entry.emulation.depth_faults.apply(depth[::step, ::step],
                                                          rgb[::step, ::step],
                                                          self._focal_x / step, rng)
-        faulty = np.repeat(np.repeat(faulty, step, axis=0), step, axis=1)
-        return self.device.capture(rgb, faulty)
+        return self.device.capture(rgb, faulty, step)
 
     def close(self) -> None:
         self.device.close()

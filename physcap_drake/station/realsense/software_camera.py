@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import time
 
+import cv2
 import numpy as np
 
 from physcap_drake.station.realsense.frames import RgbdFrame, frame_from_frameset
@@ -69,18 +70,24 @@ class SoftwareRealSense:
         # Recorded from here: a recording holds the camera's frames only, not the blank pair.
         self._recorder = rs.recorder(record_to, self._device) if record_to else None
 
-    def capture(self, rgb: np.ndarray, depth: np.ndarray) -> RgbdFrame:
+    def capture(self, rgb: np.ndarray, depth: np.ndarray, depth_step: int = 1) -> RgbdFrame:
         """Pushes one frame pair and returns it as the frame path delivers it. rgb: H × W × 3
-        or 4 uint8; depth: H × W, m, 0 (or inf) where there is none. The frames carry the
-        device's own clock: frame n at n frame periods (the syncer pairs frames by their
-        timestamps and expects them at the stream's rate)."""
+        or 4 uint8; depth: H/depth_step × W/depth_step, m, 0 (or inf) where there is none,
+        each pixel standing for depth_step × depth_step of the H × W depth stream. The
+        frames carry the device's own clock: frame n at n frame periods (the syncer pairs
+        frames by their timestamps and expects them at the stream's rate)."""
         if not self._open:
             raise RuntimeError("the emulated RealSense is closed (its station was released)")
-        rgb = np.ascontiguousarray(np.asarray(rgb)[:, :, :3], dtype=np.uint8)
-        depth = np.asarray(depth, dtype=np.float64).reshape(self.height, self.width)
+        rgb = np.ascontiguousarray(rgb)
+        rgb = cv2.cvtColor(rgb, cv2.COLOR_RGBA2RGB) if rgb.dtype == np.uint8 and \
+            rgb.shape[2] == 4 else np.ascontiguousarray(rgb[:, :, :3], dtype=np.uint8)
+        depth = np.asarray(depth, dtype=np.float64).reshape(self.height // depth_step,
+                                                            self.width // depth_step)
         counts = np.where(np.isfinite(depth) & (depth > 0), np.rint(depth / self.depth_unit),
                           0.0)
         z16 = np.clip(counts, 0, 65535).astype(np.uint16)
+        if depth_step > 1:
+            z16 = np.repeat(np.repeat(z16, depth_step, axis=0), depth_step, axis=1)
         number = self._push(rgb, z16)
         deadline = time.monotonic() + SYNC_TIMEOUT_MS / 1000.0
         while time.monotonic() < deadline:
