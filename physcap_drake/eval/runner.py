@@ -6,6 +6,7 @@ Design notes: docs/design/eval.md.
 from __future__ import annotations
 
 import multiprocessing
+import os
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -43,6 +44,13 @@ def _run_job(job: tuple) -> dict[str, Any]:
     return episode(*args)
 
 
+def _adopt_environment(environment: dict[str, str]) -> None:
+    """A worker's environment becomes its parent's at the pool's start (the fork server
+    holds its own from when it started)."""
+    os.environ.clear()
+    os.environ.update(environment)
+
+
 def pool_context() -> multiprocessing.context.BaseContext:
     """Workers forked from a server process that imported `PRELOADED` once (no parent state,
     no threads are copied: see docs/design/eval.md)."""
@@ -77,7 +85,9 @@ def run_grid(specs: list[EpisodeSpec], out: Path, *, llm: str = "reference",
         for spec in todo:
             finished(episode(spec, out, llm, model))
         return results
-    pool = pool_context().Pool(workers, maxtasksperchild=episodes_per_worker)
+    pool = pool_context().Pool(workers, initializer=_adopt_environment,
+                               initargs=(dict(os.environ),),
+                               maxtasksperchild=episodes_per_worker)
     try:
         jobs = [(episode, spec, out, llm, model) for spec in todo]
         for result in pool.imap_unordered(_run_job, jobs, chunksize=1):
