@@ -14,8 +14,8 @@ from typing import Any
 from physcap_drake.app.episode_folder import is_finished, read_summary, record_episode
 from physcap_drake.eval.grid import EpisodeSpec
 
-#: Episodes one worker process runs before it is replaced by a fresh one (see above): a
-#: guard, since an episode leaves nothing behind; a new process costs a few seconds of imports.
+#: Episodes one worker process runs before it is replaced by a fresh one: a guard, since an
+#: episode leaves nothing behind; a new worker is a fork of the pool's server (see PRELOADED).
 EPISODES_PER_WORKER = 20
 #: Imported once by the pool's fork server; its workers start as forks of it.
 PRELOADED = ("physcap_drake.eval.runner",)
