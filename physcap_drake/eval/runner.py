@@ -6,6 +6,7 @@ Design notes: docs/design/eval.md.
 from __future__ import annotations
 
 import multiprocessing
+import multiprocessing.pool
 import os
 from collections.abc import Callable
 from pathlib import Path
@@ -59,6 +60,13 @@ def pool_context() -> multiprocessing.context.BaseContext:
     return context
 
 
+def worker_pool(processes: int, tasks_per_worker: int) -> multiprocessing.pool.Pool:
+    """A pool of `processes` workers from `pool_context()`, each with the caller's
+    environment and replaced after `tasks_per_worker` tasks."""
+    return pool_context().Pool(processes, initializer=_adopt_environment,
+                               initargs=(dict(os.environ),), maxtasksperchild=tasks_per_worker)
+
+
 def run_grid(specs: list[EpisodeSpec], out: Path, *, llm: str = "reference",
              model: str | None = None, workers: int = 1,
              on_done: Callable[[dict[str, Any]], None] | None = None,
@@ -85,9 +93,7 @@ def run_grid(specs: list[EpisodeSpec], out: Path, *, llm: str = "reference",
         for spec in todo:
             finished(episode(spec, out, llm, model))
         return results
-    pool = pool_context().Pool(workers, initializer=_adopt_environment,
-                               initargs=(dict(os.environ),),
-                               maxtasksperchild=episodes_per_worker)
+    pool = worker_pool(workers, episodes_per_worker)
     try:
         jobs = [(episode, spec, out, llm, model) for spec in todo]
         for result in pool.imap_unordered(_run_job, jobs, chunksize=1):
