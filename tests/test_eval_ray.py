@@ -1,6 +1,7 @@
-"""The evaluation grid on a local Ray instance (2 CPUs): the same episodes as the process
-pool, an episode whose worker is killed is run again, and a task waiting for a model lends
-its CPU to another."""
+"""The evaluation grid on Ray: on a local instance of its own (2 CPUs) the same episodes as
+the process pool; on a running cluster (one CPU, shared by the module's last two tests) an
+episode whose worker is killed is run again, and a task waiting for a model lends its CPU to
+another."""
 
 from __future__ import annotations
 
@@ -14,6 +15,7 @@ import subprocess
 import sys
 import threading
 import time
+from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
@@ -68,6 +70,19 @@ def pool_episodes(tmp_path_factory) -> dict[str, dict]:
     return _episodes(out)
 
 
+@pytest.fixture(scope="module")
+def one_cpu_cluster() -> Iterator[str]:
+    """A local Ray instance of one CPU, this process its first driver: its GCS address."""
+    import ray
+
+    ray.init(address="local", num_cpus=1, include_dashboard=False, logging_level="WARNING",
+             runtime_env={"env_vars": {"OPENAI_API_KEY": "test-key"}})
+    try:
+        yield ray.get_runtime_context().gcs_address
+    finally:
+        ray.shutdown()
+
+
 @pytest.mark.episode
 def test_a_grid_on_ray_gives_the_episodes_of_the_process_pool(tmp_path, pool_episodes):
     out = _finish(_physcap(*GRID, "--ray", "--out", str(tmp_path)))
@@ -98,8 +113,9 @@ def _episode_workers() -> list[int]:
 
 
 @pytest.mark.episode
-def test_an_episode_whose_worker_is_killed_is_run_again(tmp_path, pool_episodes):
-    grid = _physcap(*GRID, "--ray", "--out", str(tmp_path))
+def test_an_episode_whose_worker_is_killed_is_run_again(tmp_path, pool_episodes,
+                                                       one_cpu_cluster):
+    grid = _physcap(*GRID, "--ray-address", one_cpu_cluster, "--out", str(tmp_path))
     deadline, killed = time.monotonic() + 300, None
     while killed is None and time.monotonic() < deadline and grid.poll() is None:
         for pid in _episode_workers():
@@ -154,7 +170,7 @@ def _other_work() -> float:
     return time.time()
 
 
-def test_a_task_waiting_for_a_model_lends_its_cpu():
+def test_a_task_waiting_for_a_model_lends_its_cpu(one_cpu_cluster):
     import ray
 
     # The remote functions travel by value: Ray's workers cannot import this test module.
@@ -163,8 +179,7 @@ def test_a_task_waiting_for_a_model_lends_its_cpu():
     server = http.server.ThreadingHTTPServer(("127.0.0.1", 0), _SlowModel)
     threading.Thread(target=server.serve_forever, daemon=True).start()
     llm = f"openai-compatible:http://127.0.0.1:{server.server_address[1]}/v1"
-    ray.init(address="local", num_cpus=1, include_dashboard=False,
-             runtime_env={"env_vars": {"OPENAI_API_KEY": "test-key"}})
+    assert ray.cluster_resources()["CPU"] == 1
     try:
         waiting = ask_the_model.remote(llm)
         assert _SlowModel.asked.wait(timeout=240)
@@ -176,5 +191,4 @@ def test_a_task_waiting_for_a_model_lends_its_cpu():
         assert other_done < model_done
     finally:
         _SlowModel.answer.set()
-        ray.shutdown()
         server.shutdown()

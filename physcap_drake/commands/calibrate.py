@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import math
-import multiprocessing
 from datetime import date
 from pathlib import Path
 from typing import Annotated
@@ -18,6 +17,7 @@ from physcap_drake.app import mismatch
 from physcap_drake.commands.calibrate_camera import calibrate_camera
 from physcap_drake.commands.calibrate_rig import fit_gain_on_rig, gripper_offset_on_rig
 from physcap_drake.commands.common import console, fail, save_json, trial_progress
+from physcap_drake.eval.runner import worker_pool
 from physcap_drake.physx.stiffness_levels import (
     StiffnessThresholds,
     level_from_deformation,
@@ -120,8 +120,7 @@ def _run_all(function, jobs: list[tuple], workers: int, description: str) -> lis
                 results.append(function(*job))
                 advance(True)
         else:
-            with multiprocessing.get_context("spawn").Pool(
-                    workers, maxtasksperchild=TRIALS_PER_WORKER) as pool:
+            with worker_pool(workers, TRIALS_PER_WORKER) as pool:
                 for result in pool.imap(_call, [(function, *job) for job in jobs]):
                     results.append(result)
                     advance(True)

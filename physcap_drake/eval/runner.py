@@ -6,6 +6,8 @@ Design notes: docs/design/eval.md.
 from __future__ import annotations
 
 import multiprocessing
+import multiprocessing.pool
+import os
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -13,9 +15,11 @@ from typing import Any
 from physcap_drake.app.episode_folder import is_finished, read_summary, record_episode
 from physcap_drake.eval.grid import EpisodeSpec
 
-#: Episodes one worker process runs before it is replaced by a fresh one (see above): a
-#: guard, since an episode leaves nothing behind; a new process costs a few seconds of imports.
+#: Episodes one worker process runs before it is replaced by a fresh one: a guard, since an
+#: episode leaves nothing behind; a new worker is a fork of the pool's server (see PRELOADED).
 EPISODES_PER_WORKER = 20
+#: Imported once by the pool's fork server; its workers start as forks of it.
+PRELOADED = ("physcap_drake.eval.runner",)
 
 
 def run_episode(spec: EpisodeSpec, out: Path, llm: str, model: str | None) -> dict[str, Any]:
@@ -41,16 +45,38 @@ def _run_job(job: tuple) -> dict[str, Any]:
     return episode(*args)
 
 
+def _adopt_environment(environment: dict[str, str]) -> None:
+    """A worker's environment becomes its parent's at the pool's start (the fork server
+    holds its own from when it started)."""
+    os.environ.clear()
+    os.environ.update(environment)
+
+
+def pool_context() -> multiprocessing.context.BaseContext:
+    """Workers forked from a server process that imported `PRELOADED` once (no parent state,
+    no threads are copied: see docs/design/eval.md)."""
+    context = multiprocessing.get_context("forkserver")
+    context.set_forkserver_preload(list(PRELOADED))
+    return context
+
+
+def worker_pool(processes: int, tasks_per_worker: int) -> multiprocessing.pool.Pool:
+    """A pool of `processes` workers from `pool_context()`, each with the caller's
+    environment and replaced after `tasks_per_worker` tasks."""
+    return pool_context().Pool(processes, initializer=_adopt_environment,
+                               initargs=(dict(os.environ),), maxtasksperchild=tasks_per_worker)
+
+
 def run_grid(specs: list[EpisodeSpec], out: Path, *, llm: str = "reference",
              model: str | None = None, workers: int = 1,
              on_done: Callable[[dict[str, Any]], None] | None = None,
              episodes_per_worker: int = EPISODES_PER_WORKER,
              episode: Callable[..., dict[str, Any]] = run_episode) -> list[dict[str, Any]]:
-    """Runs the unfinished episodes of `specs` in `workers` processes, each replaced after
-    `episodes_per_worker` episodes (one worker for no more episodes than that: this
-    process), and returns their results in the order they finished; `on_done(result)`
-    hears each one. `episode(spec, out, llm, model)` runs one (a module-level function:
-    the workers import it)."""
+    """Runs the unfinished episodes of `specs` in up to `workers` processes (no more than
+    episodes), each replaced after `episodes_per_worker` episodes (one worker for no more
+    episodes than that: this process), and returns their results in the order they
+    finished; `on_done(result)` hears each one. `episode(spec, out, llm, model)` runs one
+    (a module-level function: the workers import it)."""
     if workers < 1 or episodes_per_worker < 1:
         raise ValueError(f"workers and episodes_per_worker must be at least 1, got {workers} "
                          f"and {episodes_per_worker}")
@@ -62,13 +88,12 @@ def run_grid(specs: list[EpisodeSpec], out: Path, *, llm: str = "reference",
         if on_done is not None:
             on_done(result)
 
-    if workers == 1 and len(todo) <= episodes_per_worker:
+    workers = min(workers, len(todo))  # no process is started that would have no episode
+    if workers <= 1 and len(todo) <= episodes_per_worker:
         for spec in todo:
             finished(episode(spec, out, llm, model))
         return results
-    # Fresh interpreters ("spawn"): the parent's Drake and thread state is not copied.
-    context = multiprocessing.get_context("spawn")
-    pool = context.Pool(workers, maxtasksperchild=episodes_per_worker)
+    pool = worker_pool(workers, episodes_per_worker)
     try:
         jobs = [(episode, spec, out, llm, model) for spec in todo]
         for result in pool.imap_unordered(_run_job, jobs, chunksize=1):
