@@ -37,6 +37,11 @@ class ReportedSignal(LeafSystem):
         self._stream = int(stream)
         self._lower = -math.inf if lower is None else lower
         self._upper = math.inf if upper is None else upper
+        # What _report does every evaluation, worked out once.
+        self._quantized = self._resolution > 0
+        self._quantum = np.where(self._quantized, self._resolution, 1.0)
+        self._rounds = bool(self._quantized.any())
+        self._limited = lower is not None or upper is not None
         self._true = self.DeclareVectorInputPort("true", size)
         self.DeclareVectorOutputPort("reported", size, self._report,
                                      {self.time_ticket(), self._true.ticket()})
@@ -52,7 +57,9 @@ class ReportedSignal(LeafSystem):
         sample_index = math.floor(context.get_time() * self._rate + 1e-9)
         value = (self._gain * self._true.Eval(context) + self._offset
                  + self.sample_noise(sample_index))
-        quantized = self._resolution > 0
-        step = np.where(quantized, self._resolution, 1.0)
-        value = np.where(quantized, np.round(value / step) * step, value)
-        output.SetFromVector(np.clip(value, self._lower, self._upper))
+        if self._rounds:
+            step = self._quantum
+            value = np.where(self._quantized, np.round(value / step) * step, value)
+        if self._limited:
+            value = np.clip(value, self._lower, self._upper)
+        output.SetFromVector(value)
