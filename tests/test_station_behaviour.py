@@ -8,6 +8,7 @@ from pydrake.multibody.tree import JacobianWrtVariable
 
 from physcap_drake.clock import Clock
 from physcap_drake.station import MakeStation, ports
+from physcap_drake.station.sensor_model import ReportedSignal
 from physcap_drake.station.sim_config import SensorNoise
 from physcap_drake.station_commands import build_commanded_station
 
@@ -109,6 +110,24 @@ def test_torque_noise_is_realistic_quantized_and_reproducible(table_scenario):
     np.testing.assert_allclose(counts, np.round(counts), atol=1e-6)
     table_scenario.random_seed = 1
     assert not np.array_equal(samples(table_scenario), first)
+
+
+def test_a_samples_noise_is_its_seeded_draw_every_time_it_is_read():
+    # Samples are kept for the next episode; a kept one must be the draw itself, unchanged
+    # by whoever read it before.
+    std = np.array([0.05, 0.05, 0.05, 0.01, 0.01, 0.01])
+    signal = ReportedSignal(SensorNoise(std=std.tolist(), resolution=[0.0] * 6), seed=7,
+                            stream=1)
+    first = signal.sample_noise(1234)
+    first += 1.0  # the caller's copy: the kept sample is not touched
+    for _ in range(2):
+        np.testing.assert_array_equal(
+            signal.sample_noise(1234),
+            std * np.random.default_rng((7, 1, 1234)).standard_normal(6))
+    other_stream = ReportedSignal(SensorNoise(std=std.tolist(), resolution=[0.0] * 6),
+                                  seed=7, stream=2)
+    assert not np.array_equal(other_stream.sample_noise(1234), signal.sample_noise(1234))
+    assert not np.array_equal(signal.sample_noise(1235), signal.sample_noise(1234))
 
 
 def test_gripper_reaches_the_commanded_opening(table_scenario):

@@ -66,6 +66,8 @@ class JointPlan:
             raise ValueError(f"a joint plan has no position at a NaN time ({times.tolist()})")
         if not self.segments:
             return np.repeat(self.initial_position[:, None], len(times), axis=1)
+        if times.shape == (1,):
+            return self._sampled_at(float(times[0]))
         result = np.empty((len(self.initial_position), len(times)))
         local = np.clip(times - self.start_time, 0.0, self.duration)
         offset = 0.0
@@ -79,3 +81,21 @@ class JointPlan:
             local = np.where(inside, -1.0, local)  # each time once: its first segment
             offset += length
         return result
+
+    def _sampled_at(self, t: float) -> np.ndarray:
+        """`positions` at the one time `t` (s; not NaN), one column, rad: the same arithmetic
+        on Python floats (clip, minimum and the segment's start as NumPy does them per
+        element), without the array work that costs more than the sampling."""
+        duration = self.duration
+        local = t - self.start_time
+        local = local if local > 0.0 else 0.0
+        local = local if local < duration else duration
+        offset = 0.0
+        for index, segment in enumerate(self.segments):
+            length = segment.end_time() - segment.start_time()
+            if local >= offset and (local <= offset + length or index == len(self.segments) - 1):
+                from_start = local - offset
+                at = segment.start_time() + (from_start if from_start <= length else length)
+                return segment.vector_values(np.array([at]))
+            offset += length
+        raise AssertionError("a clipped time lies in one of the plan's segments")

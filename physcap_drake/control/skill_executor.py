@@ -279,8 +279,9 @@ class SkillExecutor(LeafSystem):
     def _arm_outcome(self, context: Context, current: ExecutorState, now: float):
         skill, config = current.running, self._planner.config
         q = self._q.Eval(context)
-        off_plan = self._off_plan(skill.arm_plan, q, now)
-        if off_plan.max() > config.tracking_tolerance:
+        on_plan_now = self._within_tracking_tolerance(skill.arm_plan, q, now)
+        off_plan = None if on_plan_now else self._off_plan(skill.arm_plan, q, now)
+        if off_plan is not None and off_plan.max() > config.tracking_tolerance:
             joint = int(np.argmax(off_plan))
             if (current.held is not None and skill.descent_from is not None
                     and now >= skill.descent_from):
@@ -319,6 +320,13 @@ class SkillExecutor(LeafSystem):
             TRACKING_STEP
         return (self._latency + 2.0 * speed / self._planner.config.max_joint_acceleration
                 + MONITOR_PERIOD)
+
+    def _within_tracking_tolerance(self, plan: JointPlan, q: np.ndarray, now: float) -> bool:
+        """Whether every joint at `q` is within tracking_tolerance of its plan at `now`, one
+        of the times `_off_plan` compares (then it is within it of the nearest one too): the
+        usual case, answered without sampling the plan's recent past."""
+        at_now = plan.positions(np.array([now]))[:, 0]
+        return bool(np.abs(at_now - q).max() <= self._planner.config.tracking_tolerance)
 
     def _off_plan(self, plan: JointPlan, q: np.ndarray, now: float) -> np.ndarray:
         """How far each joint at `q` (rad) is from the nearest position of its plan from

@@ -44,7 +44,7 @@ class McapRecorder(LeafSystem):
         `plant` and without `kinematics`), agent.knowledge (tuple of KnowledgeEntry, the
         AgentSystem's output; may be left unconnected).
     No outputs. State: the fault written (str) and how many knowledge entries were written
-    (int); per-step updates copy the inputs.
+    (int); per-step updates copy the inputs when they change.
 
     Args:
         sink: where messages go (the recorder does not close it).
@@ -114,10 +114,9 @@ class McapRecorder(LeafSystem):
         if image_period > 0.0:
             self.DeclarePeriodicPublishEvent(image_period, 0.0, self._write_image)
         self.DeclarePeriodicPublishEvent(flush_period, 0.0, self._flush)
-        self.DeclarePerStepPublishEvent(self._write_fault)
-        self.DeclarePerStepUnrestrictedUpdateEvent(self._note_fault_written)
-        self.DeclarePerStepPublishEvent(self._write_knowledge)
-        self.DeclarePerStepUnrestrictedUpdateEvent(self._note_knowledge_written)
+        # One event of each kind per step for both (each event is a call into Python).
+        self.DeclarePerStepPublishEvent(self._write_news)
+        self.DeclarePerStepUnrestrictedUpdateEvent(self._note_written)
 
     @property
     def sink(self) -> McapSink:
@@ -160,8 +159,29 @@ class McapRecorder(LeafSystem):
             self._sink.transforms(at, frames)
         return EventStatus.Succeeded()
 
+    def _write_news(self, context: Context) -> EventStatus:
+        """A new fault and new knowledge on the inputs, written (see `_note_written`)."""
+        status = self._write_fault(context)
+        status.KeepMoreSevere(self._write_knowledge(context))
+        return status
+
+    def _note_written(self, context: Context, state: State) -> EventStatus | None:
+        """At the start of a step: the fault and the count of facts the last step's end
+        wrote (the inputs then); nothing changes while they stay the same."""
+        fault = self._fault.Eval(context)
+        count = (len(self._knowledge.Eval(context)) if self._knowledge.HasValue(context)
+                 else None)
+        fault_written = context.get_abstract_state(self._fault_written).get_value()
+        knowledge_written = context.get_abstract_state(self._knowledge_written).get_value()
+        if fault == fault_written and count in (None, knowledge_written):
+            return EventStatus.DidNothing()
+        state.get_mutable_abstract_state(self._fault_written).set_value(fault)
+        if count is not None:
+            state.get_mutable_abstract_state(self._knowledge_written).set_value(count)
+        return None
+
     def _write_fault(self, context: Context) -> EventStatus:
-        """A new fault on the input: written (once; see `_note_fault_written`), flushed."""
+        """A new fault on the input: written (once; see `_note_written`), flushed."""
         fault = self._fault.Eval(context)
         if not fault or fault == context.get_abstract_state(self._fault_written).get_value():
             return EventStatus.DidNothing()
@@ -170,14 +190,8 @@ class McapRecorder(LeafSystem):
         self._sink.flush()
         return EventStatus.Succeeded()
 
-    def _note_fault_written(self, context: Context, state: State) -> None:
-        """At the start of a step: the fault the last step's end wrote (the input then)."""
-        state.get_mutable_abstract_state(self._fault_written).set_value(
-            self._fault.Eval(context))
-
     def _write_knowledge(self, context: Context) -> EventStatus:
-        """Facts new on the `agent.knowledge` input: written (once; see
-        `_note_knowledge_written`)."""
+        """Facts new on the `agent.knowledge` input: written (once; see `_note_written`)."""
         if not self._knowledge.HasValue(context):
             return EventStatus.DidNothing()
         entries = self._knowledge.Eval(context)
@@ -188,12 +202,6 @@ class McapRecorder(LeafSystem):
         for entry in entries[written:]:
             self._sink.json(topics.AGENT_KNOWLEDGE, at, dc.asdict(entry))
         return EventStatus.Succeeded()
-
-    def _note_knowledge_written(self, context: Context, state: State) -> None:
-        """At the start of a step: the facts the last step's end wrote (the input then)."""
-        if self._knowledge.HasValue(context):
-            state.get_mutable_abstract_state(self._knowledge_written).set_value(
-                len(self._knowledge.Eval(context)))
 
     def _poses(self, context: Context, joints: dict) -> list | None:
         """World poses of the plant's bodies, by BodyIndex (None: no plant)."""

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import dataclasses as dc
 import json
+import math
 import threading
 from pathlib import Path
 from typing import Any
@@ -138,10 +139,11 @@ class McapSink:
         """One sample of joint states (SI units; see topics.JOINT_STATES). A NaN value is
         left out of the message (e.g. the gripper's velocity, which the arm does not report)."""
         at = self._stamp(at)
-        joints = [JointState(name=n, **{key: float(x) for key, x in
+        columns = (np.asarray(x, dtype=float).tolist() for x in (position, velocity, effort))
+        joints = [JointState(name=n, **{key: x for key, x in
                                         (("position", p), ("velocity", v), ("effort", e))
-                                        if not np.isnan(x)})
-                  for n, p, v, e in zip(names, position, velocity, effort, strict=True)]
+                                        if not math.isnan(x)})
+                  for n, p, v, e in zip(names, *columns, strict=True)]
         self._log_to(self._joint_states, JointStates(timestamp=at.timestamp, joints=joints),
                      at)
 
