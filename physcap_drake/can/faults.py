@@ -75,6 +75,16 @@ class FaultyBus(can.BusABC):
         self.sent.append(msg)
         self._inner.send(msg, timeout)
 
+    def send_many(self, messages) -> None:
+        """Sends `messages` in order: in one packet where the inner bus can (SocketBus)."""
+        self.sent.extend(messages)
+        inner_many = getattr(self._inner, "send_many", None)
+        if inner_many is not None:
+            inner_many(messages)
+            return
+        for message in messages:
+            self._inner.send(message)
+
     def _damage(self, message: can.Message) -> can.Message | None:
         settings = self.settings
         if settings.silent:
