@@ -75,8 +75,17 @@ class FaultyBus(can.BusABC):
         self.sent.append(msg)
         self._inner.send(msg, timeout)
 
-    def _damage(self, message: can.Message) -> can.Message | None:
-        settings = self.settings
+    def send_many(self, messages) -> None:
+        """Sends `messages` in order: in one packet where the inner bus can (SocketBus)."""
+        self.sent.extend(messages)
+        inner_many = getattr(self._inner, "send_many", None)
+        if inner_many is not None:
+            inner_many(messages)
+            return
+        for message in messages:
+            self._inner.send(message)
+
+    def _damage(self, message: can.Message, settings: FaultSettings) -> can.Message | None:
         if settings.silent:
             self.counts["silenced"] += 1
             return None
@@ -92,7 +101,7 @@ class FaultyBus(can.BusABC):
     def _recv_internal(self, timeout: float | None):
         deadline = None if timeout is None else time.time() + timeout
         while True:
-            delay = self.settings.delay
+            delay = self._settings.delay  # `set` replaces them whole: one read is consistent
             now = time.time()
             if self._pending and self._pending[0].timestamp + delay <= now:
                 return self._pending.popleft(), False
@@ -102,8 +111,12 @@ class FaultyBus(can.BusABC):
             if deadline is not None and now >= deadline:
                 return None, False
             message = self._inner.recv(timeout=max(0.0, min(wait, 0.01)))
-            if message is not None and (message := self._damage(message)) is not None:
-                self._pending.append(message)
+            settings = self._settings  # as they are when the frame came
+            if message is None or (message := self._damage(message, settings)) is None:
+                continue
+            if not self._pending and message.timestamp + settings.delay <= time.time():
+                return message, False  # due already: no need to queue it
+            self._pending.append(message)
 
     def shutdown(self) -> None:
         super().shutdown()

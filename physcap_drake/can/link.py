@@ -438,11 +438,10 @@ class PiperLink(ControlSteps):
         if self._recovering and self._within_limits():
             self._recovering = False  # back inside: the station's speed again
             self._cycles = 0
-        if self._cycles % MODE_REPEAT == 0:
-            self._send(*self.mode_frame())
-        for frame in codec.encode_joints(codec.JOINT_COMMAND, q):
-            self._send(*frame)
-        self._send(*codec.encode_gripper_command(gripper, stroke=self._stroke))
+        frames = [self.mode_frame()] if self._cycles % MODE_REPEAT == 0 else []
+        frames += codec.encode_joints(codec.JOINT_COMMAND, q)
+        frames.append(codec.encode_gripper_command(gripper, stroke=self._stroke))
+        self._send_cycle(frames)
         with self._lock:
             self._sent_q = q
             self._commands_sent += 1
@@ -453,6 +452,20 @@ class PiperLink(ControlSteps):
                                        is_extended_id=False))
         except can.CanError as error:
             log.warning("CAN send of 0x%03X failed: %s", identifier, error)
+
+    def _send_cycle(self, frames: list[tuple[int, bytes]]) -> None:
+        """One cycle's frames; on a bus with `send_many` (a SocketBus) as one packet."""
+        send_many = getattr(self._bus, "send_many", None)
+        if send_many is None:
+            for frame in frames:
+                self._send(*frame)
+            return
+        try:
+            send_many([can.Message(arbitration_id=identifier, data=data, is_extended_id=False)
+                       for identifier, data in frames])
+        except can.CanError as error:
+            log.warning("CAN send of 0x%s failed: %s",
+                        ", 0x".join(f"{identifier:03X}" for identifier, _ in frames), error)
 
     # Shutdown ----------------------------------------------------------------------------
 

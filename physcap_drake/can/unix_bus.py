@@ -20,7 +20,7 @@ import threading
 
 import can
 
-from physcap_drake.can.socket_bus import BUFFER_BYTES, PACKET_BYTES, SocketBus, socket_pair
+from physcap_drake.can.socket_bus import BUFFER_BYTES, MAX_PACKET_BYTES, SocketBus, socket_pair
 
 #: How often the hub looks for members added from another thread, s.
 HUB_POLL = 0.05
@@ -124,7 +124,7 @@ class UnixBusHub:
         packets = []
         for _ in range(HUB_BATCH):
             try:
-                packet = sender.recv(PACKET_BYTES)
+                packet = sender.recv(MAX_PACKET_BYTES)
             except (BlockingIOError, InterruptedError):
                 break
             except OSError:

@@ -131,12 +131,21 @@ class PiperEmulator:
             self._stop.wait(max(0.0, next_time - time.monotonic()))
 
     def _send_all(self, frames) -> None:
-        for identifier, data in frames:
+        """Sends `frames` ((id, data)); on a SocketBus as one packet (one wake-up of the
+        reader). Like the arm, a frame that cannot be sent is simply lost."""
+        if not frames:
+            return
+        messages = [can.Message(arbitration_id=identifier, data=data, is_extended_id=False)
+                    for identifier, data in frames]
+        if hasattr(self._bus, "send_many"):
+            batches, send = [messages], self._bus.send_many
+        else:
+            batches, send = messages, self._bus.send
+        for batch in batches:
             try:
-                self._bus.send(can.Message(arbitration_id=identifier, data=data,
-                                           is_extended_id=False))
+                send(batch)
             except can.CanError:
-                pass  # like the arm: a frame that cannot be sent is simply lost
+                pass
 
 
 def wait_until(predicate: Callable[[], bool], timeout: float = 2.0) -> bool:

@@ -98,6 +98,7 @@ class Firmware:
         self._reading = MotionReading(q.copy(), np.zeros(6), np.zeros(6), np.zeros(6),
                                       opening, 0.0)
         self._previous_end_motion = np.zeros((6, 2))
+        self._end_pose_cache: tuple[bytes, list[tuple[int, bytes]]] = (b"", [])
         self._handlers = {
             codec.MOTION_CONTROL: self._motion_control, codec.MODE_CONTROL: self._mode_control,
             codec.MOVE_C_POINT: self._move_c_point, codec.GRIPPER_COMMAND: self._gripper,
@@ -454,8 +455,7 @@ class Firmware:
             0, arm.err_code))]
         leader = arm.linkage.linkage == codec.LEADER
         if not leader:  # a leader sends no end pose or joint feedback (piper_sdk issue 41)
-            frames += codec.encode_end_pose(codec.END_POSE_FEEDBACK, end_pose(
-                arm.q + arm.zero_offset, self._dh))
+            frames += self._end_pose_frames(arm.q + arm.zero_offset)
             frames += codec.encode_joints(codec.JOINT_FEEDBACK, arm.q)
         status = (codec.ENABLED if arm.gripper_enabled else 0) | codec.GRIPPER_HOMED
         frames.append(codec.encode_gripper_feedback(codec.GripperFeedback(
@@ -482,6 +482,14 @@ class Firmware:
                 arm.gripper_opening, arm.gripper_effort_limit), stroke=1.0))
             frames += [(i + offset, d) for i, d in commands]
         return frames
+
+    def _end_pose_frames(self, q: np.ndarray) -> list[tuple[int, bytes]]:
+        """0x2A2-0x2A4 at joint angles q (rad), the last ones again while q stays put."""
+        key = q.tobytes()
+        if self._end_pose_cache[0] != key:
+            self._end_pose_cache = key, codec.encode_end_pose(codec.END_POSE_FEEDBACK,
+                                                              end_pose(q, self._dh))
+        return self._end_pose_cache[1]
 
     def _end_motion(self, dt: float) -> list[tuple[int, bytes]]:
         """0x481-0x486: for joint N, the flange's linear (m/s) and angular (rad/s) speed

@@ -183,7 +183,9 @@ class PacedWorld:
                 self._timing = dc.replace(self._timing, slipped=self._timing.slipped + slip,
                                           world_time=simulated,
                                           wall_time=time.monotonic() - started)
-            self._stop.wait(REST * cost)
+            # The rest, or until the next step is due if that is later (one wake-up).
+            self._stop.wait(max(REST * cost, origin + simulated + self._period
+                                - time.monotonic()))
 
     def _next_command(self, dt: float) -> MotionCommand:
         """The latest command, its joint reference moved along the backlog's path by at most

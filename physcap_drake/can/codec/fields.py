@@ -39,6 +39,7 @@ def check(data: bytes, what: str) -> bytes:
 
 def counts(value: float, scale: float, low: int, high: int) -> int:
     """SI value -> integer counts of `scale`, clamped to [low, high] (NaN -> 0)."""
+    value = float(value)  # a numpy scalar's arithmetic is several times slower
     if math.isnan(value):
         return 0
     return int(min(max(round(value / scale), low), high))
