@@ -124,16 +124,19 @@ def _wrist_reach(model: PlanningModel) -> WristReach:
     arm = plant.GetModelInstanceByName(model.robot.arm_model)
     joints = [plant.GetJointByName(f"joint{i}", arm) for i in range(1, 7)]
     flange = plant.GetBodyByName("link6", arm)
-    context = plant.CreateDefaultContext()
 
     def at(q) -> tuple[np.ndarray, np.ndarray, np.ndarray, RigidTransform]:
-        """Shoulder, wrist centre, joint 4's axis (W) and the flange pose at arm joints q."""
-        plant.SetPositions(context, model.full_positions(np.asarray(q, dtype=float), 0.0))
-        wrist = joints[4].frame_on_child().CalcPoseInWorld(context)
-        return (joints[1].frame_on_child().CalcPoseInWorld(context).translation(),
-                wrist.translation(),
-                joints[3].frame_on_child().CalcPoseInWorld(context).rotation().matrix()
-                @ joints[3].revolute_axis(), flange.EvalPoseInWorld(context))
+        """Shoulder, wrist centre, joint 4's axis (W) and the flange pose at arm joints q
+        (posed in the planning model's own scratch context)."""
+        poses = model.body_poses(np.asarray(q, dtype=float), 0.0)
+
+        def where(joint) -> RigidTransform:
+            frame = joint.frame_on_child()
+            return poses[int(frame.body().index())] @ frame.GetFixedPoseInBodyFrame()
+
+        return (where(joints[1]).translation(), where(joints[4]).translation(),
+                where(joints[3]).rotation().matrix() @ joints[3].revolute_axis(),
+                poses[int(flange.index())])
 
     shoulder, wrist, _, X_WG = at(np.zeros(6))
     wrist_G = X_WG.inverse() @ wrist
