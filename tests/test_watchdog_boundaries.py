@@ -59,6 +59,15 @@ def run_cycles(feed: FeedbackListener, clock: FakeTime, lost: int, cycles: int =
     feed.on_message_received(frame(STATUS, clock))
 
 
+def assert_loss_verdict(feed: FeedbackListener, clock: FakeTime, lost: int, stale: bool) -> None:
+    """The feedback is stale (naming the loss of the last run_cycles) or healthy now."""
+    health = feed.health(clock.now)
+    assert health.stale is stale, health.reason
+    if stale:
+        assert health.reason == (f"{round(100 * lost / COUNTED)}% of the feedback frames lost "
+                                 "over the last 16 cycles")
+
+
 def test_silence_just_under_the_timeout_is_healthy_just_over_is_stale(clock):
     feed = listener()
     feed.on_message_received(frame(STATUS, clock))
@@ -112,11 +121,7 @@ def test_timestamps_on_another_clock_are_not_judged_late(clock):
 def test_loss_either_side_of_the_limit_over_whole_cycles(clock, lost, stale):
     feed = listener()
     run_cycles(feed, clock, lost)
-    health = feed.health(clock.now)
-    assert health.stale is stale, health.reason
-    if stale:
-        assert health.reason == (f"{round(100 * lost / COUNTED)}% of the feedback frames lost "
-                                 "over the last 16 cycles")
+    assert_loss_verdict(feed, clock, lost, stale)
 
 
 def test_losses_older_than_the_window_are_forgotten(clock):
@@ -136,11 +141,7 @@ def test_a_lossy_bus_is_healthy_again_only_at_half_the_loss_limit(clock, lost_af
     run_cycles(feed, clock, 12)  # 6.2 %: over the limit
     assert feed.health(clock.now).stale
     run_cycles(feed, clock, lost_after)
-    health = feed.health(clock.now)
-    assert health.stale is stale, health.reason
-    if stale:
-        assert health.reason == (f"{round(100 * lost_after / COUNTED)}% of the feedback "
-                                 "frames lost over the last 16 cycles")
+    assert_loss_verdict(feed, clock, lost_after, stale)
 
 
 def test_loss_waits_for_two_cycles(clock):
