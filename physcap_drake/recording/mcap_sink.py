@@ -9,6 +9,7 @@ import dataclasses as dc
 import json
 import math
 import threading
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -38,6 +39,7 @@ from pydrake.math import RigidTransform
 
 from physcap_drake.recording import topics
 from physcap_drake.recording.crash_safe_file import CrashSafeFile
+from physcap_drake.recording.interrupt_guard import GUARD
 from physcap_drake.recording.json_schemas import SIM_TIME_KEY, agent_schemas
 from physcap_drake.recording.time_base import TIME_METADATA, SimulatedTime, TimeBase
 
@@ -102,6 +104,7 @@ class McapSink:
         self._time_base: TimeBase | None = None
         self._lock = threading.Lock()  # see the design notes
         self.closed = False
+        GUARD.install()  # Ctrl-C waits for the writer's call to return (interrupt_guard)
 
     # --- time ----------------------------------------------------------------------------
 
@@ -193,26 +196,41 @@ class McapSink:
         self._log_to(channel, {**message, SIM_TIME_KEY: at.sim_time_s}, at)
 
     def metadata(self, name: str, values: dict[str, str]) -> None:
-        with self._lock:
+        with self._writing():
             self._writer.write_metadata(name, {k: str(v) for k, v in values.items()})
 
     def _log_to(self, channel, message, at: Stamp) -> None:
-        with self._lock:
-            channel.log(message, log_time=at.log_time_ns)
+        GUARD.enter()  # as _writing(), without a generator per message
+        try:
+            with self._lock:
+                channel.log(message, log_time=at.log_time_ns)
+        finally:
+            GUARD.exit()
+
+    @contextmanager
+    def _writing(self):
+        """The writer to oneself, with Ctrl-C held back until its call returns."""
+        GUARD.enter()
+        try:
+            with self._lock:
+                yield
+        finally:
+            GUARD.exit()
 
     # --- the file ------------------------------------------------------------------------
 
     def flush(self) -> None:
         """Ends the current chunk and writes it to disk."""
-        with self._lock:
+        with self._writing():
             if not self.closed:
                 self._writer.flush()
 
     def close(self) -> None:
         """Writes the summary section; the file is complete. Safe to call twice."""
-        with self._lock:
+        with self._writing():
             if not self.closed:
                 self.closed = True
                 self._file.finishing()
                 self._writer.close()
                 self._file.close()
+                GUARD.uninstall()
