@@ -108,3 +108,17 @@ def test_a_reference_behind_a_braking_target_stops_on_it_without_overrunning(lag
         path.append(q[1])
     assert max(path) <= 1.0 + 0.002
     assert path[-1] == pytest.approx(1.0, abs=1e-6)
+
+
+@pytest.mark.parametrize("speed", [3.0, 0.3])
+def test_a_joint_sent_to_a_standing_target_never_passes_it(speed):
+    """From rest towards a target that stands still, at the emulated arm's acceleration
+    limit (5 rad/s²): the reference only ever moves towards the target and comes to rest on
+    it. Before, a last exact step taken at up to 0.12 rad/s overran it and the joint swung
+    about it for 15 periods, showing the arm 'arrived' while it still moved."""
+    for goal in np.geomspace(1e-3, 2.0, 80):
+        _, samples = ramp_to(goal, speed, 5.0)
+        path = samples[:, 1]
+        assert np.all(np.diff(path) >= 0.0), f"{goal} rad: the reference turned back"
+        assert path.max() <= goal, f"{goal} rad: passed by {path.max() - goal} rad"
+        assert path[-1] == goal

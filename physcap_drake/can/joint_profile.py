@@ -58,8 +58,11 @@ def step_towards(q: np.ndarray, v: np.ndarray, target: np.ndarray, v_target: np.
                         np.maximum(v_wanted, -v_stop))
     v_next = v + np.clip(v_wanted - v, -a_dt, a_dt)
     q_next = q + v_next * dt
-    # A joint whose next step to the target is within both limits takes it exactly.
+    # A joint whose next step to the target is within both limits takes it exactly, if from
+    # that speed it can then go on with the target's (a landing it could not brake from
+    # would carry it past the target).
     v_step = error / dt
     on_track = ((np.abs(v_step) <= v_max * _SLACK + _COUNT / dt)
-                & (np.abs(v_step - v) <= a_dt * _SLACK + 2 * _COUNT / dt))
+                & (np.abs(v_step - v) <= a_dt * _SLACK + 2 * _COUNT / dt)
+                & (np.abs(v_step - v_target) <= a_dt * _SLACK + 2 * _COUNT / dt))
     return np.where(on_track, target, q_next), np.where(on_track, v_step, v_next)
