@@ -177,7 +177,8 @@ def test_a_task_waiting_for_a_model_lends_its_cpu(one_cpu_cluster):
     ray.cloudpickle.register_pickle_by_value(sys.modules[__name__])
     ask_the_model, other_work = (ray.remote(num_cpus=1)(f) for f in (_ask_the_model, _other_work))
     server = http.server.ThreadingHTTPServer(("127.0.0.1", 0), _SlowModel)
-    threading.Thread(target=server.serve_forever, daemon=True).start()
+    threading.Thread(target=server.serve_forever, kwargs={"poll_interval": 0.02},
+                     daemon=True).start()
     llm = f"openai-compatible:http://127.0.0.1:{server.server_address[1]}/v1"
     assert ray.cluster_resources()["CPU"] == 1
     try:
