@@ -15,6 +15,7 @@ from physcap_drake.resources import stations_dir
 from physcap_drake.scenario import load_scenario, load_scenario_text
 from physcap_drake.scenario_errors import ScenarioError
 from physcap_drake.station import MakeStation, close_station, ports
+from physcap_drake.station.realsense import pipeline_camera
 from physcap_drake.station.realsense.calibration_file import (
     CalibrationMismatch,
     CameraCalibration,
@@ -138,13 +139,15 @@ def test_an_emulated_depth_stream_coarser_than_colour_comes_aligned_to_it():
     assert "got 5 for 64 x 48" in str(error.value)
 
 
-def test_a_recording_plays_back_through_the_driver_as_it_was_recorded(tmp_path):
+def test_a_recording_plays_back_through_the_driver_as_it_was_recorded(tmp_path, monkeypatch):
     """Rendered frames recorded to .db3 by the emulated camera come back through rs.pipeline
     and the driver system: the same RGB, depth within 1 mm, the same intrinsics, in order.
     A pipeline playing a file, like one streaming from a device, may drop a frame while it
     starts (librealsense plays the first frames in real time until the driver turns that
     off), so frames are matched by their frame number (the emulated camera's n-th frame is
-    number n) and a third of them, not all, must come back."""
+    number n) and a third of them, not all, must come back. Its end is seen when the
+    playback stops, not by waiting out the stall timeout (an hour here)."""
+    monkeypatch.setattr(pipeline_camera, "FRAME_TIMEOUT_MS", 3_600_000)
     recording = tmp_path / "frames.db3"
     station = MakeStation(_emulated_scenario(record_to=str(recording)))
     emulated = station.GetSubsystemByName("realsense_camera")

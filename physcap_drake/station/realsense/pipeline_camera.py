@@ -25,6 +25,9 @@ from physcap_drake.station.realsense.librealsense import librealsense
 
 #: How long to wait for a frameset before the camera counts as stalled, ms.
 FRAME_TIMEOUT_MS = 5000
+#: A recording is waited on in slices this long, ms; between them, a playback that has
+#: stopped is at its end.
+PLAYBACK_SLICE_MS = 50
 
 log = logging.getLogger(__name__)
 
@@ -98,6 +101,7 @@ class PipelineRealSense:
             config.enable_record_to_file(entry.record_to)
             log.warning(recording_note(entry))
         self._pipeline = rs.pipeline()
+        self._playback = None
         try:
             profile = self._pipeline.start(config)
         except RuntimeError as error:
@@ -109,7 +113,8 @@ class PipelineRealSense:
                                     + (f"; {usb}" if usb else "") + f": {error}") from None
         device = profile.get_device()
         if entry.recording:
-            device.as_playback().set_real_time(False)
+            self._playback = device.as_playback()
+            self._playback.set_real_time(False)
         self.serial = device.get_info(rs.camera_info.serial_number)
         color = profile.get_stream(rs.stream.color)
         self.intrinsics = intrinsics_of(color)
@@ -140,7 +145,7 @@ class PipelineRealSense:
                 frameset = polled
         ok = frameset is not None
         if not ok:
-            ok, frameset = self._pipeline.try_wait_for_frames(FRAME_TIMEOUT_MS)
+            ok, frameset = self._wait_for_frames()
         if not ok:
             source = "the recording has ended" if self.entry.recording else \
                 f"no frame within {FRAME_TIMEOUT_MS} ms"
@@ -148,6 +153,20 @@ class PipelineRealSense:
         if needs_alignment(frameset):
             frameset = self._align.process(frameset)
         return frame_from_frameset(frameset)
+
+    def _wait_for_frames(self):
+        """(ok, frameset) within FRAME_TIMEOUT_MS; a recording's end is seen a slice after
+        its playback stopped (frames it already read still come), without waiting out the
+        timeout."""
+        if self._playback is None:
+            return self._pipeline.try_wait_for_frames(FRAME_TIMEOUT_MS)
+        stopped, seen_stopped = librealsense().playback_status.stopped, False
+        for _ in range(FRAME_TIMEOUT_MS // PLAYBACK_SLICE_MS):
+            ok, frameset = self._pipeline.try_wait_for_frames(PLAYBACK_SLICE_MS)
+            if ok or seen_stopped:
+                return ok, frameset
+            seen_stopped = self._playback.current_status() == stopped
+        return False, None
 
     def close(self) -> None:
         """Stops streaming (and finishes a recording being written). Safe to call twice."""
@@ -157,3 +176,4 @@ class PipelineRealSense:
             except RuntimeError:  # not started
                 pass
             self._pipeline = None
+            self._playback = None
