@@ -22,6 +22,10 @@ OTHER_POSE = np.array([-0.4, 1.2, -0.9, -0.1, 0.8, -0.3])
 #: A sensor reading J2 4 % high, J3 3 % low and J5 2 % high, with offsets (N·m).
 TRUE_GAIN = np.array([1.01, 1.04, 0.97, 1.0, 1.02, 0.99])
 OFFSET = np.array([0.02, -0.04, 0.03, 0.005, -0.008, 0.01])
+#: J2 and J3 4 % low, J5 right (the emulated twin's seed 12): a fit that also estimated the
+#: weight's offset from these torques took the pattern for an offset and came out ~1.4 %
+#: low on J2 and J3 (docs/rig_calibration.md).
+LOW_PITCH_GAIN = np.array([1.03, 0.957, 0.956, 0.99, 0.996, 0.964])
 
 
 @pytest.fixture(scope="module")
@@ -35,33 +39,55 @@ def _estimator(model, gain=None) -> MassEstimator:
                          sample_rate=200.0, torque_gain=gain)
 
 
-def _reported_windows(estimator, pose, mass_kg, offset_xy=(0.0, 0.0)):
-    """Empty and loaded windows at `pose` as a sensor with TRUE_GAIN and OFFSET reports
-    them, for `mass_kg` hanging `offset_xy` (m) beside the fingertip point."""
-    own = estimator.arm_gravity_torque(pose)
-    load = mass_kg * GRAVITY * estimator.vertical_jacobian(pose, offset_xy)
-    empty = TorqueWindow(pose, TRUE_GAIN * own + OFFSET, 250)
-    loaded = TorqueWindow(pose, TRUE_GAIN * (own + load) + OFFSET, 250)
+def _reported_windows(estimator, pose, mass_kg, offset_xy=(0.0, 0.0), gain=TRUE_GAIN,
+                      sag=(0.0,) * 6):
+    """Empty and loaded windows at `pose` as a sensor with `gain` and OFFSET reports them,
+    for `mass_kg` hanging `offset_xy` (m) beside the fingertip point; loaded, the arm sags
+    by `sag` (rad)."""
+    bent = pose + np.asarray(sag)
+    load = mass_kg * GRAVITY * estimator.vertical_jacobian(bent, offset_xy)
+    empty = TorqueWindow(pose, gain * estimator.arm_gravity_torque(pose) + OFFSET, 250)
+    loaded = TorqueWindow(bent, gain * (estimator.arm_gravity_torque(bent) + load) + OFFSET,
+                          250)
     return empty, loaded
 
 
-def test_the_loaded_joints_gains_are_found_from_one_known_weight(model):
+@pytest.mark.parametrize("true_gain", [TRUE_GAIN, LOW_PITCH_GAIN])
+def test_the_loaded_joints_gains_are_found_from_one_known_weight(model, true_gain):
+    # The weight hangs at the grasp point, as the probe grasps it: the gains come out exact
+    # whatever their pattern. Loaded, the arm sags 1 mrad on J2, J3 (as the emulated twin's
+    # does): its own gravity torque changes by 0.4 % of the load's on J2, and that is no gain.
     ideal = _estimator(model)
-    empty, loaded = _reported_windows(ideal, CALIBRATION_POSE, 0.5, offset_xy=(0.003, -0.002))
+    empty, loaded = _reported_windows(ideal, CALIBRATION_POSE, 0.5, gain=true_gain,
+                                      sag=np.array([0.0, 1e-3, 1e-3, 0.0, 4e-4, 0.0]))
     gain = fit_torque_gain(ideal, empty, loaded, 0.5)
     load = np.abs(0.5 * GRAVITY * ideal.vertical_jacobian(CALIBRATION_POSE))
     loaded_joints = load >= 0.15 * load.max()
     assert loaded_joints[[1, 2, 4]].all()  # the shoulder, elbow and wrist pitch carry it
-    # Within a per cent: a gain error and a load offset trade off a little at one pose (the
-    # next test shows that the estimates, which is what the gains are for, come out right).
-    np.testing.assert_allclose(gain[loaded_joints], TRUE_GAIN[loaded_joints], atol=0.01)
+    np.testing.assert_allclose(gain[loaded_joints], true_gain[loaded_joints], atol=1e-9)
     np.testing.assert_array_equal(gain[~loaded_joints], 1.0)
+
+
+def test_a_weight_off_the_grasp_point_shifts_each_gain_by_the_offset_over_its_lever(model):
+    # At this pose the held point rises 0.3705, 0.352 and 0.0997 m per rad of J2, J3, J5
+    # (levers about horizontal axes across the arm, which points along J1 = 0.3 rad). A
+    # weight 3 mm further out along the arm has levers 3 mm longer: each fitted gain comes
+    # out G·(1 + 0.003 / lever) (J2 +0.84 %, J5 +3.1 %); 3 mm across the arm changes none.
+    ideal = _estimator(model)
+    along, across = np.array([np.cos(0.3), np.sin(0.3)]), np.array([-np.sin(0.3), np.cos(0.3)])
+    levers = np.array([0.3705, 0.352, 0.0997])
+    out = fit_torque_gain(ideal, *_reported_windows(ideal, CALIBRATION_POSE, 0.5,
+                                                    offset_xy=0.003 * along), 0.5)
+    np.testing.assert_allclose(out[[1, 2, 4]], TRUE_GAIN[[1, 2, 4]] * (1 + 0.003 / levers),
+                               rtol=5e-4)
+    beside = fit_torque_gain(ideal, *_reported_windows(ideal, CALIBRATION_POSE, 0.5,
+                                                       offset_xy=0.003 * across), 0.5)
+    np.testing.assert_allclose(beside[[1, 2, 4]], TRUE_GAIN[[1, 2, 4]], atol=5e-4)
 
 
 def test_fitted_gains_correct_the_weight_of_another_object_elsewhere(model):
     ideal = _estimator(model)
-    gain = fit_torque_gain(ideal, *_reported_windows(ideal, CALIBRATION_POSE, 0.5,
-                                                     offset_xy=(0.004, 0.003)), 0.5)
+    gain = fit_torque_gain(ideal, *_reported_windows(ideal, CALIBRATION_POSE, 0.5), 0.5)
     windows = _reported_windows(ideal, OTHER_POSE, 0.963, offset_xy=(0.002, -0.001))
     uncorrected = ideal.estimate_mass(*windows)
     corrected = _estimator(model, gain).estimate_mass(*windows)

@@ -1,31 +1,29 @@
 """Fitting the arm's torque sensor gains with a weight of known mass.
 
-Design notes: docs/design/physx.md.
+Design notes: docs/design/physx.md; why the weight is taken as centred on the grasp point:
+docs/rig_calibration.md ("Gain fit on the emulated twin").
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from physcap_drake.physx.mass_estimator import (
-    GRAVITY,
-    MassEstimator,
-    TorqueWindow,
-    as_gain,
-    horizontal_load_offset,
-)
+from physcap_drake.physx.mass_estimator import GRAVITY, MassEstimator, TorqueWindow, as_gain
 
 #: A joint whose expected load torque is below this share of the largest keeps gain 1.
 MIN_SHARE = 0.15
-#: Rounds of refitting the load's offset with the gains found so far.
-ROUNDS = 4
 
 
 def fit_torque_gain(estimator: MassEstimator, empty: TorqueWindow, loaded: TorqueWindow,
                     mass_kg: float, *, min_share: float = MIN_SHARE) -> np.ndarray:
     """Each arm joint's torque sensor gain (6,), from one get_mass measurement (its `empty`
-    and `loaded` windows) of a weight of known `mass_kg`, with the estimator's model of the
-    arm. The estimator's own gains are not used: the reported change is taken as it is.
+    and `loaded` windows) of a weight of known `mass_kg` held with its centre of mass at the
+    fingertip point, with the estimator's model of the arm. The estimator's own gains are
+    not used: the reported change is taken as it is.
+
+    The weight's offset from the fingertip point is not fitted: at one pose it moves the
+    load torque of every pitch joint alike, as their gains do. A weight d (m) off the grasp
+    point horizontally shifts a joint's fitted gain by about d over its lever.
 
     Raises ValueError if the mass is not positive or the fitted gains leave [0.5, 2] (the
     weight was not held, or the mass given is not the weight's).
@@ -34,20 +32,13 @@ def fit_torque_gain(estimator: MassEstimator, empty: TorqueWindow, loaded: Torqu
         raise ValueError(f"the calibration weight's mass must be positive, got {mass_kg} kg")
     reported = np.asarray(loaded.torque - empty.torque, dtype=float)
     own = estimator.own_torque_change(empty, loaded)
-    jacobian = estimator.fingertip_jacobian(loaded.position)
-    gain = np.ones_like(reported)
-    for _ in range(ROUNDS):
-        offset = horizontal_load_offset(jacobian[5], jacobian[0], jacobian[1],
-                                        reported / gain - own)
-        expected_load = mass_kg * GRAVITY * estimator.vertical_jacobian(loaded.position,
-                                                                        offset)
-        loaded_joints = np.abs(expected_load) >= min_share * np.abs(expected_load).max()
-        gain = np.where(loaded_joints, reported / np.where(loaded_joints,
-                                                           expected_load + own, 1.0), 1.0)
-        try:
-            gain = as_gain(gain)
-        except ValueError as error:
-            raise ValueError(f"the fitted gains do not look like a sensor's ({error}): was "
-                             f"the {1000 * mass_kg:.0f} g weight held during the loaded "
-                             "window?") from None
-    return gain
+    expected_load = mass_kg * GRAVITY * estimator.vertical_jacobian(loaded.position)
+    loaded_joints = np.abs(expected_load) >= min_share * np.abs(expected_load).max()
+    gain = np.where(loaded_joints,
+                    reported / np.where(loaded_joints, expected_load + own, 1.0), 1.0)
+    try:
+        return as_gain(gain)
+    except ValueError as error:
+        raise ValueError(f"the fitted gains do not look like a sensor's ({error}): was the "
+                         f"{1000 * mass_kg:.0f} g weight held during the loaded window?"
+                         ) from None
