@@ -111,9 +111,9 @@ def test_rig_calibration_is_refused_without_a_terminal_or_a_calibration_file(tmp
 def test_the_gains_fitted_on_an_emulated_twin_are_its_drawn_gains(tmp_path):
     # Only the torque sensors' gains drawn (seed 12: J2 and J3 both about 4 % low): one
     # weighing, with the twin's torque noise, recovers them on the loaded joints. Each
-    # joint's fit scatters by about 0.4 % (the noise of two 1 s windows; up to 0.7 % seen on
-    # a loaded machine); a bias they share shows in their mean, where the noise averages
-    # down (a fit that took the gains' pattern for a load offset was 1.1-1.7 % low in both).
+    # joint's fit scatters by about 0.3 % (the noise of two 3 s windows); a bias they share
+    # shows in their mean, where the noise averages down (a fit that took the gains' pattern
+    # for a load offset was 1.1-1.7 % low in both here: docs/rig_calibration.md).
     scenario_file = tmp_path / "rig.yaml"
     scenario_file.write_text(twin_text("[torque_gain]", seed=12,
                                        calibration_file="rig_probes.yaml"))
