@@ -11,6 +11,7 @@ from pathlib import Path
 import pytest
 from typer.testing import CliRunner
 
+from physcap_drake.app.rig_probes import with_gain_window
 from physcap_drake.cli import app
 from physcap_drake.physx.probe_calibration import (
     ProbeCalibration,
@@ -105,6 +106,15 @@ def test_rig_calibration_is_refused_without_a_terminal_or_a_calibration_file(tmp
                                     str(stations_dir() / "calibration.yaml"), "--fit-gain",
                                     "--weight-g", "500", "--yes"])
     assert simulated.exit_code == 2 and "simulated arm" in simulated.output
+
+
+def test_the_gain_weighing_averages_three_second_windows_or_the_scenarios_longer_ones():
+    scenario = load_twin_text(twin_text())
+    assert scenario.physx.mass.window == 1.0  # get_mass's own
+    assert with_gain_window(scenario).physx.mass.window == 3.0
+    assert scenario.physx.mass.window == 1.0  # the caller's scenario stays as it was
+    scenario.physx.mass.window = 5.0
+    assert with_gain_window(scenario).physx.mass.window == 5.0
 
 
 @pytest.mark.emulated_hardware

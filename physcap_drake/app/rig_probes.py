@@ -111,6 +111,13 @@ def _existing(path: Path) -> ProbeCalibration:
     return load_probe_calibration(path) if path.is_file() else ProbeCalibration()
 
 
+def with_gain_window(scenario: Scenario) -> Scenario:
+    """The scenario with get_mass's torque windows at least GAIN_WINDOW_S long (s)."""
+    mass = scenario.physx.mass
+    return dc.replace(scenario, physx=dc.replace(scenario.physx, mass=dc.replace(
+        mass, window=max(mass.window, GAIN_WINDOW_S))))
+
+
 @dc.dataclass(frozen=True)
 class GainOnRig:
     """The torque gains fitted on the rig's arm, the file written, the weighing's time."""
@@ -128,9 +135,7 @@ def fit_gain_on_rig(scenario: Scenario, grams: float, place=DEFAULT_PLACE,
     RigCalibrationError if the weighing or the fit failed (nothing is written)."""
     path, scenario, point = _prepared(scenario, lambda: twin_weight_model(grams), place,
                                       grasp_height)
-    mass = scenario.physx.mass
-    scenario = dc.replace(scenario, physx=dc.replace(scenario.physx, mass=dc.replace(
-        mass, window=max(mass.window, GAIN_WINDOW_S))))
+    scenario = with_gain_window(scenario)
 
     def weigh(api: RobotAPI, robot) -> GainOnRig:
         _probe(lambda: api.get_mass(point), "weighing")
