@@ -56,7 +56,7 @@ def _reported_windows(estimator, pose, mass_kg, offset_xy=(0.0, 0.0), gain=TRUE_
 def test_the_loaded_joints_gains_are_found_from_one_known_weight(model, true_gain):
     # The weight hangs at the grasp point, as the probe grasps it: the gains come out exact
     # whatever their pattern. Loaded, the arm sags 1 mrad on J2, J3 (as the emulated twin's
-    # does): its own gravity torque changes by 0.4 % of the load's on J2, and that is no gain.
+    # does): its own gravity torque changes by 0.3 % of the load's on J2, and that is no gain.
     ideal = _estimator(model)
     empty, loaded = _reported_windows(ideal, CALIBRATION_POSE, 0.5, gain=true_gain,
                                       sag=np.array([0.0, 1e-3, 1e-3, 0.0, 4e-4, 0.0]))

@@ -40,7 +40,7 @@ TWIN_BLOCK = "stiffness_level5"
 #: The weights an emulated twin has (models/calibration/), g.
 TWIN_WEIGHTS_G = (13, 120, 350, 500, 600, 963)
 #: The shortest torque window of the gain weighing, s: a 1 s window's sensor noise scatters
-#: each fitted gain by about 0.4 %, a 3 s one's by about 0.25 % (docs/rig_calibration.md).
+#: each fitted gain by about 0.4 %, a 3 s one's by about 0.3 % (docs/rig_calibration.md).
 GAIN_WINDOW_S = 3.0
 
 
@@ -131,8 +131,8 @@ def fit_gain_on_rig(scenario: Scenario, grams: float, place=DEFAULT_PLACE,
                     grasp_height: float = WEIGHT_GRASP_HEIGHT) -> GainOnRig:
     """Weighs the `grams` weight standing at `place` with get_mass (torque windows of at
     least GAIN_WINDOW_S) and writes the torque gains fitted to it into the scenario's probe
-    calibration file. Raises
-    RigCalibrationError if the weighing or the fit failed (nothing is written)."""
+    calibration file. Raises RigCalibrationError if the weighing or the fit failed (nothing
+    is written)."""
     path, scenario, point = _prepared(scenario, lambda: twin_weight_model(grams), place,
                                       grasp_height)
     scenario = with_gain_window(scenario)
