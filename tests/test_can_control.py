@@ -21,7 +21,8 @@ from physcap_drake.piper_emulator.motion import KinematicMotion
 from physcap_drake.station.can_config import PiperCan, rig_skills
 from physcap_drake.station.can_gate import EnableRefused, allow_enabling, confirm_enabling
 
-pytestmark = pytest.mark.emulated_hardware
+#: Streaming and watchdog deadlines at wall-clock rate: with the other real-time CAN tests.
+pytestmark = [pytest.mark.emulated_hardware, pytest.mark.xdist_group("realtime")]
 
 
 class WithoutFrames(can.BusABC):

@@ -17,7 +17,7 @@ from physcap_drake.piper_emulator.emulator import wait_until
 from physcap_drake.piper_emulator.motion import KinematicMotion
 from physcap_drake.station.simulated_motion import simulated_motion
 
-pytestmark = [pytest.mark.emulated_hardware,
+pytestmark = [pytest.mark.emulated_hardware, pytest.mark.xdist_group("realtime"),  # sink per s
               pytest.mark.filterwarnings("ignore:The .bustype. argument is deprecated")]
 READY = np.array([0.0, 1.2, -1.2, 0.0, 0.6, 0.0])
 #: The most a damped joint may move per second of wall time (a free fall is many times this).

@@ -17,7 +17,8 @@ from physcap_drake.cli import app
 from physcap_drake.piper_emulator.emulator import wait_until
 from physcap_drake.resources import stations_dir
 
-pytestmark = pytest.mark.emulated_hardware
+#: A served arm and its commands keep wall-clock deadlines: with the real-time CAN tests.
+pytestmark = [pytest.mark.emulated_hardware, pytest.mark.xdist_group("realtime")]
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 ENV = {**os.environ, "PYTHONPATH": ROOT}
