@@ -20,6 +20,7 @@ from physcap_drake.piper_emulator.emulator import PiperEmulator, wait_until
 from physcap_drake.piper_emulator.motion import KinematicMotion
 from physcap_drake.station.can_config import PiperCan, rig_skills
 from physcap_drake.station.can_gate import EnableRefused, allow_enabling, confirm_enabling
+from physcap_drake.station.can_operator import arm_report
 
 #: Streaming and watchdog deadlines at wall-clock rate: with the other real-time CAN tests.
 pytestmark = [pytest.mark.emulated_hardware, pytest.mark.xdist_group("realtime")]
@@ -338,3 +339,23 @@ def test_skills_on_a_real_arm_are_slow_unless_the_scenario_raises_them():
     assert (raised.max_joint_velocity, raised.max_joint_acceleration) == (2.5, 4.0)
     twin = rig_skills(skills, PiperCan(interface="virtual", emulate=True))
     assert (twin.max_joint_velocity, twin.max_joint_acceleration) == (3.0, 5.0)
+
+
+def test_a_status_read_waits_for_every_drivers_report_before_saying_a_motor_is_off():
+    """The enable bits come in the drivers' frames (0x261-0x266), a few times a second: an
+    enabled arm whose driver frames had not come yet was reported with every motor off.
+    Without them the report is an error naming the frames; with them, the bits are the
+    arm's."""
+    def powered(arm):
+        arm.enabled[:] = True
+
+    with emulated_arm(powered) as (channel, _, _):
+        bus = WithoutFrames(can.Bus(interface="virtual", channel=channel), codec.LOW_SPEED)
+        link = link_on(channel, bus)
+        with pytest.raises(StartupError, match=r"drivers' status \(0x261-0x266\)"):
+            arm_report(link)
+        link = link_on(channel)
+        try:
+            assert arm_report(link).enabled.tolist() == [True] * 6
+        finally:
+            link.close()

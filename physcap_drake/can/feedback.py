@@ -350,6 +350,11 @@ class FeedbackListener(can.Listener):
         with self._lock:
             return self._driver_at >= since
 
+    def drivers_reported(self) -> bool:
+        """Whether every joint's driver has reported (0x261-0x266) at least once."""
+        with self._lock:
+            return bool(np.all(np.isfinite(self._driver_at)))
+
     def complete(self) -> bool:
         """Whether every joint angle and the gripper have been reported at least once."""
         with self._lock:

@@ -166,6 +166,14 @@ class PiperLink(ControlSteps):
             lambda: self.listener.snapshot().q if self.listener.complete() else None,
             "the joint angles (0x2A5-0x2A7)")
 
+    def read_drivers(self) -> np.ndarray:
+        """Which motors are enabled (J1..J6), once every driver has reported (0x261-0x266,
+        sent a few times a second: read before them, every motor would show off)."""
+        self.open()
+        return self._wait_for(
+            lambda: self.listener.snapshot().enabled if self.listener.drivers_reported()
+            else None, "the motor drivers' status (0x261-0x266)")
+
     def read_parameters(self) -> ArmParameters:
         """Asks for every parameter the arm reports (see ArmParameters) and waits for all."""
         self.open()

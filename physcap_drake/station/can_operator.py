@@ -85,6 +85,7 @@ def arm_report(link: PiperLink) -> ArmReport:
     firmware = link.read_firmware()
     parameters = link.read_parameters()
     link.read_status()
+    link.read_drivers()  # the enable bits: a status read before them shows every motor off
     feedback = link.listener.snapshot()
     assert feedback.status is not None  # read_status waited for one
     problems = [feedback.status.error] if feedback.status.error else []
