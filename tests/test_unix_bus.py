@@ -8,6 +8,7 @@ import os
 import socket
 import subprocess
 import sys
+import threading
 import time
 
 import can
@@ -15,6 +16,7 @@ import numpy as np
 import pytest
 from piper_sdk_peer import enable, joints, sdk_on_unix_bus, status
 
+from physcap_drake.can import unix_bus
 from physcap_drake.can.unix_bus import UnixBusHub, UnixSocketBus
 from physcap_drake.piper_emulator.emulator import wait_until
 
@@ -143,3 +145,35 @@ def test_one_emulated_arm_is_shared_by_separate_processes(path, monkeypatch, tmp
     assert server.returncode == 0, output
     assert "Traceback" not in output
     assert not os.path.exists(path)
+
+
+def test_the_socket_path_appears_only_once_the_hub_accepts_members(path, monkeypatch):
+    """A member that connects as soon as the path exists (a second terminal's command, a
+    script waiting for the file) is accepted: the path does not exist while the hub's
+    socket is bound but not yet listening (piper_sdk, refused twice, then read nothing)."""
+    listening, release = threading.Event(), threading.Event()
+
+    class SlowToListen(socket.socket):
+        def listen(self, backlog):
+            listening.set()
+            release.wait(10.0)
+            super().listen(backlog)
+
+    monkeypatch.setattr(unix_bus, "_seqpacket",
+                        lambda: SlowToListen(socket.AF_UNIX, socket.SOCK_SEQPACKET))
+    hubs = []
+    starting = threading.Thread(target=lambda: hubs.append(UnixBusHub(path)))
+    starting.start()
+    try:
+        assert listening.wait(10.0)
+        assert not os.path.exists(path)  # bound, not listening: nothing to find yet
+    finally:
+        release.set()
+        starting.join()
+    member = UnixSocketBus(path)
+    try:
+        assert wait_until(lambda: hubs[0].member_count == 1)
+    finally:
+        member.shutdown()
+        hubs[0].close()
+    assert not os.path.exists(path) and not os.path.exists(path + "~")

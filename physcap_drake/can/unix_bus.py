@@ -78,8 +78,19 @@ class UnixBusHub:
         _claim(path)
         self.path = path
         self._listener = _seqpacket()
-        self._listener.bind(path)
-        self._listener.listen(16)
+        # Bound beside it and renamed once listening: a member that starts as soon as the
+        # path exists must not find a socket that refuses it (bound, not yet listening).
+        binding = f"{path}~"
+        _claim(binding)  # left by a hub killed between the two
+        self._listener.bind(binding)
+        try:
+            self._listener.listen(16)
+            os.rename(binding, path)
+        except OSError:
+            self._listener.close()
+            with contextlib.suppress(FileNotFoundError):
+                os.unlink(binding)
+            raise
         self._listener.setblocking(False)
         self._members: list[socket.socket] = []
         self._stop = threading.Event()
