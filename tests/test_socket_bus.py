@@ -3,10 +3,14 @@ go as one packet (one wake-up of the reader) and come out one by one, in order, 
 
 from __future__ import annotations
 
+import contextlib
+import threading
+import time
+
 import can
 import pytest
 
-from physcap_drake.can.socket_bus import SocketBus, socket_pair
+from physcap_drake.can.socket_bus import CLOSED_PEER_WAIT, SocketBus, socket_pair
 from physcap_drake.can.unix_bus import UnixBusHub, UnixSocketBus
 from physcap_drake.piper_emulator.emulator import wait_until
 
@@ -76,3 +80,32 @@ def test_a_member_of_the_hub_gets_a_packet_of_frames_whole(tmp_path):
         member.shutdown()
         local.shutdown()
         hub.close()
+
+
+def test_a_reader_blocked_on_a_bus_whose_peer_has_gone_does_not_spin():
+    """piper_sdk reads with recv() and no timeout; once the peer (the emulator) has closed
+    its end, each read finds nothing at once and python-can asks again. Each must wait, or
+    the reader's thread takes a whole core for as long as the bus stays open."""
+    mine, theirs = socket_pair()
+    bus = SocketBus(mine)
+    theirs.close()
+    reads, inner = [], bus._recv_internal
+
+    def counted(timeout):
+        reads.append(timeout)
+        return inner(timeout)
+
+    def read() -> None:
+        with contextlib.suppress(can.CanError):
+            bus.recv()
+
+    bus._recv_internal = counted
+    reader = threading.Thread(target=read, daemon=True)
+    reader.start()
+    assert wait_until(lambda: reads, timeout=10.0)
+    first, started = len(reads), time.monotonic()
+    time.sleep(0.3)
+    seen, took = len(reads) - first, time.monotonic() - started
+    bus.shutdown()  # the blocked recv() raises now and the thread ends
+    reader.join(timeout=5.0)
+    assert seen <= took / CLOSED_PEER_WAIT + 2  # spinning, it read 365,405 times in 0.3 s

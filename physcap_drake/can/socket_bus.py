@@ -29,6 +29,8 @@ PACKET_BYTES = _FRAME.size
 MAX_FRAMES = 64
 #: Bytes of the largest packet.
 MAX_PACKET_BYTES = MAX_FRAMES * PACKET_BYTES
+#: How long a read waits once the peer has closed its end, s (nothing will come).
+CLOSED_PEER_WAIT = 0.01
 
 
 def socket_pair() -> tuple[socket.socket, socket.socket]:
@@ -99,8 +101,9 @@ class SocketBus(can.BusABC):
         except OSError as error:
             raise can.CanOperationError(f"socket bus: {error}") from error
         if not packet:  # the peer closed its end: nothing will come any more
-            if timeout:
-                time.sleep(min(timeout, 0.01))
+            # Waits a little even without a timeout: python-can's recv() then calls again at
+            # once, and a reader blocked in recv() (piper_sdk's) would spin a core.
+            time.sleep(CLOSED_PEER_WAIT if timeout is None else min(timeout, CLOSED_PEER_WAIT))
             return None, False
         channel = self.channel_info
         self._received.extend(
