@@ -13,7 +13,7 @@ import threading
 
 
 class InterruptGuard:
-    """Holds Ctrl-C back between `enter()` and `exit()` of the main thread.
+    """Holds Ctrl-C back while the main thread is inside `with GUARD:`.
 
     `install()` (once per user, e.g. per open recording) takes over SIGINT if it is Python's
     default handler (the one that raises KeyboardInterrupt) and this is the main thread;
@@ -41,11 +41,12 @@ class InterruptGuard:
         if self._users == 0 and signal.getsignal(signal.SIGINT) == self._on_interrupt:
             signal.signal(signal.SIGINT, signal.default_int_handler)
 
-    def enter(self) -> None:
+    def __enter__(self) -> InterruptGuard:
         if threading.get_ident() == self._main:
             self._depth += 1
+        return self
 
-    def exit(self) -> None:
+    def __exit__(self, *exc) -> None:
         """Ends a hold; raises KeyboardInterrupt if Ctrl-C came during the outermost one."""
         if threading.get_ident() != self._main:
             return

@@ -9,7 +9,6 @@ import dataclasses as dc
 import json
 import math
 import threading
-from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -196,38 +195,24 @@ class McapSink:
         self._log_to(channel, {**message, SIM_TIME_KEY: at.sim_time_s}, at)
 
     def metadata(self, name: str, values: dict[str, str]) -> None:
-        with self._writing():
+        with GUARD, self._lock:  # Ctrl-C waits for the writer (interrupt_guard)
             self._writer.write_metadata(name, {k: str(v) for k, v in values.items()})
 
     def _log_to(self, channel, message, at: Stamp) -> None:
-        GUARD.enter()  # as _writing(), without a generator per message
-        try:
-            with self._lock:
-                channel.log(message, log_time=at.log_time_ns)
-        finally:
-            GUARD.exit()
-
-    @contextmanager
-    def _writing(self):
-        """The writer to oneself, with Ctrl-C held back until its call returns."""
-        GUARD.enter()
-        try:
-            with self._lock:
-                yield
-        finally:
-            GUARD.exit()
+        with GUARD, self._lock:
+            channel.log(message, log_time=at.log_time_ns)
 
     # --- the file ------------------------------------------------------------------------
 
     def flush(self) -> None:
         """Ends the current chunk and writes it to disk."""
-        with self._writing():
+        with GUARD, self._lock:
             if not self.closed:
                 self._writer.flush()
 
     def close(self) -> None:
         """Writes the summary section; the file is complete. Safe to call twice."""
-        with self._writing():
+        with GUARD, self._lock:
             if not self.closed:
                 self.closed = True
                 self._file.finishing()
