@@ -178,3 +178,20 @@ def test_a_wrist_bent_beyond_joint_5s_limit_is_refused_without_inverse_kinematic
 
 def _no_ik(*_, **__):
     raise AssertionError("inverse kinematics tried on a pose beyond the joint limits")
+
+
+def test_the_next_pose_is_the_nearest_by_the_joint_that_moves_most_among_the_next_few():
+    q = np.zeros(6)
+    planned = {0: np.array([0.5, 0.5, 0.5, 0.5, 0.5, 0.0]),  # most moving joint 0.5 rad
+               1: np.array([0.0, 0.0, 0.0, 0.0, 0.0, 0.6]),  # 0.6 rad, the least in all
+               3: np.array([0.1, 0.0, 0.0, 0.0, 0.0, 0.0])}  # nearest, fourth in line
+    # Target 2 has no joints (out of reach when planned); it is passed over while planned
+    # ones are left, and the pool of 2 holds the first two planned: 0 and 1.
+    assert hand_eye_poses.nearest_first(planned, [0, 1, 2, 3], q, 2) == 0
+    assert hand_eye_poses.nearest_first(planned, [0, 1, 2, 3], q, 3) == 3
+    assert hand_eye_poses.nearest_first(planned, [1, 2, 3], q, 1) == 1
+    # From where target 0 left the arm, target 1 is 0.6 rad away and target 3 0.5 rad.
+    assert hand_eye_poses.nearest_first(planned, [1, 2, 3], planned[0], 2) == 3
+    # None planned left: the targets that were not are tried in their order; then none.
+    assert hand_eye_poses.nearest_first(planned, [2, 4], q, 5) == 2
+    assert hand_eye_poses.nearest_first(planned, [], q, 5) is None

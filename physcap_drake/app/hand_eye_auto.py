@@ -1,7 +1,8 @@
 """Hand-eye calibration with the arm moving itself (`physcap calibrate camera --method
 gripper --auto`): the arm closes on the A4 board, moves at the rig's slow speed through
 poses facing the camera (from the scenario's nominal camera pose, then from the estimate as
-views come in), takes a view whenever its measured joints have settled, and solves.
+views come in; the nearest of the next poses first), takes a view whenever its measured
+joints have settled, and solves.
 
 On an emulated twin the board is welded in the gripper of the twin's world (the owner's
 part), clamped a little off the nominal mount. Frames: see perception/hand_eye_poses.py.
@@ -29,6 +30,7 @@ from physcap_drake.perception.hand_eye_poses import (
     BoardTarget,
     board_pose,
     default_targets,
+    nearest_first,
     out_of_view_problem,
     reachable_pose,
     table_clearance_problem,
@@ -195,26 +197,27 @@ def _take_views(api, robot, scenario, camera_name: str, camera: CameraGeometry, 
     model.hold(HELD_BOARD)
     skills = scenario.skills
     intrinsics = (camera.fx, camera.fy, camera.cx, camera.cy)
+
+    def pose(target: BoardTarget, seed: np.ndarray) -> tuple[np.ndarray | None, str]:
+        return _joints_in_view(model, target, estimate, camera, seed, api.gripper_opening,
+                               skills)
+
+    # The joints of every target from the nominal estimate order the visits; each pose is
+    # computed again from the estimate of its turn, seeded with its planned joints.
+    lifted = api.joint_target
+    planned = {index: q for index, (q, _) in enumerate(pose(target, lifted)
+                                                       for target in targets) if q is not None}
+    say(f"{len(planned)} of the {len(targets)} poses in reach and in view; the nearest first")
+    left = list(range(len(targets)))
     taken: list[hand_eye.HandView] = []
-    for index, target in enumerate(targets):
-        if len(taken) >= wanted:
+    while len(taken) < wanted:
+        index = nearest_first(planned, left, api.joint_target, wanted - len(taken))
+        if index is None:
             break
+        left.remove(index)
         head = f"pose {index + 1}/{len(targets)}"
-        X_WB = board_pose(target, estimate.X_WC)
-        problem = _pose_problem(X_WB, estimate.X_WC, camera)
-        if problem:
-            say(f"{head}: skipped, {problem}")
-            continue
-        try:
-            X_WB, q = reachable_pose(model, target, estimate.X_WC, estimate.X_GB,
-                                     api.joint_target, opening=api.gripper_opening,
-                                     collision_margin=max(skills.collision_margin, 0.01),
-                                     limit_margin=skills.joint_limit_margin)
-        except SkillRefused as error:
-            say(f"{head}: skipped, unreachable: {error}")
-            continue
-        problem = _pose_problem(X_WB, estimate.X_WC, camera)
-        if problem:
+        q, problem = pose(targets[index], planned.get(index, api.joint_target))
+        if q is None:
             say(f"{head}: skipped, {problem}")
             continue
         try:
@@ -237,6 +240,27 @@ def _take_views(api, robot, scenario, camera_name: str, camera: CameraGeometry, 
         note = _refine(estimate, taken, intrinsics)
         say(f"{head}: view {len(taken)}/{wanted}, {len(view.ids)} corners{note}")
     return taken
+
+
+def _joints_in_view(model: PlanningModel, target: BoardTarget, estimate: _Estimate,
+                    camera: CameraGeometry, seed: np.ndarray, opening: float,
+                    skills) -> tuple[np.ndarray | None, str]:
+    """The joints (rad; inverse kinematics from `seed`, rad, with the gripper `opening` m
+    open) that hold the board at `target` wholly in the image of the camera at the
+    estimate's pose; or None and why not."""
+    X_WB = board_pose(target, estimate.X_WC)
+    problem = _pose_problem(X_WB, estimate.X_WC, camera)
+    if problem:
+        return None, problem
+    try:
+        X_WB, q = reachable_pose(model, target, estimate.X_WC, estimate.X_GB,
+                                 seed, opening=opening,
+                                 collision_margin=max(skills.collision_margin, 0.01),
+                                 limit_margin=skills.joint_limit_margin)
+    except SkillRefused as error:
+        return None, f"unreachable: {error}"
+    problem = _pose_problem(X_WB, estimate.X_WC, camera)
+    return (None, problem) if problem else (q, "")
 
 
 def _pose_problem(X_WB: RigidTransform, X_WC: RigidTransform, camera: CameraGeometry) -> str:

@@ -1,6 +1,7 @@
 """Arm poses for hand-eye calibration with the arm moving itself: board poses that face the
-camera, spread over its image and turned about different axes, and the arm joints that put
-the clamped board there, clear of the table, the camera stand and the arm itself.
+camera, spread over its image and turned about different axes, the arm joints that put
+the clamped board there, clear of the table, the camera stand and the arm itself, and the
+order that moves the arm least between them.
 
 Frames: W the arm's base frame, C the camera's optical frame (z forward, x right, y down),
 G the flange (link6), B the board (centre of its ChArUco area, z out of the printed face).
@@ -9,6 +10,7 @@ G the flange (link6), B the board (centre of its ChArUco area, z out of the prin
 from __future__ import annotations
 
 import dataclasses as dc
+from collections.abc import Mapping, Sequence
 
 import numpy as np
 from pydrake.math import RigidTransform, RollPitchYaw, RotationMatrix
@@ -67,6 +69,18 @@ def default_targets(count: int = 24) -> tuple[BoardTarget, ...]:
     return tuple(BoardTarget(centres[order[k % len(centres)]], np.radians(20.0),
                              np.radians(137.5) * k, rolls[k % len(rolls)])
                  for k in range(count))
+
+
+def nearest_first(planned: Mapping[int, np.ndarray], left: Sequence[int], q: np.ndarray,
+                  pool: int) -> int | None:
+    """The target to visit next: of the first `pool` of `left` (the indices of targets not
+    visited yet, in their spread order) that have joints in `planned` (rad), the one whose
+    joints are nearest `q` (rad) by the travel of the joint that moves most; with none of
+    them planned, the first of `left`; None when `left` is empty."""
+    pooled = [index for index in left if index in planned][:max(pool, 0)]
+    if not pooled:
+        return left[0] if left else None
+    return min(pooled, key=lambda index: float(np.max(np.abs(planned[index] - q))))
 
 
 def board_pose(target: BoardTarget, X_WC: RigidTransform) -> RigidTransform:
