@@ -25,7 +25,7 @@ ROOT = Path(physcap_drake.__file__).parent
 LAYERS = (
     # Plain helpers with no robot in them.
     ("scenario_errors", "scenario_layers", "config_checks", "resources", "immutable_state",
-     "weak_method", "kinematics", "clock", "allocator", "blas_threads"),
+     "weak_method", "kinematics", "clock", "allocator", "blas_threads", "fork_server"),
     # The arm's bus, the host's side: protocol, link, buses.
     ("can",),
     # The PiPER's emulated firmware, on the protocol (never the host's link).

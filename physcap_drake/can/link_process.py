@@ -15,7 +15,7 @@ import time
 import numpy as np
 
 from physcap_drake.can import bring_up, codec
-from physcap_drake.can.child_process import ChildError, ChildProcess
+from physcap_drake.can.child_process import ChildError, ChildProcess, PassedFd
 from physcap_drake.can.feedback import Health
 from physcap_drake.can.link import LinkSettings, LinkStatus, StartupError
 from physcap_drake.can.playback import TargetPlayback
@@ -86,12 +86,11 @@ class LinkProcess:
         self.settings = settings
         self._targets = SharedBlock(TARGETS)
         self._feedback = SharedBlock(FEEDBACK)
-        bus_fd = None if bus_socket is None else bus_socket.fileno()
-        fds = (self._targets.fd, self._feedback.fd) + (() if bus_fd is None else (bus_fd,))
+        bus_fd = None if bus_socket is None else PassedFd(bus_socket.fileno())
         self._child = ChildProcess(
             "physcap_drake.can.link_process:serve",
-            (settings, faults, seed, self._targets.fd, self._feedback.fd, bus_fd), fds,
-            name="piper-can-link")
+            (settings, faults, seed, PassedFd(self._targets.fd), PassedFd(self._feedback.fd),
+             bus_fd), name="piper-can-link")
         if bus_socket is not None:
             bus_socket.close()  # the child has its own copy
         self._started = False

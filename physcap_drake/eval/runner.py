@@ -14,12 +14,11 @@ from typing import Any
 
 from physcap_drake.app.episode_folder import is_finished, read_summary, record_episode
 from physcap_drake.eval.grid import EpisodeSpec
+from physcap_drake.fork_server import fork_context
 
 #: Episodes one worker process runs before it is replaced by a fresh one: a guard, since an
-#: episode leaves nothing behind; a new worker is a fork of the pool's server (see PRELOADED).
+#: episode leaves nothing behind; a new worker is a fork of the program's fork server.
 EPISODES_PER_WORKER = 20
-#: Imported once by the pool's fork server; its workers start as forks of it.
-PRELOADED = ("physcap_drake.eval.runner",)
 
 
 def run_episode(spec: EpisodeSpec, out: Path, llm: str, model: str | None) -> dict[str, Any]:
@@ -53,11 +52,9 @@ def _adopt_environment(environment: dict[str, str]) -> None:
 
 
 def pool_context() -> multiprocessing.context.BaseContext:
-    """Workers forked from a server process that imported `PRELOADED` once (no parent state,
-    no threads are copied: see docs/design/eval.md)."""
-    context = multiprocessing.get_context("forkserver")
-    context.set_forkserver_preload(list(PRELOADED))
-    return context
+    """Workers forked from the program's fork server, which imported this module once (no
+    parent state, no threads are copied: see docs/design/eval.md)."""
+    return fork_context()
 
 
 def worker_pool(processes: int, tasks_per_worker: int) -> multiprocessing.pool.Pool:

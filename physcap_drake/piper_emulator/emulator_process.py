@@ -14,7 +14,7 @@ import time
 
 import numpy as np
 
-from physcap_drake.can.child_process import ChildError, ChildProcess, named_function
+from physcap_drake.can.child_process import ChildError, ChildProcess, PassedFd, named_function
 from physcap_drake.can.shared_block import Layout, SharedBlock
 
 #: How long the parent waits for the child to build its world and start, s.
@@ -68,15 +68,16 @@ class EmulatorProcess:
                              "(\"package.module:function\")")
         self._world = SharedBlock(world_layout(state_size)) if state_size else None
         self._last_world: tuple[float, np.ndarray] | None = None
-        world_fd = None if self._world is None else self._world.fd
-        fds = (bus_socket.fileno(),) + (() if world_fd is None else (world_fd,))
-        self._child = ChildProcess(
-            "physcap_drake.piper_emulator.emulator_process:serve",
-            (bus_socket.fileno(), scenario_yaml, world_builder, gripper_max_effort, firmware,
-             world_fd, state_size, realtime_priority, pace_world, start,
-             None if joints is None else [float(a) for a in joints]), fds,
-            name="piper-emulator")
-        bus_socket.close()  # the child has its own copy
+        world_fd = None if self._world is None else PassedFd(self._world.fd)
+        try:
+            self._child = ChildProcess(
+                "physcap_drake.piper_emulator.emulator_process:serve",
+                (PassedFd(bus_socket.fileno()), scenario_yaml, world_builder,
+                 gripper_max_effort, firmware, world_fd, state_size, realtime_priority,
+                 pace_world, start, None if joints is None else [float(a) for a in joints]),
+                name="piper-emulator", forked=True)
+        finally:
+            bus_socket.close()  # the child has its own copy
         self._ready = False
 
     def wait_ready(self) -> EmulatorProcess:
