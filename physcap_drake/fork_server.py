@@ -50,7 +50,7 @@ class _PopenWithoutMain(popen_forkserver.Popen):
     def _launch(self, process_obj) -> None:
         # The forkserver start of multiprocessing.popen_forkserver, minus the main module.
         prepared = {key: value for key, value in
-                    spawn.get_preparation_data(process_obj._name).items()  # noqa: SLF001
+                    spawn.get_preparation_data(process_obj._name).items()
                     if key not in MAIN_MODULE_KEYS}
         payload = io.BytesIO()
         multiprocessing.context.set_spawning_popen(self)
