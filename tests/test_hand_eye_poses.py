@@ -180,18 +180,31 @@ def _no_ik(*_, **__):
     raise AssertionError("inverse kinematics tried on a pose beyond the joint limits")
 
 
-def test_the_next_pose_is_the_nearest_by_the_joint_that_moves_most_among_the_next_few():
+def test_the_next_pose_is_measured_by_the_joint_that_moves_most_among_the_next_few():
     q = np.zeros(6)
     planned = {0: np.array([0.5, 0.5, 0.5, 0.5, 0.5, 0.0]),  # most moving joint 0.5 rad
                1: np.array([0.0, 0.0, 0.0, 0.0, 0.0, 0.6]),  # 0.6 rad, the least in all
                3: np.array([0.1, 0.0, 0.0, 0.0, 0.0, 0.0])}  # nearest, fourth in line
     # Target 2 has no joints (out of reach when planned); it is passed over while planned
-    # ones are left, and the pool of 2 holds the first two planned: 0 and 1.
-    assert hand_eye_poses.nearest_first(planned, [0, 1, 2, 3], q, 2) == 0
-    assert hand_eye_poses.nearest_first(planned, [0, 1, 2, 3], q, 3) == 3
-    assert hand_eye_poses.nearest_first(planned, [1, 2, 3], q, 1) == 1
-    # From where target 0 left the arm, target 1 is 0.6 rad away and target 3 0.5 rad.
-    assert hand_eye_poses.nearest_first(planned, [1, 2, 3], planned[0], 2) == 3
+    # ones are left, and the pool of 2 holds the first two planned: 0 and 1. By hand:
+    # 0 then 1 is 0.5 + 0.6 rad, 1 then 0 is 0.6 + 0.6 rad.
+    assert hand_eye_poses.next_target(planned, [0, 1, 2, 3], q, 2) == 0
+    # 3, 0, 1: 0.1 + 0.5 + 0.6 rad, the shortest of the six orders.
+    assert hand_eye_poses.next_target(planned, [0, 1, 2, 3], q, 3) == 3
+    assert hand_eye_poses.next_target(planned, [1, 2, 3], q, 1) == 1
+    # From where target 0 left the arm: 3 then 1 is 0.5 + 0.6 rad, 1 then 3 0.6 + 0.6.
+    assert hand_eye_poses.next_target(planned, [1, 2, 3], planned[0], 2) == 3
     # None planned left: the targets that were not are tried in their order; then none.
-    assert hand_eye_poses.nearest_first(planned, [2, 4], q, 5) == 2
-    assert hand_eye_poses.nearest_first(planned, [], q, 5) is None
+    assert hand_eye_poses.next_target(planned, [2, 4], q, 5) == 2
+    assert hand_eye_poses.next_target(planned, [], q, 5) is None
+
+
+def test_the_way_through_the_poses_is_not_always_nearest_first():
+    """Base angles 1, -1.5 and 3 rad from 0: nearest first is 1, -1.5, 3 (1 + 2.5 + 4.5
+    rad); going to -1.5 first, then 1 and 3, is 1.5 + 2.5 + 2 rad, the shortest."""
+    def at(base: float) -> np.ndarray:
+        return np.array([base, 0.0, 0.0, 0.0, 0.0, 0.0])
+
+    joints = {0: at(1.0), 1: at(-1.5), 2: at(3.0)}
+    assert hand_eye_poses.visiting_order(joints, at(0.0)) == [1, 0, 2]
+    assert hand_eye_poses.next_target(joints, [0, 1, 2], at(0.0), 3) == 1

@@ -1,8 +1,8 @@
 """Hand-eye calibration with the arm moving itself (`physcap calibrate camera --method
 gripper --auto`): the arm closes on the A4 board, moves at the rig's slow speed through
 poses facing the camera (from the scenario's nominal camera pose, then from the estimate as
-views come in; the nearest of the next poses first), takes a view whenever its measured
-joints have settled, and solves.
+views come in; the next poses in the order that moves the arm least), takes a view whenever
+its measured joints have settled, and solves.
 
 On an emulated twin the board is welded in the gripper of the twin's world (the owner's
 part), clamped a little off the nominal mount. Frames: see perception/hand_eye_poses.py.
@@ -30,7 +30,7 @@ from physcap_drake.perception.hand_eye_poses import (
     BoardTarget,
     board_pose,
     default_targets,
-    nearest_first,
+    next_target,
     out_of_view_problem,
     reachable_pose,
     table_clearance_problem,
@@ -207,11 +207,12 @@ def _take_views(api, robot, scenario, camera_name: str, camera: CameraGeometry, 
     lifted = api.joint_target
     planned = {index: q for index, (q, _) in enumerate(pose(target, lifted)
                                                        for target in targets) if q is not None}
-    say(f"{len(planned)} of the {len(targets)} poses in reach and in view; the nearest first")
+    say(f"{len(planned)} of the {len(targets)} poses in reach and in view; the shortest way "
+        "through them first")
     left = list(range(len(targets)))
     taken: list[hand_eye.HandView] = []
     while len(taken) < wanted:
-        index = nearest_first(planned, left, api.joint_target, wanted - len(taken))
+        index = next_target(planned, left, api.joint_target, wanted - len(taken))
         if index is None:
             break
         left.remove(index)

@@ -10,6 +10,7 @@ G the flange (link6), B the board (centre of its ChArUco area, z out of the prin
 from __future__ import annotations
 
 import dataclasses as dc
+import itertools
 from collections.abc import Mapping, Sequence
 
 import numpy as np
@@ -71,16 +72,49 @@ def default_targets(count: int = 24) -> tuple[BoardTarget, ...]:
                  for k in range(count))
 
 
-def nearest_first(planned: Mapping[int, np.ndarray], left: Sequence[int], q: np.ndarray,
-                  pool: int) -> int | None:
-    """The target to visit next: of the first `pool` of `left` (the indices of targets not
-    visited yet, in their spread order) that have joints in `planned` (rad), the one whose
-    joints are nearest `q` (rad) by the travel of the joint that moves most; with none of
-    them planned, the first of `left`; None when `left` is empty."""
+def next_target(planned: Mapping[int, np.ndarray], left: Sequence[int], q: np.ndarray,
+                pool: int) -> int | None:
+    """The target to visit next: the first on `visiting_order` of the first `pool` of `left`
+    (the indices of targets not visited yet, in their spread order) that have joints in
+    `planned` (rad), from the arm's joints `q` (rad); with none of them planned, the first
+    of `left`; None when `left` is empty."""
     pooled = [index for index in left if index in planned][:max(pool, 0)]
     if not pooled:
         return left[0] if left else None
-    return min(pooled, key=lambda index: float(np.max(np.abs(planned[index] - q))))
+    return visiting_order({index: planned[index] for index in pooled}, q)[0]
+
+
+def visiting_order(joints: Mapping[int, np.ndarray], q: np.ndarray) -> list[int]:
+    """The targets of `joints` (index: joints, rad) in the order of a short path from `q`
+    (rad), a leg's length being the travel of the joint that moves most: the nearest one
+    first, then improved while reversing a stretch of it or moving one target elsewhere in
+    it shortens it."""
+    def length(order: list[int]) -> float:
+        points = [q, *(joints[index] for index in order)]
+        return sum(float(np.max(np.abs(b - a))) for a, b in itertools.pairwise(points))
+
+    def changed(order: list[int]):
+        for first in range(len(order)):
+            for last in range(first + 1, len(order)):
+                yield order[:first] + order[first:last + 1][::-1] + order[last + 1:]
+            rest = order[:first] + order[first + 1:]
+            for place in range(len(order)):
+                yield rest[:place] + [order[first]] + rest[place:]
+
+    order: list[int] = []
+    while len(order) < len(joints):
+        here = joints[order[-1]] if order else q
+        order.append(min((index for index in joints if index not in order),
+                         key=lambda index: float(np.max(np.abs(joints[index] - here)))))
+    best = length(order)
+    shorter = True
+    while shorter:
+        shorter = False
+        for candidate in changed(order):
+            if length(candidate) < best - 1e-9:
+                order, best, shorter = candidate, length(candidate), True
+                break
+    return order
 
 
 def board_pose(target: BoardTarget, X_WC: RigidTransform) -> RigidTransform:
