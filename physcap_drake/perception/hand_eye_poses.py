@@ -111,8 +111,8 @@ def visiting_order(joints: Mapping[int, np.ndarray], q: np.ndarray) -> list[int]
     while shorter:
         shorter = False
         for candidate in changed(order):
-            if length(candidate) < best - 1e-9:
-                order, best, shorter = candidate, length(candidate), True
+            if (candidate_length := length(candidate)) < best - 1e-9:
+                order, best, shorter = candidate, candidate_length, True
                 break
     return order
 
